@@ -1,0 +1,431 @@
+"""Exact planar geometry of an extruded part, read from its STL.
+
+A part is a prism: a simple polygon (the *outline*, in the STL's x-y frame) extruded along +z
+from ``z = 0`` to ``z = thickness``. :func:`load_part` recovers the outline exactly from the
+mesh (the boundary edges of the top face), checks that the mesh really is a closed extrusion,
+and computes what the simulator needs:
+
+* ``area`` (m²) and ``centroid`` (m) of the outline;
+* ``second_moment = (Ixx, Iyy, Ixy)``: second moments of *area* about the centroid (m⁴),
+  ``Ixx = ∫(y - cy)² dA``, ``Iyy = ∫(x - cx)² dA``, ``Ixy = ∫(x - cx)(y - cy) dA`` (product of
+  area, positive sign). For a uniform prism of density ρ the mass moment about the vertical axis
+  through the centroid is ``ρ · thickness · (Ixx + Iyy)``;
+* ``convex_pieces``: an exact convex decomposition (constrained Delaunay triangulation merged
+  greedily, Hertel–Mehlhorn style): CCW convex polygons whose union is the outline and whose
+  interiors are disjoint. A convex outline is one piece.
+
+Everything is in metres. :meth:`PartGeometry.from_polygon` builds the same object from a vertex
+list (tests, hand-made parts).
+"""
+
+from __future__ import annotations
+
+import os
+import struct
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from feeder.errors import FeederError
+
+# Relative tolerance (of the part's in-plane size) for "the same z level" and collinear vertices.
+_REL_TOL = 1e-6
+
+
+# --------------------------------------------------------------------------------------------
+# Pure polygon math
+# --------------------------------------------------------------------------------------------
+def signed_area(poly: np.ndarray) -> float:
+    """Shoelace signed area of a closed polygon given without the closing duplicate (CCW > 0)."""
+    x, y = poly[:, 0], poly[:, 1]
+    return 0.5 * float(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y))
+
+
+def polygon_moments(poly: np.ndarray) -> tuple[float, np.ndarray, tuple[float, float, float]]:
+    """Area, centroid and central second moments ``(Ixx, Iyy, Ixy)`` of a simple polygon.
+
+    Green's theorem formulas, evaluated after shifting to the vertex mean for accuracy. The
+    polygon may be CW or CCW; the area returned is positive.
+    """
+    poly = np.asarray(poly, dtype=np.float64)
+    ref = poly.mean(axis=0)
+    p = poly - ref
+    x, y = p[:, 0], p[:, 1]
+    xn, yn = np.roll(x, -1), np.roll(y, -1)
+    cross = x * yn - xn * y
+    a = 0.5 * np.sum(cross)
+    if a == 0.0:
+        raise FeederError("polygon has zero area")
+    cx = np.sum((x + xn) * cross) / (6.0 * a)
+    cy = np.sum((y + yn) * cross) / (6.0 * a)
+    ixx_o = np.sum((y * y + y * yn + yn * yn) * cross) / 12.0
+    iyy_o = np.sum((x * x + x * xn + xn * xn) * cross) / 12.0
+    ixy_o = np.sum((x * yn + 2 * x * y + 2 * xn * yn + xn * y) * cross) / 24.0
+    sgn = 1.0 if a > 0 else -1.0
+    area = abs(a)
+    ixx = sgn * ixx_o - area * cy * cy
+    iyy = sgn * iyy_o - area * cx * cx
+    ixy = sgn * ixy_o - area * cx * cy
+    centroid = np.array([cx, cy]) + ref
+    return float(area), centroid, (float(ixx), float(iyy), float(ixy))
+
+
+def clean_outline(outline: np.ndarray, rel_tol: float = _REL_TOL) -> np.ndarray:
+    """Drop a closing duplicate, repeated vertices and collinear vertices; return CCW (N, 2)."""
+    pts = np.asarray(outline, dtype=np.float64)
+    if pts.ndim != 2 or pts.shape[1] != 2:
+        raise FeederError(f"outline must be an (N, 2) array, got shape {pts.shape}")
+    if not np.all(np.isfinite(pts)):
+        raise FeederError("outline has NaN or infinite coordinates")
+    size = float(np.max(np.ptp(pts, axis=0))) if len(pts) else 0.0
+    if size <= 0.0:
+        raise FeederError("outline has no extent")
+    tol = rel_tol * size
+    changed = True
+    while changed and len(pts) >= 3:
+        changed = False
+        nxt = np.roll(pts, -1, axis=0)
+        keep = np.linalg.norm(nxt - pts, axis=1) > tol
+        if not keep.all():
+            pts = pts[keep]
+            changed = True
+            continue
+        prv = np.roll(pts, 1, axis=0)
+        nxt = np.roll(pts, -1, axis=0)
+        d1, d2 = pts - prv, nxt - pts
+        cross = d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0]
+        # distance of the vertex from the chord prv->nxt
+        chord = np.linalg.norm(nxt - prv, axis=1)
+        dev = np.abs(cross) / np.maximum(chord, tol)
+        straight = (dev <= tol) & (np.sum(d1 * d2, axis=1) > 0)
+        if straight.any():
+            idx = int(np.flatnonzero(straight)[0])  # one at a time: stays exact and deterministic
+            pts = np.delete(pts, idx, axis=0)
+            changed = True
+    if len(pts) < 3:
+        raise FeederError("outline has fewer than 3 distinct non-collinear vertices")
+    if signed_area(pts) < 0:
+        pts = pts[::-1].copy()
+    return pts
+
+
+def is_convex(poly: np.ndarray, rel_tol: float = 1e-9) -> bool:
+    """True when a CCW polygon has no reflex vertex (collinear vertices allowed)."""
+    p = np.asarray(poly, dtype=np.float64)
+    d1 = p - np.roll(p, 1, axis=0)
+    d2 = np.roll(p, -1, axis=0) - p
+    cross = d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0]
+    scale = float(np.max(np.linalg.norm(d1, axis=1))) ** 2
+    return bool(np.all(cross >= -rel_tol * scale))
+
+
+def _check_simple(outline: np.ndarray, what: str) -> None:
+    import shapely
+
+    poly = shapely.Polygon(outline)
+    if not poly.is_valid:
+        reason = shapely.is_valid_reason(poly)
+        raise FeederError(f"{what} is not a simple polygon ({reason})")
+
+
+def convex_decomposition(outline: np.ndarray) -> list[np.ndarray]:
+    """Exact convex pieces of a simple CCW polygon (Hertel–Mehlhorn on a constrained triangulation).
+
+    Pieces use only the outline's own vertices, so their union is exactly the outline. Diagonals
+    are removed greedily, longest first (ties by vertex index), whenever the merged piece stays
+    convex; the result has at most 4x the minimum number of pieces.
+    """
+    import shapely
+
+    outline = np.asarray(outline, dtype=np.float64)
+    n = len(outline)
+    if is_convex(outline):
+        return [outline.copy()]
+    index = {(float(x), float(y)): i for i, (x, y) in enumerate(outline)}
+    tris = shapely.constrained_delaunay_triangles(shapely.Polygon(outline))
+    pieces: list[list[int]] = []
+    for tri in shapely.get_parts(tris):
+        coords = np.asarray(tri.exterior.coords)[:3]
+        try:
+            ids = [index[(float(x), float(y))] for x, y in coords]
+        except KeyError as err:  # pragma: no cover - CDT adds no Steiner points
+            raise FeederError("triangulation introduced a vertex not on the outline") from err
+        if signed_area(outline[ids]) < 0:
+            ids = ids[::-1]
+        pieces.append(ids)
+
+    def edges(piece: list[int]) -> list[tuple[int, int]]:
+        return [(piece[i], piece[(i + 1) % len(piece)]) for i in range(len(piece))]
+
+    # interior diagonals: directed edges whose reverse is also a piece edge
+    owner: dict[tuple[int, int], int] = {}
+    for k, piece in enumerate(pieces):
+        for e in edges(piece):
+            owner[e] = k
+    diagonals = sorted(
+        {(min(a, b), max(a, b)) for (a, b) in owner if (b, a) in owner},
+        key=lambda d: (-float(np.linalg.norm(outline[d[0]] - outline[d[1]])), d),
+    )
+    alive = {k: p for k, p in enumerate(pieces)}
+    for a, b in diagonals:
+        k1, k2 = owner.get((a, b)), owner.get((b, a))
+        if k1 is None or k2 is None or k1 == k2:
+            continue
+        p1, p2 = alive[k1], alive[k2]
+        # p1 contains a->b, p2 contains b->a; merged: p1 from b round to a, then p2 from a to b
+        i = p1.index(b)
+        walk1 = p1[i:] + p1[:i]  # starts at b, ends at a
+        j = p2.index(a)
+        walk2 = p2[j:] + p2[:j]  # starts at a, ends at b
+        merged = walk1 + walk2[1:-1]
+        if not is_convex(outline[merged]):
+            continue
+        del alive[k2]
+        alive[k1] = merged
+        for e in edges(merged):
+            owner[e] = k1
+        owner.pop((a, b), None)
+        owner.pop((b, a), None)
+    out = [outline[p].copy() for _, p in sorted(alive.items())]
+    assert sum(len(p) - 2 for p in alive.values()) == n - 2  # triangles conserved
+    return out
+
+
+# --------------------------------------------------------------------------------------------
+# The part
+# --------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class PartGeometry:
+    """Outline (N, 2) CCW in metres without closing duplicate, thickness (m) and derived values."""
+
+    part_id: str
+    outline: np.ndarray
+    thickness: float
+    area: float
+    centroid: np.ndarray
+    second_moment: tuple[float, float, float]
+    convex_pieces: list[np.ndarray] = field(repr=False)
+
+    @classmethod
+    def from_polygon(cls, part_id: str, outline, thickness: float) -> "PartGeometry":
+        """Build from a vertex list (CW or CCW, closing duplicate optional), metres."""
+        thickness = float(thickness)
+        if not np.isfinite(thickness) or thickness <= 0:
+            raise FeederError(f"part {part_id}: thickness must be positive, got {thickness!r}")
+        pts = clean_outline(outline)
+        _check_simple(pts, f"part {part_id}: outline")
+        area, centroid, moments = polygon_moments(pts)
+        pieces = convex_decomposition(pts)
+        for arr in [pts, centroid, *pieces]:
+            arr.setflags(write=False)
+        return cls(part_id, pts, thickness, area, centroid, moments, pieces)
+
+    @property
+    def perimeter(self) -> float:
+        return float(np.sum(np.linalg.norm(np.roll(self.outline, -1, axis=0) - self.outline, axis=1)))
+
+    @property
+    def size(self) -> float:
+        """Largest in-plane extent of the outline's bounding box (m)."""
+        return float(np.max(np.ptp(self.outline, axis=0)))
+
+
+# --------------------------------------------------------------------------------------------
+# STL
+# --------------------------------------------------------------------------------------------
+def read_stl(path: str | os.PathLike) -> np.ndarray:
+    """Triangles (T, 3, 3) float64 from a binary or ASCII STL; FeederError on a bad file."""
+    path = Path(path)
+    try:
+        data = path.read_bytes()
+    except OSError as err:
+        raise FeederError(f"{path}: cannot read ({err.strerror})") from err
+    if not data.strip():
+        raise FeederError(f"{path}: empty STL file")
+    if len(data) >= 84:
+        (count,) = struct.unpack_from("<I", data, 80)
+        if len(data) == 84 + 50 * count:
+            if count == 0:
+                raise FeederError(f"{path}: STL has no triangles")
+            rec = np.dtype([("n", "<f4", 3), ("v", "<f4", (3, 3)), ("attr", "<u2")])
+            tris = np.frombuffer(data, dtype=rec, count=count, offset=84)["v"].astype(np.float64)
+            return _finite(tris, path)
+    head = data[:512].lstrip().lower()
+    if head.startswith(b"solid"):
+        return _read_ascii(data, path)
+    if len(data) >= 84:
+        (count,) = struct.unpack_from("<I", data, 80)
+        raise FeederError(
+            f"{path}: truncated binary STL ({len(data)} bytes, header announces {count} triangles "
+            f"= {84 + 50 * count} bytes)"
+        )
+    raise FeederError(f"{path}: not an STL file (too short for binary, no 'solid' header)")
+
+
+def _finite(tris: np.ndarray, path: Path) -> np.ndarray:
+    if not np.all(np.isfinite(tris)):
+        raise FeederError(f"{path}: STL has NaN or infinite vertex coordinates")
+    return tris
+
+
+def _read_ascii(data: bytes, path: Path) -> np.ndarray:
+    try:
+        text = data.decode("ascii")
+    except UnicodeDecodeError as err:
+        raise FeederError(f"{path}: not a valid ASCII STL (non-ASCII bytes)") from err
+    tokens = text.split()
+    verts: list[list[float]] = []
+    n_facets = n_endfacets = 0
+    i = 0
+    try:
+        while i < len(tokens):
+            tok = tokens[i].lower()
+            if tok == "vertex":
+                verts.append([float(tokens[i + 1]), float(tokens[i + 2]), float(tokens[i + 3])])
+                i += 4
+                continue
+            if tok == "facet":
+                n_facets += 1
+            elif tok == "endfacet":
+                n_endfacets += 1
+            i += 1
+    except (IndexError, ValueError) as err:
+        raise FeederError(f"{path}: malformed ASCII STL vertex line") from err
+    if n_facets == 0:
+        raise FeederError(f"{path}: ASCII STL has no facets")
+    if n_facets != n_endfacets or len(verts) != 3 * n_facets or "endsolid" not in text.lower():
+        raise FeederError(
+            f"{path}: truncated ASCII STL ({n_facets} facets, {n_endfacets} complete, "
+            f"{len(verts)} vertices)"
+        )
+    return _finite(np.asarray(verts, dtype=np.float64).reshape(-1, 3, 3), path)
+
+
+def stl_bytes(outline: np.ndarray, thickness: float, name: str = "part") -> bytes:
+    """Binary STL of the prism ``outline x [0, thickness]`` (outline CCW, metres).
+
+    Caps are triangulated with the convex decomposition's pieces fanned (no new vertices); side
+    walls are two triangles per edge. Normals point outwards; output is deterministic.
+    """
+    outline = clean_outline(outline)
+    pieces = convex_decomposition(outline)
+    tris: list[np.ndarray] = []
+    z0, z1 = 0.0, float(thickness)
+    for piece in pieces:
+        for i in range(1, len(piece) - 1):
+            a, b, c = piece[0], piece[i], piece[i + 1]
+            if abs(signed_area(np.array([a, b, c]))) == 0.0:
+                continue  # collinear fan triangle of a piece with a straight vertex
+            tris.append(np.array([[*a, z1], [*b, z1], [*c, z1]]))  # top, CCW from above: +z
+            tris.append(np.array([[*a, z0], [*c, z0], [*b, z0]]))  # bottom: -z
+    n = len(outline)
+    for i in range(n):
+        p, q = outline[i], outline[(i + 1) % n]
+        tris.append(np.array([[*p, z0], [*q, z0], [*q, z1]]))
+        tris.append(np.array([[*p, z0], [*q, z1], [*p, z1]]))
+    arr = np.asarray(tris, dtype=np.float64)
+    normals = np.cross(arr[:, 1] - arr[:, 0], arr[:, 2] - arr[:, 0])
+    normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+    rec = np.zeros(len(arr), dtype=[("n", "<f4", 3), ("v", "<f4", (3, 3)), ("attr", "<u2")])
+    rec["n"] = normals
+    rec["v"] = arr
+    header = f"feeder extruded part {name}".encode("ascii")[:80].ljust(80, b" ")
+    return header + struct.pack("<I", len(arr)) + rec.tobytes()
+
+
+def _outline_from_mesh(tris: np.ndarray, path: Path) -> tuple[np.ndarray, float]:
+    """Check the mesh is a closed z-extrusion; return (outline CCW in x-y, thickness)."""
+    verts, inv = np.unique(tris.reshape(-1, 3), axis=0, return_inverse=True)
+    faces = inv.reshape(-1, 3)
+    # watertight and consistently oriented: each directed edge once, its reverse exactly once
+    directed = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
+    if np.any(directed[:, 0] == directed[:, 1]):
+        raise FeederError(f"{path}: STL has degenerate triangles (repeated vertex)")
+    keys = directed[:, 0].astype(np.int64) * len(verts) + directed[:, 1]
+    rkeys = directed[:, 1].astype(np.int64) * len(verts) + directed[:, 0]
+    uniq, counts = np.unique(keys, return_counts=True)
+    if np.any(counts > 1):
+        raise FeederError(f"{path}: STL is not a valid closed surface (an edge is used twice in "
+                          f"the same direction: inconsistent orientation or non-manifold)")
+    if not np.all(np.isin(rkeys, uniq)):
+        open_edges = int(np.sum(~np.isin(rkeys, uniq)))
+        raise FeederError(f"{path}: STL is not watertight ({open_edges} open edges)")
+
+    z = verts[:, 2]
+    zmin, zmax = float(z.min()), float(z.max())
+    size = float(np.max(np.ptp(verts[:, :2], axis=0)))
+    if size <= 0:
+        raise FeederError(f"{path}: STL has no in-plane extent")
+    tol = max(_REL_TOL * size, 1e-7 * max(abs(zmin), abs(zmax), size))
+    thickness = zmax - zmin
+    if thickness <= tol:
+        raise FeederError(f"{path}: STL is flat (no extent along z)")
+    at_bottom = np.abs(z - zmin) <= tol
+    at_top = np.abs(z - zmax) <= tol
+    if not np.all(at_bottom | at_top):
+        raise FeederError(f"{path}: not an extrusion along z (vertices between the two z levels)")
+    ftop = at_top[faces].all(axis=1)
+    fbot = at_bottom[faces].all(axis=1)
+    side = ~(ftop | fbot)
+    xy = verts[:, :2]
+    f_xy = xy[faces]
+    cross = ((f_xy[:, 1, 0] - f_xy[:, 0, 0]) * (f_xy[:, 2, 1] - f_xy[:, 0, 1])
+             - (f_xy[:, 1, 1] - f_xy[:, 0, 1]) * (f_xy[:, 2, 0] - f_xy[:, 0, 0]))
+    if np.any(np.abs(cross[side]) > tol * size):
+        raise FeederError(f"{path}: not an extrusion along z (a side facet is not vertical)")
+    if not ftop.any() or not fbot.any():
+        raise FeederError(f"{path}: not an extrusion along z (missing top or bottom face)")
+
+    def boundary(mask: np.ndarray) -> np.ndarray:
+        f = faces[mask]
+        d = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])
+        k = d[:, 0].astype(np.int64) * len(verts) + d[:, 1]
+        rk = d[:, 1].astype(np.int64) * len(verts) + d[:, 0]
+        return d[~np.isin(rk, k)]
+
+    top_edges = boundary(ftop)
+    # chain the directed boundary edges into loops
+    nxt: dict[int, int] = {}
+    for a, b in top_edges:
+        if int(a) in nxt:
+            raise FeederError(f"{path}: top face boundary is not a simple loop")
+        nxt[int(a)] = int(b)
+    start = min(nxt)
+    loop = [start]
+    cur = nxt[start]
+    while cur != start:
+        loop.append(cur)
+        cur = nxt.get(cur, -1)
+        if cur == -1 or len(loop) > len(nxt):
+            raise FeederError(f"{path}: top face boundary is not a closed loop")
+    if len(loop) != len(nxt):
+        raise FeederError(
+            f"{path}: top face has more than one boundary loop (holes or several bodies); parts "
+            f"must be simply connected"
+        )
+    outline = xy[loop]
+    bot_edges = boundary(fbot)
+    top_set = {tuple(np.round(xy[i], 12)) for i in loop}
+    bot_set = {tuple(np.round(xy[i], 12)) for i in np.unique(bot_edges)}
+    if top_set != bot_set:
+        raise FeederError(f"{path}: not an extrusion along z (top and bottom outlines differ)")
+    top_area = 0.5 * float(np.sum(np.abs(cross[ftop])))
+    if abs(top_area - abs(signed_area(outline))) > 1e-6 * top_area:
+        raise FeederError(f"{path}: top face overlaps itself")
+    return outline, thickness
+
+
+def load_part(path: str | os.PathLike) -> PartGeometry:
+    """Read ``<id>.stl`` (metres, extruded along z) into a :class:`PartGeometry`.
+
+    The outline is shifted so that it sits in the STL's own x-y frame (no recentring); the
+    thickness is the z extent. Any defect is a one-line FeederError naming the file.
+    """
+    path = Path(path)
+    tris = read_stl(path)
+    outline, thickness = _outline_from_mesh(tris, path)
+    try:
+        return PartGeometry.from_polygon(path.stem, outline, thickness)
+    except FeederError as err:
+        raise FeederError(f"{path}: {err}") from err
