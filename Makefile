@@ -1,0 +1,40 @@
+# Two commands for a newcomer: `make run` and `make test`.
+PYTHON ?= python3.11
+VENV   := .venv
+BIN    := $(VENV)/bin
+STAMP  := $(VENV)/.installed
+
+.PHONY: run test smoke lint dryrun lock clean-venv
+
+# (Re)build the environment when it is missing or older than the lock or the package metadata.
+$(STAMP): environment.lock pyproject.toml
+	@command -v $(PYTHON) >/dev/null || { echo "need $(PYTHON) on PATH (set PYTHON=...)"; exit 1; }
+	rm -rf $(VENV)
+	$(PYTHON) -m venv $(VENV)
+	$(BIN)/pip install --quiet --upgrade pip
+	$(BIN)/pip install --quiet -r environment.lock
+	$(BIN)/pip install --quiet --no-deps --no-build-isolation -e .
+	touch $(STAMP)
+
+run: $(STAMP)
+	$(BIN)/snakemake --cores 2
+
+test: $(STAMP)
+	$(BIN)/python -m pytest -q
+
+smoke: $(STAMP)
+	$(BIN)/snakemake --cores 2 --configfile config/smoke.yaml
+
+lint: $(STAMP)
+	$(BIN)/snakemake --lint
+	$(BIN)/snakemake --lint --configfile config/smoke.yaml
+
+# Regenerate environment.lock from the direct dependencies in pyproject.toml.
+lock:
+	rm -rf /tmp/feeder-lock && $(PYTHON) -m venv /tmp/feeder-lock
+	/tmp/feeder-lock/bin/pip install --quiet --upgrade pip
+	/tmp/feeder-lock/bin/pip install --quiet torch==2.13.0 .[test]
+	/tmp/feeder-lock/bin/pip freeze --exclude feeder | sed 's/+cpu$$//' > environment.lock
+
+clean-venv:
+	rm -rf $(VENV)

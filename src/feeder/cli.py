@@ -1,0 +1,59 @@
+"""The ``feeder`` command line: one subcommand per stage, dispatched lazily.
+
+Each stage module owns its subcommand through a ``main(argv: list[str]) -> int`` function, so
+``feeder features`` never imports torch and the workflow's many small jobs start quickly.
+A :class:`feeder.errors.FeederError` is printed as one line and the process exits with status 2.
+"""
+
+from __future__ import annotations
+
+import importlib
+import sys
+
+from feeder.errors import FeederError
+
+# subcommand -> (module, one-line help)
+COMMANDS: dict[str, tuple[str, str]] = {
+    "parts": ("feeder.parts", "generate the part library / write the catalog"),
+    "features": ("feeder.features", "print the 45 DFT shape features of a part (.xyz or .stl)"),
+    "simulate": ("feeder.sim", "simulate drops of one part through one fence configuration"),
+    "bench-sim": ("feeder.bench", "accuracy-vs-time sweep of simulation settings"),
+    "scene-table": ("feeder.scene", "Table 1: every physical parameter of the simulated scene"),
+    "labels": ("feeder.labels", "PMF/CDF labels from simulation outputs"),
+    "datasets": ("feeder.datasets", "configuration list, splits and the merged dataset"),
+    "train": ("feeder.train", "train one regression model (Hydra config)"),
+    "evaluate": ("feeder.evaluate", "evaluate trained models into tables"),
+    "predict": ("feeder.predict", "predict the orientation PMF of a part and fences"),
+    "vae": ("feeder.vae", "VAE training and the partial-iteration study"),
+    "delta": ("feeder.delta", "delta-to-full correction sweep"),
+    "report": ("feeder.report", "paper tables and figures"),
+    "cost": ("feeder.cost", "gather workflow benchmarks into cost_by_stage"),
+}
+
+
+def _usage() -> str:
+    width = max(map(len, COMMANDS))
+    lines = ["usage: feeder <command> [options]", "", "commands:"]
+    lines += [f"  {name:<{width}}  {help_}" for name, (_, help_) in COMMANDS.items()]
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if not argv or argv[0] in {"-h", "--help"}:
+        print(_usage())
+        return 0
+    name, rest = argv[0], argv[1:]
+    if name not in COMMANDS:
+        print(f"feeder: unknown command {name!r}\n\n{_usage()}", file=sys.stderr)
+        return 2
+    module = importlib.import_module(COMMANDS[name][0])
+    try:
+        return int(module.main(rest) or 0)
+    except FeederError as err:
+        print(f"feeder {name}: error: {err}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

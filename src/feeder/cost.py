@@ -1,0 +1,124 @@
+"""What the study cost: gather Snakemake ``benchmark:`` files into a per-stage table and figure,
+and write a provenance record (git commit, config hash, machine, per-stage time).
+
+Benchmarks are laid out ``benchmarks/<stage>/<job>.tsv`` (one file per job); a stage is the first
+directory below ``benchmarks/``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import hashlib
+import json
+import os
+import platform
+import subprocess
+from pathlib import Path
+
+import pandas as pd
+
+from feeder import io
+from feeder.errors import FeederError
+
+COLUMNS = ["stage", "jobs", "wall_s", "cpu_s", "max_rss_mb"]
+
+
+def read_benchmarks(root: str | os.PathLike) -> pd.DataFrame:
+    """One row per benchmark file: stage, job, wall_s, cpu_s, max_rss_mb (last repeat of each file)."""
+    rows = []
+    root = Path(root)
+    for tsv in sorted(root.rglob("*.tsv")):
+        try:
+            frame = pd.read_csv(tsv, sep="\t")
+        except (pd.errors.EmptyDataError, pd.errors.ParserError) as err:
+            raise FeederError(f"{tsv}: not a Snakemake benchmark file ({err})") from None
+        if frame.empty or "s" not in frame:
+            raise FeederError(f"{tsv}: benchmark file without an 's' column")
+        last = frame.iloc[-1]
+        cpu = float(last["cpu_time"]) if "cpu_time" in frame and pd.notna(last["cpu_time"]) else float("nan")
+        rss = float(last["max_rss"]) if "max_rss" in frame and pd.notna(last["max_rss"]) else float("nan")
+        rows.append(
+            {
+                "stage": tsv.relative_to(root).parts[0],
+                "job": str(tsv.relative_to(root)),
+                "wall_s": float(last["s"]),
+                "cpu_s": cpu,
+                "max_rss_mb": rss,
+            }
+        )
+    return pd.DataFrame(rows, columns=["stage", "job", "wall_s", "cpu_s", "max_rss_mb"])
+
+
+def cost_by_stage(jobs: pd.DataFrame) -> pd.DataFrame:
+    """Sum wall and CPU seconds per stage, keep the largest resident memory; a TOTAL row last."""
+    if jobs.empty:
+        return pd.DataFrame(columns=COLUMNS)
+    grouped = jobs.groupby("stage", sort=True).agg(
+        jobs=("job", "size"), wall_s=("wall_s", "sum"), cpu_s=("cpu_s", "sum"), max_rss_mb=("max_rss_mb", "max")
+    )
+    grouped = grouped.reset_index().sort_values("wall_s", ascending=False, kind="stable")
+    total = pd.DataFrame(
+        [{"stage": "TOTAL", "jobs": int(grouped["jobs"].sum()), "wall_s": grouped["wall_s"].sum(),
+          "cpu_s": grouped["cpu_s"].sum(), "max_rss_mb": grouped["max_rss_mb"].max()}]
+    )
+    out = pd.concat([grouped, total], ignore_index=True)[COLUMNS]
+    return out.round({"wall_s": 2, "cpu_s": 2, "max_rss_mb": 1})
+
+
+def plot_cost(table: pd.DataFrame):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    stages = table[table["stage"] != "TOTAL"]
+    fig, ax = plt.subplots(figsize=(7, 0.4 * max(len(stages), 3) + 1.2))
+    y = range(len(stages))
+    ax.barh(list(y), stages["wall_s"], label="wall s (sum over jobs)")
+    ax.barh(list(y), stages["cpu_s"], height=0.35, label="CPU s")
+    ax.set_yticks(list(y), [f"{s} ({j} jobs)" for s, j in zip(stages["stage"], stages["jobs"])])
+    ax.invert_yaxis()
+    ax.set_xlabel("seconds")
+    ax.set_title("Cost by workflow stage")
+    ax.legend(loc="lower right")
+    return fig
+
+
+def _git_commit() -> str:
+    try:
+        out = subprocess.run(["git", "rev-parse", "HEAD"], capture_output=True, text=True, check=True)
+        dirty = subprocess.run(["git", "status", "--porcelain"], capture_output=True, text=True).stdout.strip()
+        return out.stdout.strip() + ("-dirty" if dirty else "")
+    except (OSError, subprocess.CalledProcessError):
+        return "unknown"
+
+
+def provenance(config_json: str, table: pd.DataFrame) -> dict:
+    return {
+        "git_commit": _git_commit(),
+        "config_sha256": hashlib.sha256(config_json.encode()).hexdigest(),
+        "config": json.loads(config_json),
+        "machine": {
+            "platform": platform.platform(),
+            "python": platform.python_version(),
+            "processor": platform.machine(),
+            "cpus": os.cpu_count(),
+        },
+        "stage_wall_s": {r.stage: r.wall_s for r in table.itertuples()},
+    }
+
+
+def main(argv: list[str]) -> int:
+    parser = argparse.ArgumentParser(prog="feeder cost", description=__doc__)
+    parser.add_argument("--benchmarks", default="benchmarks", help="root of the benchmark files")
+    parser.add_argument("--out-csv", required=True)
+    parser.add_argument("--out-fig", required=True)
+    parser.add_argument("--provenance", help="also write this provenance JSON")
+    parser.add_argument("--config-json", default="{}", help="the resolved workflow config (for its hash)")
+    args = parser.parse_args(argv)
+    table = cost_by_stage(read_benchmarks(args.benchmarks))
+    io.write_csv(args.out_csv, table)
+    io.save_figure(args.out_fig, plot_cost(table))
+    if args.provenance:
+        io.write_json(args.provenance, provenance(args.config_json, table))
+    return 0

@@ -1,0 +1,70 @@
+"""The workflow validates its config against workflow/schemas/config.schema.yaml at start."""
+
+import copy
+from pathlib import Path
+
+import pytest
+import yaml
+from snakemake.exceptions import WorkflowError
+from snakemake.utils import validate
+
+ROOT = Path(__file__).resolve().parents[1]
+SCHEMA = str(ROOT / "workflow" / "schemas" / "config.schema.yaml")
+
+
+def _load(name):
+    return yaml.safe_load((ROOT / "config" / name).read_text())
+
+
+def _merged_smoke():
+    """smoke.yaml overlays config.yaml the way Snakemake merges --configfile."""
+    def merge(base, over):
+        for key, value in over.items():
+            if isinstance(value, dict) and isinstance(base.get(key), dict):
+                merge(base[key], value)
+            else:
+                base[key] = value
+        return base
+
+    return merge(_load("config.yaml"), _load("smoke.yaml"))
+
+
+@pytest.mark.parametrize("config", [_load("config.yaml"), _merged_smoke()], ids=["default", "smoke"])
+def test_shipped_configs_are_valid(config):
+    validate(copy.deepcopy(config), schema=SCHEMA)
+
+
+def _set(config, dotted, value):
+    *path, last = dotted.split(".")
+    node = config
+    for key in path:
+        node = node[key]
+    if value is _DELETE:
+        del node[last]
+    else:
+        node[last] = value
+    return config
+
+
+_DELETE = object()
+
+BAD = [
+    ("sim.drops", -5, "drops"),                  # out of range
+    ("sim.drops", "many", "drops"),              # wrong type
+    ("sim.dorps", 10, "dorps"),                  # unknown key (typo)
+    ("labels.on_bad", "ignore", "on_bad"),       # not in enum
+    ("datasets.test_fraction", 1.5, "test_fraction"),
+    ("labels.levels_pct", [0, 50], "levels_pct"),
+    ("parts.include", ["bad_id"], "include"),
+    ("models.regression", ["m9"], "regression"),
+    ("bogus_section", {}, "bogus_section"),
+    ("sim.preset", _DELETE, "preset"),           # missing required key
+]
+
+
+@pytest.mark.parametrize("dotted,value,named", BAD, ids=[b[0] + ":" + repr(b[1])[:12] for b in BAD])
+def test_bad_config_stops_with_the_key_named(dotted, value, named):
+    config = _set(copy.deepcopy(_load("config.yaml")), dotted, value)
+    with pytest.raises(WorkflowError) as err:
+        validate(config, schema=SCHEMA)
+    assert named in str(err.value)
