@@ -1,0 +1,268 @@
+"""Orientation labels: yaw normalisation, PMF/CDF construction and the distribution metrics.
+
+Everything here is a pure numpy function. Conventions (docs/data.md):
+
+* A final yaw is mapped to ``[0, 360)`` by ``θ = (β + 360) mod 360``.
+* ``bins`` equal bins cover ``[0, 360)``; bin ``i`` holds ``[i·w, (i+1)·w)`` with ``w = 360 / bins``.
+* The histogram is smoothed by a *wrapped* (circular) Gaussian kernel of ``sigma`` bins whose
+  weights are ``exp(-d² / 2σ²)`` over the circular bin distance ``d`` (every image of the kernel
+  around the circle is summed), normalised to sum 1; the smoothed histogram is renormalised to a
+  PMF summing to 1. ``sigma = 0`` means no smoothing.
+* The CDF is the cumulative sum of the PMF from 0°.
+* Metrics compare distributions row by row along the last axis and broadcast over leading axes:
+  JS divergence in bits, W1 = Σ|ΔCDF|·w in degrees, KS = max|ΔCDF|, MSE = mean squared difference,
+  and R² = 1 − SS_res / SS_tot of one CDF against its truth (see :func:`r2_cdf` for SS_tot = 0).
+* Partial levels use the first ``k %`` of *all* drops (``floor(drops · k / 100)`` drops in drop
+  order), and only the ok drops among them enter the PMF (see :func:`partial_pmfs`).
+
+``feeder labels pmf SIM.npz`` prints the label summary of one simulation file.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from feeder.errors import FeederError
+
+FULL_TURN_DEG = 360.0
+
+
+# ----------------------------------------------------------------------------------------------
+# PMF construction
+# ----------------------------------------------------------------------------------------------
+def normalize_yaw(beta) -> np.ndarray:
+    """Map yaw angles (degrees, any real value) to ``[0, 360)``: θ = (β + 360) mod 360.
+
+    Non-finite inputs stay NaN. The result is strictly below 360 even where floating-point
+    rounding of a tiny negative angle would give 360.
+    """
+    beta = np.asarray(beta, dtype=np.float64)
+    finite = np.isfinite(beta)
+    theta = np.mod(np.where(finite, beta, 0.0) + FULL_TURN_DEG, FULL_TURN_DEG)
+    theta = np.where(theta >= FULL_TURN_DEG, 0.0, theta)
+    return np.where(finite, theta, np.nan)
+
+
+def _check_bins(bins: int) -> int:
+    if int(bins) != bins or bins < 1:
+        raise FeederError(f"bins must be a positive integer, got {bins!r}")
+    return int(bins)
+
+
+def histogram(yaws, bins: int) -> np.ndarray:
+    """Counts of yaws (degrees, normalised to [0, 360) first) in ``bins`` equal bins (float64)."""
+    bins = _check_bins(bins)
+    theta = normalize_yaw(np.ravel(yaws))
+    if np.isnan(theta).any():
+        raise FeederError("histogram: yaw angles must be finite (drop non-ok drops first)")
+    idx = np.floor(theta * (bins / FULL_TURN_DEG)).astype(np.int64)
+    idx = np.clip(idx, 0, bins - 1)  # guards θ·bins/360 rounding up to ``bins``
+    return np.bincount(idx, minlength=bins).astype(np.float64)
+
+
+def wrapped_gaussian_kernel(bins: int, sigma: float) -> np.ndarray:
+    """Circular Gaussian kernel indexed by offset 0..bins-1 (offset ``bins-1`` is −1), sums to 1."""
+    bins = _check_bins(bins)
+    if not (sigma >= 0 and math.isfinite(sigma)):
+        raise FeederError(f"sigma must be a finite non-negative number of bins, got {sigma!r}")
+    kernel = np.zeros(bins)
+    if sigma == 0:
+        kernel[0] = 1.0
+        return kernel
+    offsets = np.arange(bins, dtype=np.float64)
+    # Sum every image of the Gaussian that is not negligible (at least ±8σ, at least one turn).
+    turns = int(math.ceil(8 * sigma / bins)) + 1
+    for t in range(-turns, turns + 1):
+        kernel += np.exp(-0.5 * ((offsets + t * bins) / sigma) ** 2)
+    return kernel / kernel.sum()
+
+
+def wrapped_gaussian_smooth(hist, sigma: float) -> np.ndarray:
+    """Circular convolution of histogram rows (last axis = bins) with the wrapped Gaussian,
+    renormalised so every row sums to 1. An all-zero row is an error (no mass to spread)."""
+    hist = np.asarray(hist, dtype=np.float64)
+    if hist.ndim == 0 or hist.shape[-1] < 1:
+        raise FeederError("wrapped_gaussian_smooth: need at least one bin")
+    if (hist < 0).any() or not np.isfinite(hist).all():
+        raise FeederError("wrapped_gaussian_smooth: histogram values must be finite and >= 0")
+    bins = hist.shape[-1]
+    kernel = wrapped_gaussian_kernel(bins, sigma)
+    out = np.fft.irfft(np.fft.rfft(hist, axis=-1) * np.fft.rfft(kernel), n=bins, axis=-1)
+    if (hist.sum(axis=-1) <= 0).any():
+        raise FeederError("wrapped_gaussian_smooth: a histogram row has no mass")
+    out = np.clip(out, 0.0, None)  # FFT round-off can give -1e-18 in empty bins
+    return out / out.sum(axis=-1, keepdims=True)
+
+
+def pmf_from_yaws(yaws, bins: int, sigma: float) -> np.ndarray:
+    """Smoothed PMF (``bins`` values summing to 1) of a set of yaws in degrees."""
+    yaws = np.ravel(np.asarray(yaws, dtype=np.float64))
+    if yaws.size == 0:
+        raise FeederError("pmf_from_yaws: no yaw angles")
+    return wrapped_gaussian_smooth(histogram(yaws, bins), sigma)
+
+
+def cdf(pmf) -> np.ndarray:
+    """Cumulative sum of the PMF from 0° along the last axis."""
+    return np.cumsum(np.asarray(pmf, dtype=np.float64), axis=-1)
+
+
+def level_drop_counts(drops: int, levels_pct) -> np.ndarray:
+    """Number of drops (in drop order) used by each partial level: floor(drops · k / 100)."""
+    levels = np.asarray(levels_pct, dtype=np.int64)
+    if levels.ndim != 1 or levels.size == 0 or (levels < 1).any() or (levels > 100).any():
+        raise FeederError(f"levels_pct must be percentages in 1..100, got {list(levels_pct)!r}")
+    return (int(drops) * levels) // 100
+
+
+def partial_pmfs(yaws_in_drop_order, levels_pct, bins: int, sigma: float, ok=None):
+    """PMFs from the first k % of the drops, for every level k in ``levels_pct``.
+
+    ``k %`` is of *all* drops (``floor(drops · k / 100)`` drops in drop order, ok or not); the ok
+    drops among them make the PMF. ``ok`` is a boolean mask (default: the finite yaws). A level
+    with no ok drop gets the uniform PMF (nothing is known yet); its count in the returned
+    ``n_ok`` is 0 so callers can see it.
+
+    Returns ``(pmfs (L, bins), n_ok (L,))``.
+    """
+    yaws = np.ravel(np.asarray(yaws_in_drop_order, dtype=np.float64))
+    ok = np.isfinite(yaws) if ok is None else np.ravel(np.asarray(ok, dtype=bool))
+    if ok.shape != yaws.shape:
+        raise FeederError("partial_pmfs: ok mask and yaws differ in length")
+    if not np.isfinite(yaws[ok]).all():
+        raise FeederError("partial_pmfs: an ok drop has a non-finite yaw")
+    bins = _check_bins(bins)
+    counts = level_drop_counts(yaws.size, levels_pct)
+    theta = normalize_yaw(np.where(ok, yaws, 0.0))
+    idx = np.clip(np.floor(theta * (bins / FULL_TURN_DEG)).astype(np.int64), 0, bins - 1)
+    # cumulative histograms in drop order: hist of the first n drops = cum[n]
+    hists = np.zeros((counts.size, bins))
+    n_ok = np.zeros(counts.size, dtype=np.int64)
+    for i, n in enumerate(counts):
+        sel = idx[:n][ok[:n]]
+        hists[i] = np.bincount(sel, minlength=bins)
+        n_ok[i] = sel.size
+    pmfs = np.full((counts.size, bins), 1.0 / bins)
+    has = n_ok > 0
+    if has.any():
+        pmfs[has] = wrapped_gaussian_smooth(hists[has], sigma)
+    return pmfs, n_ok
+
+
+# ----------------------------------------------------------------------------------------------
+# Metrics (last axis = bins; leading axes broadcast)
+# ----------------------------------------------------------------------------------------------
+def _pair(a, b):
+    a = np.asarray(a, dtype=np.float64)
+    b = np.asarray(b, dtype=np.float64)
+    try:
+        np.broadcast_shapes(a.shape, b.shape)
+    except ValueError:
+        raise FeederError(f"shapes {a.shape} and {b.shape} do not broadcast") from None
+    return a, b
+
+
+def _kl_to_mixture(p, m):
+    with np.errstate(divide="ignore", invalid="ignore"):
+        terms = np.where(p > 0, p * np.log2(np.where(p > 0, p, 1.0) / np.where(m > 0, m, 1.0)), 0.0)
+    return terms.sum(axis=-1)
+
+
+def js_divergence(p, q) -> np.ndarray:
+    """Jensen–Shannon divergence in bits between PMFs (0 log 0 = 0); in [0, 1]."""
+    p, q = _pair(p, q)
+    if (p < 0).any() or (q < 0).any():
+        raise FeederError("js_divergence: probabilities must be >= 0")
+    m = 0.5 * (p + q)
+    js = 0.5 * _kl_to_mixture(p, m) + 0.5 * _kl_to_mixture(q, m)
+    return np.clip(js, 0.0, None)
+
+
+def w1(cdf_a, cdf_b, bin_width_deg: float | None = None) -> np.ndarray:
+    """Wasserstein-1 on unshifted CDFs: Σ|F_a − F_b| · bin width, in degrees.
+    The bin width defaults to 360 / bins."""
+    a, b = _pair(cdf_a, cdf_b)
+    width = FULL_TURN_DEG / a.shape[-1] if bin_width_deg is None else float(bin_width_deg)
+    return np.abs(a - b).sum(axis=-1) * width
+
+
+def ks(cdf_a, cdf_b) -> np.ndarray:
+    """Kolmogorov–Smirnov distance max|F_a − F_b| over the bins."""
+    a, b = _pair(cdf_a, cdf_b)
+    return np.abs(a - b).max(axis=-1)
+
+
+def mse(a, b) -> np.ndarray:
+    """Mean squared difference over the last axis."""
+    a, b = _pair(a, b)
+    return ((a - b) ** 2).mean(axis=-1)
+
+
+def r2_cdf(cdf_true, cdf_pred) -> np.ndarray:
+    """Per-configuration R² = 1 − SS_res / SS_tot over the bins of one CDF (sklearn convention).
+
+    SS_tot = 0 happens for a constant true CDF (all mass in the first bin): R² is then 1.0 when
+    the prediction is exact (SS_res = 0) and 0.0 otherwise, as sklearn's ``force_finite``.
+    """
+    t, p = _pair(cdf_true, cdf_pred)
+    t, p = np.broadcast_arrays(t, p)
+    ss_res = ((t - p) ** 2).sum(axis=-1)
+    ss_tot = ((t - t.mean(axis=-1, keepdims=True)) ** 2).sum(axis=-1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        r2 = 1.0 - ss_res / ss_tot
+    const = ss_tot == 0
+    return np.where(const, np.where(ss_res == 0, 1.0, 0.0), r2)
+
+
+def ecdf_sup_distance(sample, reference) -> float:
+    """sup_x |F_sample(x) − F_reference(x)| of two empirical CDFs (exact, no binning)."""
+    a = np.sort(np.asarray(sample, dtype=np.float64))
+    b = np.sort(np.asarray(reference, dtype=np.float64))
+    if a.size == 0 or b.size == 0:
+        raise FeederError("ecdf_sup_distance: empty sample")
+    xs = np.concatenate([a, b])
+    fa = np.searchsorted(a, xs, side="right") / a.size
+    fb = np.searchsorted(b, xs, side="right") / b.size
+    return float(np.abs(fa - fb).max())
+
+
+def dkw_epsilon(n, alpha: float) -> np.ndarray:
+    """Dvoretzky–Kiefer–Wolfowitz band half-width sqrt(ln(2/α) / 2n)."""
+    n = np.asarray(n, dtype=np.float64)
+    with np.errstate(divide="ignore"):
+        return np.sqrt(math.log(2.0 / alpha) / (2.0 * n))
+
+
+# ----------------------------------------------------------------------------------------------
+# CLI
+# ----------------------------------------------------------------------------------------------
+def main(argv: list[str]) -> int:
+    parser = argparse.ArgumentParser(prog="feeder labels", description=__doc__.split("\n")[0])
+    sub = parser.add_subparsers(dest="cmd", required=True)
+    p = sub.add_parser("pmf", help="summarise the labels of one simulation file")
+    p.add_argument("sim", type=Path, help="results/sim/<part>/<config>.npz")
+    p.add_argument("--bins", type=int, required=True)
+    p.add_argument("--sigma", type=float, required=True, help="smoothing sigma in bins")
+    args = parser.parse_args(argv)
+
+    from feeder.datasets import load_sim  # local import: datasets imports this module
+
+    sim = load_sim(args.sim)
+    pmf = pmf_from_yaws(sim.yaws[sim.ok], args.bins, args.sigma)
+    summary = {
+        "file": str(args.sim),
+        "drops": int(sim.yaws.size),
+        "ok": int(sim.ok.sum()),
+        "mode_deg": float((np.argmax(pmf) + 0.5) * FULL_TURN_DEG / args.bins),
+        "max_bin_probability": float(pmf.max()),
+        "js_to_uniform_bits": float(js_divergence(pmf, np.full(args.bins, 1.0 / args.bins))),
+    }
+    json.dump(summary, sys.stdout, indent=2)
+    print()
+    return 0

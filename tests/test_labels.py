@@ -1,0 +1,156 @@
+import math
+
+import numpy as np
+import pytest
+
+from feeder import labels as L
+from feeder.errors import FeederError
+
+# Z = sum over all integer offsets d of exp(-d^2 / 2) (sigma = 1 bin), written out by hand
+Z = 1 + 2 * sum(math.exp(-d * d / 2) for d in range(1, 40))
+E1, E2, E3 = math.exp(-0.5), math.exp(-2.0), math.exp(-4.5)
+
+
+def test_normalize_yaw_hand_values():
+    beta = np.array([-180.0, -0.5, 0.0, 359.5, 360.0, 720.25, -400.0, 179.999])
+    expect = np.array([180.0, 359.5, 0.0, 359.5, 0.0, 0.25, 320.0, 179.999])
+    np.testing.assert_allclose(L.normalize_yaw(beta), expect, atol=1e-12)
+
+
+def test_normalize_yaw_never_returns_360_and_keeps_nan():
+    out = L.normalize_yaw([-1e-20, -360 - 1e-15, -1e-13, np.nan, np.inf])
+    assert (out[:3] >= 0).all() and (out[:3] < 360).all()
+    assert np.isnan(out[3:]).all()
+
+
+def test_histogram_wraparound_bins():
+    h = L.histogram([359.5, 0.5, -0.5, 360.5], 360)
+    assert h[359] == 2 and h[0] == 2 and h.sum() == 4
+    h4 = L.histogram([0.0, 89.999, 90.0, 359.999999], 4)
+    np.testing.assert_array_equal(h4, [2, 1, 0, 1])
+    with pytest.raises(FeederError):
+        L.histogram([1.0, np.nan], 360)
+
+
+def test_kernel_hand_values():
+    k = L.wrapped_gaussian_kernel(360, 1.0)
+    assert k.sum() == pytest.approx(1.0)
+    assert k[0] == pytest.approx(1 / Z)
+    assert k[1] == pytest.approx(E1 / Z) and k[359] == pytest.approx(E1 / Z)
+    assert k[2] == pytest.approx(E2 / Z) and k[358] == pytest.approx(E2 / Z)
+    np.testing.assert_array_equal(L.wrapped_gaussian_kernel(8, 0.0), [1, 0, 0, 0, 0, 0, 0, 0])
+
+
+def test_all_mass_in_one_bin_spreads_to_both_neighbours():
+    pmf = L.pmf_from_yaws([0.2] * 7, 360, 1.0)
+    assert pmf.sum() == pytest.approx(1.0)
+    assert pmf[0] == pytest.approx(1 / Z)
+    assert pmf[1] == pytest.approx(E1 / Z) and pmf[359] == pytest.approx(E1 / Z)
+    assert pmf[3] == pytest.approx(E3 / Z) and pmf[357] == pytest.approx(E3 / Z)
+    assert pmf[180] < 1e-12
+
+
+def test_wraparound_mass_at_359_5_and_0_5():
+    pmf = L.pmf_from_yaws([359.5, 0.5], 360, 1.0)
+    assert pmf[0] == pytest.approx((1 + E1) / (2 * Z))
+    assert pmf[359] == pytest.approx((1 + E1) / (2 * Z))
+    assert pmf[1] == pytest.approx((E1 + E2) / (2 * Z))
+    assert pmf[358] == pytest.approx((E1 + E2) / (2 * Z))
+    c = L.cdf(pmf)
+    assert c[-1] == pytest.approx(1.0)
+    assert c[0] == pytest.approx(pmf[0])
+
+
+def test_uniform_stays_uniform_and_cdf_is_linear():
+    pmf = L.wrapped_gaussian_smooth(np.ones(360), 1.0)
+    np.testing.assert_allclose(pmf, 1 / 360)
+    np.testing.assert_allclose(L.cdf(pmf), np.arange(1, 361) / 360)
+
+
+def test_zeros_are_errors_not_nan():
+    with pytest.raises(FeederError):
+        L.wrapped_gaussian_smooth(np.zeros(360), 1.0)
+    with pytest.raises(FeederError):
+        L.pmf_from_yaws([], 360, 1.0)
+
+
+def test_smoothing_is_vectorised_over_rows():
+    rows = np.zeros((2, 360))
+    rows[0, 10] = 3
+    rows[1, 200] = 1
+    out = L.wrapped_gaussian_smooth(rows, 1.0)
+    np.testing.assert_allclose(out.sum(axis=1), 1.0)
+    assert out[0, 10] == pytest.approx(1 / Z) and out[1, 201] == pytest.approx(E1 / Z)
+
+
+def test_js_hand_values():
+    assert L.js_divergence([1, 0], [0, 1]) == pytest.approx(1.0)
+    # m = (.75, .25): KL(p||m) = .5 log2(2/3) + .5 log2(2), KL(q||m) = log2(4/3)
+    expect = 0.5 * (0.5 * math.log2(2 / 3) + 0.5) + 0.5 * math.log2(4 / 3)
+    assert L.js_divergence([0.5, 0.5], [1.0, 0.0]) == pytest.approx(expect)
+    u = np.full(360, 1 / 360)
+    assert L.js_divergence(u, u) == 0.0
+    rows = L.js_divergence(np.array([[1, 0], [0.5, 0.5]]), np.array([0, 1]))
+    np.testing.assert_allclose(rows, [1.0, expect])  # mirror image of the case above
+
+
+def test_w1_ks_mse_hand_values():
+    a = np.ones(360)  # all mass in bin 0
+    b = np.r_[0.0, np.ones(359)]  # all mass in bin 1
+    assert L.w1(a, b) == pytest.approx(1.0)
+    assert L.ks(a, b) == 1.0
+    assert L.mse(a, b) == pytest.approx(1 / 360)
+    c4 = np.array([0.25, 0.5, 0.75, 1.0])
+    d4 = np.array([0.0, 0.5, 1.0, 1.0])
+    assert L.w1(c4, d4) == pytest.approx(90 * 0.5)  # 4 bins of 90 degrees
+    assert L.ks(c4, d4) == 0.25
+    assert L.mse(c4, d4) == pytest.approx((0.0625 + 0.0625) / 4)
+
+
+def test_r2_cdf_hand_values_and_constant_truth():
+    t = np.array([0.0, 0.5, 1.0, 1.0])
+    p = np.array([0.0, 0.5, 0.5, 1.0])
+    # mean .625; SS_tot = .390625 + .015625 + .140625 + .140625 = .6875; SS_res = .25
+    assert L.r2_cdf(t, p) == pytest.approx(1 - 0.25 / 0.6875)
+    assert L.r2_cdf(t, t) == 1.0
+    const = np.ones(4)
+    assert L.r2_cdf(const, const) == 1.0
+    assert L.r2_cdf(const, p) == 0.0
+    np.testing.assert_allclose(L.r2_cdf(np.stack([t, const]), np.stack([p, const])), [1 - 0.25 / 0.6875, 1.0])
+
+
+def test_partial_pmfs_first_k_percent_of_all_drops():
+    yaws = np.array([10, np.nan, 100, 190, np.nan, 280, 10, 10, 100, 10], dtype=float)
+    pmfs, n_ok = L.partial_pmfs(yaws, [10, 20, 50, 100], bins=4, sigma=0.0)
+    # first 1, 2, 5, 10 drops; ok among them: 1, 1, 3, 8
+    np.testing.assert_array_equal(n_ok, [1, 1, 3, 8])
+    np.testing.assert_allclose(pmfs[0], [1, 0, 0, 0])
+    np.testing.assert_allclose(pmfs[1], [1, 0, 0, 0])
+    np.testing.assert_allclose(pmfs[2], [1 / 3, 1 / 3, 1 / 3, 0])
+    np.testing.assert_allclose(pmfs[3], [4 / 8, 2 / 8, 1 / 8, 1 / 8])
+
+
+def test_partial_pmfs_level_without_ok_drops_is_uniform_and_counted():
+    yaws = np.array([np.nan, np.nan, 5.0, 95.0])
+    pmfs, n_ok = L.partial_pmfs(yaws, [25, 50, 100], bins=4, sigma=0.0)
+    np.testing.assert_array_equal(n_ok, [0, 0, 2])
+    np.testing.assert_allclose(pmfs[0], 0.25)
+    np.testing.assert_allclose(pmfs[2], [0.5, 0.5, 0, 0])
+    with pytest.raises(FeederError):
+        L.partial_pmfs(yaws, [50], bins=4, sigma=0.0, ok=np.ones(4, bool))
+
+
+def test_partial_full_level_matches_pmf_from_yaws():
+    rng = np.random.default_rng(3)
+    yaws = rng.uniform(0, 360, 200)
+    yaws[rng.random(200) < 0.1] = np.nan
+    pmfs, n_ok = L.partial_pmfs(yaws, [100], bins=360, sigma=1.0)
+    np.testing.assert_allclose(pmfs[0], L.pmf_from_yaws(yaws[np.isfinite(yaws)], 360, 1.0))
+    assert n_ok[0] == np.isfinite(yaws).sum()
+
+
+def test_ecdf_sup_and_dkw():
+    assert L.ecdf_sup_distance([1.0], [1.0, 2.0]) == 0.5
+    assert L.ecdf_sup_distance([1.0, 2.0], [1.0, 2.0]) == 0.0
+    assert L.ecdf_sup_distance([3.0], [1.0, 2.0]) == 1.0
+    assert L.dkw_epsilon(100, 0.05) == pytest.approx(math.sqrt(math.log(40) / 200))
