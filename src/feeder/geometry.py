@@ -129,22 +129,14 @@ def _check_simple(outline: np.ndarray, what: str) -> None:
         raise FeederError(f"{what} is not a simple polygon ({reason})")
 
 
-def convex_decomposition(outline: np.ndarray) -> list[np.ndarray]:
-    """Exact convex pieces of a simple CCW polygon (Hertel–Mehlhorn on a constrained triangulation).
-
-    Pieces use only the outline's own vertices, so their union is exactly the outline. Diagonals
-    are removed greedily, longest first (ties by vertex index), whenever the merged piece stays
-    convex; the result has at most 4x the minimum number of pieces.
-    """
+def triangulate(outline: np.ndarray) -> list[tuple[int, int, int]]:
+    """Constrained Delaunay triangulation of a simple polygon as CCW index triples (no new vertices)."""
     import shapely
 
     outline = np.asarray(outline, dtype=np.float64)
-    n = len(outline)
-    if is_convex(outline):
-        return [outline.copy()]
     index = {(float(x), float(y)): i for i, (x, y) in enumerate(outline)}
     tris = shapely.constrained_delaunay_triangles(shapely.Polygon(outline))
-    pieces: list[list[int]] = []
+    out = []
     for tri in shapely.get_parts(tris):
         coords = np.asarray(tri.exterior.coords)[:3]
         try:
@@ -153,7 +145,24 @@ def convex_decomposition(outline: np.ndarray) -> list[np.ndarray]:
             raise FeederError("triangulation introduced a vertex not on the outline") from err
         if signed_area(outline[ids]) < 0:
             ids = ids[::-1]
-        pieces.append(ids)
+        out.append(tuple(ids))
+    if len(out) != len(outline) - 2:
+        raise FeederError(f"triangulation gave {len(out)} triangles for {len(outline)} vertices")
+    return out
+
+
+def convex_decomposition(outline: np.ndarray) -> list[np.ndarray]:
+    """Exact convex pieces of a simple CCW polygon (Hertel–Mehlhorn on a constrained triangulation).
+
+    Pieces use only the outline's own vertices, so their union is exactly the outline. Diagonals
+    are removed greedily, longest first (ties by vertex index), whenever the merged piece stays
+    convex; the result has at most 4x the minimum number of pieces.
+    """
+    outline = np.asarray(outline, dtype=np.float64)
+    n = len(outline)
+    if is_convex(outline):
+        return [outline.copy()]
+    pieces = [list(t) for t in triangulate(outline)]
 
     def edges(piece: list[int]) -> list[tuple[int, int]]:
         return [(piece[i], piece[(i + 1) % len(piece)]) for i in range(len(piece))]
@@ -187,9 +196,8 @@ def convex_decomposition(outline: np.ndarray) -> list[np.ndarray]:
             owner[e] = k1
         owner.pop((a, b), None)
         owner.pop((b, a), None)
-    out = [outline[p].copy() for _, p in sorted(alive.items())]
     assert sum(len(p) - 2 for p in alive.values()) == n - 2  # triangles conserved
-    return out
+    return [clean_outline(outline[p], rel_tol=1e-12) for _, p in sorted(alive.items())]
 
 
 # --------------------------------------------------------------------------------------------
@@ -305,20 +313,16 @@ def _read_ascii(data: bytes, path: Path) -> np.ndarray:
 def stl_bytes(outline: np.ndarray, thickness: float, name: str = "part") -> bytes:
     """Binary STL of the prism ``outline x [0, thickness]`` (outline CCW, metres).
 
-    Caps are triangulated with the convex decomposition's pieces fanned (no new vertices); side
+    Caps are the outline's constrained Delaunay triangulation (no new vertices); side
     walls are two triangles per edge. Normals point outwards; output is deterministic.
     """
     outline = clean_outline(outline)
-    pieces = convex_decomposition(outline)
     tris: list[np.ndarray] = []
     z0, z1 = 0.0, float(thickness)
-    for piece in pieces:
-        for i in range(1, len(piece) - 1):
-            a, b, c = piece[0], piece[i], piece[i + 1]
-            if abs(signed_area(np.array([a, b, c]))) == 0.0:
-                continue  # collinear fan triangle of a piece with a straight vertex
-            tris.append(np.array([[*a, z1], [*b, z1], [*c, z1]]))  # top, CCW from above: +z
-            tris.append(np.array([[*a, z0], [*c, z0], [*b, z0]]))  # bottom: -z
+    for ia, ib, ic in triangulate(outline):
+        a, b, c = outline[ia], outline[ib], outline[ic]
+        tris.append(np.array([[*a, z1], [*b, z1], [*c, z1]]))  # top, CCW from above: +z
+        tris.append(np.array([[*a, z0], [*c, z0], [*b, z0]]))  # bottom: -z
     n = len(outline)
     for i in range(n):
         p, q = outline[i], outline[(i + 1) % n]
@@ -429,3 +433,59 @@ def load_part(path: str | os.PathLike) -> PartGeometry:
         return PartGeometry.from_polygon(path.stem, outline, thickness)
     except FeederError as err:
         raise FeederError(f"{path}: {err}") from err
+
+
+# --------------------------------------------------------------------------------------------
+# Face point clouds (what a CAD tool's point-cloud export of the planar face looks like)
+# --------------------------------------------------------------------------------------------
+def face_points(outline: np.ndarray, spacing: float) -> np.ndarray:
+    """Points on the planar face of ``outline`` at lattice spacing ``spacing`` (same units).
+
+    Boundary: every vertex plus evenly spaced points on each edge (at most ``spacing`` apart).
+    Interior: a triangular lattice anchored at the bounding box, keeping the points inside the
+    outline and at least ``spacing / 2`` from its boundary. Deterministic, (M, 2) float64.
+    """
+    import shapely
+
+    outline = np.asarray(outline, dtype=np.float64)
+    h = float(spacing)
+    nxt = np.roll(outline, -1, axis=0)
+    boundary = []
+    for p, q in zip(outline, nxt):
+        m = max(1, int(np.ceil(np.linalg.norm(q - p) / h)))
+        t = np.arange(m)[:, None] / m
+        boundary.append(p + t * (q - p))
+    lo, hi = outline.min(axis=0), outline.max(axis=0)
+    dy = h * np.sqrt(3.0) / 2.0
+    ys = lo[1] + dy / 2 + dy * np.arange(int(np.floor((hi[1] - lo[1]) / dy)) + 1)
+    xs = lo[0] + h / 4 + h * np.arange(int(np.floor((hi[0] - lo[0]) / h)) + 1)
+    gx, gy = np.meshgrid(xs, ys)
+    gx = gx + (np.arange(len(ys))[:, None] % 2) * (h / 2)
+    grid = np.column_stack([gx.ravel(), gy.ravel()])
+    poly = shapely.Polygon(outline)
+    inside = shapely.contains_xy(poly, grid[:, 0], grid[:, 1])
+    grid = grid[inside]
+    far = shapely.distance(poly.exterior, shapely.points(grid)) >= h / 2
+    return np.concatenate([*boundary, grid[far]])
+
+
+def face_cloud(outline: np.ndarray, n_points: int) -> np.ndarray:
+    """:func:`face_points` with the spacing chosen (bisection) so that it has about ``n_points``."""
+    outline = np.asarray(outline, dtype=np.float64)
+    area = abs(signed_area(outline))
+    perim = float(np.sum(np.linalg.norm(np.roll(outline, -1, axis=0) - outline, axis=1)))
+    # lattice estimate: n = 2A / (sqrt(3) h^2) + P / h, solved for h
+    a_coef = 2.0 * area / np.sqrt(3.0)
+    h = (perim + np.sqrt(perim**2 + 4.0 * a_coef * n_points)) / (2.0 * n_points)
+    lo_h, hi_h = h / 2.0, h * 2.0
+    best = face_points(outline, h)
+    for _ in range(24):
+        if abs(len(best) - n_points) <= max(5, n_points // 200):
+            break
+        if len(best) > n_points:
+            lo_h = h
+        else:
+            hi_h = h
+        h = float(np.sqrt(lo_h * hi_h))
+        best = face_points(outline, h)
+    return best
