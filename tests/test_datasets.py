@@ -1,0 +1,332 @@
+import copy
+import json
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+import yaml
+
+from feeder import datasets as D
+from feeder import labels as L
+from feeder.errors import FeederError
+from feeder.fences import parse_config_id
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def small_config(**datasets_overrides):
+    cfg = {
+        "sim": {"drops": 60, "min_ok_drops": 30},
+        "fences": {
+            "straight_angles": [20, 40, 60],
+            "curved_angles": [0, 45, 90],
+            "combos": ["straight_none", "curved_none", "none_straight", "straight_curved", "curved_straight"],
+            "main_per_part": 5,
+            "reserved_combos": ["straight_curved", "curved_straight"],
+            "seed": 0,
+        },
+        "labels": {"bins": 360, "sigma_bins": 1.0, "levels_pct": [10, 50, 100], "on_bad": "error"},
+        "datasets": {
+            "test_fraction": 0.15, "split_seed": 42, "group_folds": 3, "holdout_parts": [], "n_holdout": 1,
+            "parts_per_part": 4, "fences_parts": 2, "fences_samples": 3,
+            "convergence": {"compare_pct": 10, "bootstrap": 5, "noise_quantile": 0.95, "js_threshold": 0.001,
+                            "fig4_configurations": 4, "dkw_alpha": 0.05, "peak_prominence": 0.2, "seed": 0},
+        },
+    }
+    cfg["datasets"].update(datasets_overrides)
+    return cfg
+
+
+PARTS = ["a", "b", "c", "d", "e", "f"]
+
+
+def _combo(cid):
+    f1, f2 = parse_config_id(cid)
+    return f"{f1.type}_{f2.type}"
+
+
+# ---------------------------------------------------------------- configurations
+def test_configurations_structure_and_determinism():
+    cfg = small_config()
+    df = D.configurations(cfg, PARTS)
+    assert list(df.columns) == ["part", "config_id", "loc1", "loc2", "dataset", "split"]
+    pd.testing.assert_frame_equal(df, D.configurations(copy.deepcopy(cfg), list(reversed(PARTS))))
+    assert not df.duplicated(["part", "config_id"]).any()
+    held = D.holdout_parts(cfg, PARTS)
+    assert len(held) == 1
+    assert set(df.loc[df.dataset == "parts", "part"]) == set(held)
+    main = df[df.dataset == "main"]
+    assert not set(main.part) & set(held)
+    assert (main.groupby("part").size() == 5).all()
+    # Parts dataset uses fences seen in Main
+    assert set(df.loc[df.dataset == "parts", "config_id"]) <= set(main.config_id)
+    assert (df.dataset == "parts").sum() == 4
+    # Fences dataset: 3 rows over 2 parts, each part's combo never seen with that part in Main
+    fen = df[df.dataset == "fences"]
+    assert len(fen) == 3 and fen.part.nunique() == 2
+    for part, rows in fen.groupby("part"):
+        combos = set(rows.config_id.map(_combo))
+        assert len(combos) == 1 and combos <= set(cfg["fences"]["reserved_combos"])
+        assert not combos & set(main.loc[main.part == part, "config_id"].map(_combo))
+    # splits
+    assert set(df.split) == {"train", "test", "fences", "parts"}
+    assert (df.loc[df.dataset != "main", "split"] == df.loc[df.dataset != "main", "dataset"]).all()
+    n_main = len(main)
+    assert (main.split == "test").sum() == int(np.ceil(0.15 * n_main))
+    # every angle is on the grid
+    for cid in df.config_id:
+        for f in parse_config_id(cid):
+            if f.type != "none":
+                assert f.angle in cfg["fences"][f"{f.type}_angles"]
+
+
+def test_split_matches_sklearn_train_test_split():
+    from sklearn.model_selection import train_test_split
+
+    for n in (7, 40, 1026):
+        _, test = train_test_split(np.arange(n), test_size=0.15, random_state=42)
+        np.testing.assert_array_equal(np.sort(D.random_test_rows(n, 0.15, 42)), np.sort(test))
+
+
+def test_adding_a_part_keeps_other_parts_configurations():
+    cfg = small_config(fences_parts=0, fences_samples=0, holdout_parts=["a"])
+    before = D.configurations(cfg, PARTS)
+    after = D.configurations(cfg, PARTS + ["g"])
+    key = ["part", "config_id"]
+    b = before[before.dataset == "main"][key].sort_values(key).reset_index(drop=True)
+    a = after[(after.dataset == "main") & (after.part != "g")][key].sort_values(key).reset_index(drop=True)
+    pd.testing.assert_frame_equal(a, b)
+
+
+def test_holdout_list_and_errors():
+    cfg = small_config(holdout_parts=["c", "e"])
+    df = D.configurations(cfg, PARTS)
+    assert set(df.loc[df.dataset == "parts", "part"]) == {"c", "e"}
+    with pytest.raises(FeederError, match="zz"):
+        D.configurations(small_config(holdout_parts=["zz"]), PARTS)
+    with pytest.raises(FeederError, match="fences_parts"):
+        D.configurations(small_config(fences_parts=9), PARTS)
+
+
+def test_default_config_matches_table4_scale():
+    cfg = yaml.safe_load((ROOT / "config/config.yaml").read_text())
+    parts = [f"p{i:02d}" for i in range(41)]
+    df = D.configurations(cfg, parts)
+    sizes = df.groupby("dataset").agg(n=("part", "size"), parts=("part", "nunique"))
+    assert sizes.loc["main", "parts"] == 38 and sizes.loc["main", "n"] == 38 * cfg["fences"]["main_per_part"]
+    assert sizes.loc["fences", "n"] == cfg["datasets"]["fences_samples"] and sizes.loc["fences", "parts"] == 18
+    assert sizes.loc["parts", "parts"] == 3
+    # no straight fence at an angle where parts jam (tan(90 - angle) <= 0.5)
+    assert max(cfg["fences"]["straight_angles"]) < 63.4
+
+
+# ---------------------------------------------------------------- feeder vector and scaler
+def test_feeder_vector_hand_values():
+    v = D.feeder_vector(*parse_config_id("straight30_none"))
+    np.testing.assert_array_equal(v, [0, 1, 0, 30, 1, 0, 0, 0])
+    v = D.feeder_vector(*parse_config_id("curved0_straight45"))
+    np.testing.assert_array_equal(v, [0, 0, 1, 0, 0, 1, 0, 45])
+
+
+def _feeder_rows(ids):
+    return np.stack([D.feeder_vector(*parse_config_id(c)) for c in ids])
+
+
+def test_scaler_hand_values():
+    part = np.zeros((3, 45))
+    part[:, 0] = [1.0, 3.0, 100.0]
+    part[:, 1] = 7.0  # constant column: SD guarded
+    feeder = _feeder_rows(["straight20_none", "straight60_curved10", "straight80_curved90"])
+    mask = np.array([True, True, False])
+    sc = D.fit_scaler(part, feeder, mask)
+    x = sc.transform(part, feeder)
+    assert x.shape == (3, 53)
+    np.testing.assert_allclose(x[:, 0], [-1.0, 1.0, (100 - 2) / 1.0])
+    np.testing.assert_allclose(x[:, 1], 0.0)
+    # location-1 angle: min 20, max 60 on training rows; location 2: only 10 seen -> span guarded
+    np.testing.assert_allclose(x[:, 45 + 3], [0.0, 1.0, 1.5])
+    np.testing.assert_allclose(x[:, 45 + 7], [0.0, 0.0, 80.0])  # none -> 0; 10 -> 0; 90 -> (90-10)/1
+    np.testing.assert_array_equal(x[:, 45:48], feeder[:, :3])
+    assert D.Scaler.from_dict(json.loads(json.dumps(sc.to_dict()))).transform(part, feeder).tolist() == x.tolist()
+
+
+def test_scaler_sees_no_statistic_of_held_out_rows():
+    rng = np.random.default_rng(0)
+    n = 40
+    part = rng.normal(size=(n, 45))
+    feeder = _feeder_rows(rng.choice(["straight20_curved45", "curved0_straight40", "none_straight60"], size=n))
+    split = np.array(["train"] * 25 + ["test"] * 5 + ["fences"] * 5 + ["parts"] * 5)
+    mask = split == "train"
+    sc = D.fit_scaler(part, feeder, mask)
+    # wildly change every non-training row: the scaler must not move
+    part2, feeder2 = part.copy(), feeder.copy()
+    part2[~mask] = rng.normal(1e6, 1e3, size=part2[~mask].shape)
+    feeder2[~mask, 3] = 89.0
+    feeder2[~mask, 7] = 1.0
+    sc2 = D.fit_scaler(part2, feeder2, mask)
+    for k in ("mean", "std", "angle_min", "angle_max"):
+        np.testing.assert_array_equal(getattr(sc, k), getattr(sc2, k))
+    # and equals statistics computed from the training rows alone
+    np.testing.assert_allclose(sc.mean, part[mask].mean(axis=0))
+    np.testing.assert_allclose(sc.std, part[mask].std(axis=0))
+    sc3 = D.fit_scaler(part[mask], feeder[mask], np.ones(mask.sum(), bool))
+    np.testing.assert_allclose(sc.transform(part, feeder), sc3.transform(part, feeder))
+    z = sc.transform(part, feeder)[mask, :45]
+    np.testing.assert_allclose(z.mean(axis=0), 0, atol=1e-12)
+    np.testing.assert_allclose(z.std(axis=0), 1)
+
+
+# ---------------------------------------------------------------- end to end
+def write_sim(path, part, cid, rng, drops=60, ok_frac=0.95, centers=(30.0, 200.0)):
+    path.parent.mkdir(parents=True, exist_ok=True)
+    status = np.where(rng.random(drops) < ok_frac, "ok", "jammed")
+    yaw = np.mod(rng.choice(centers, size=drops) + rng.normal(0, 5, drops), 360)
+    yaw[status != "ok"] = np.nan
+    np.savez(path, final_yaw_deg=yaw, initial_yaw_deg=rng.uniform(0, 360, drops), status=status,
+             wall_s=np.float64(1.0), meta=np.array(json.dumps({"part": part, "config": cid})))
+
+
+def make_world(tmp_path, cfg, parts=PARTS):
+    df = D.configurations(cfg, parts)
+    csv = tmp_path / "configurations.csv"
+    df.to_csv(csv, index=False)
+    rng = np.random.default_rng(1)
+    for p in parts:
+        (tmp_path / "features").mkdir(exist_ok=True)
+        (tmp_path / "features" / f"{p}.json").write_text(json.dumps(
+            {"k": rng.integers(-10, 10, 15).tolist(), "magnitude": rng.random(15).tolist(),
+             "phase": rng.uniform(-3, 3, 15).tolist()}))
+    for r in df.itertuples():
+        write_sim(tmp_path / "sim" / r.part / f"{r.config_id}.npz", r.part, r.config_id, rng,
+                  drops=cfg["sim"]["drops"])
+    return df, csv
+
+
+def run_build(tmp_path, csv, cfg, out="dataset.npz"):
+    settings = json.dumps({k: cfg[k] for k in ("sim", "labels", "datasets")})
+    return D.main(["build", "--configurations", str(csv), "--features-dir", str(tmp_path / "features"),
+                   "--sim-dir", str(tmp_path / "sim"), "--settings", settings, "--out", str(tmp_path / out)])
+
+
+def test_build_end_to_end_and_tables(tmp_path):
+    cfg = small_config()
+    df, csv = make_world(tmp_path, cfg)
+    assert run_build(tmp_path, csv, cfg) == 0
+    ds = D.load_dataset(tmp_path / "dataset.npz")
+    n = len(df)
+    assert ds["pmf"].shape == (n, 360) and ds["pmf_levels"].shape == (n, 3, 360)
+    assert ds["part_raw"].shape == (n, 45) and ds["feeder_raw"].shape == (n, 8)
+    np.testing.assert_allclose(ds["pmf"].sum(axis=1), 1.0)
+    np.testing.assert_allclose(ds["cdf"], np.cumsum(ds["pmf"], axis=1))
+    np.testing.assert_allclose(ds["pmf_levels"][:, -1], ds["pmf"])  # 100 % level = full run
+    np.testing.assert_array_equal(ds["levels_pct"], [10, 50, 100])
+    assert list(ds["split"]) == list(df["split"]) and list(ds["config_id"]) == list(df["config_id"])
+    # one fold per part, all parts, >= group_folds distinct folds
+    folds = pd.Series(ds["group_fold"]).groupby(ds["part"]).nunique()
+    assert (folds == 1).all() and len(folds) == len(PARTS)
+    assert set(ds["group_fold"]) == set(range(3))
+    # labels equal the label functions applied to the stored file
+    i = 4
+    with np.load(tmp_path / "sim" / ds["part"][i] / f"{ds['config_id'][i]}.npz") as z:
+        y, st = z["final_yaw_deg"], z["status"]
+    np.testing.assert_allclose(ds["pmf"][i], L.pmf_from_yaws(y[st == "ok"], 360, 1.0))
+    assert ds["n_ok"][i] == (st == "ok").sum()
+    assert ds["excluded_part"].size == 0
+
+    tables = tmp_path / "tables"
+    assert D.main(["table4", "--dataset", str(tmp_path / "dataset.npz"), "--out-csv", str(tables / "t4.csv"),
+                   "--out-md", str(tables / "t4.md")]) == 0
+    t4 = pd.read_csv(tables / "t4.csv")
+    assert list(t4.columns[:5]) == ["dataset", "samples", "unique_parts", "purpose", "protocol"]
+    assert t4.set_index("dataset").loc["Total (All)", "samples"] == n
+    assert t4.set_index("dataset").loc["Parts", "unique_parts"] == 1
+
+    figs = tmp_path / "figs"
+    settings = json.dumps({k: cfg[k] for k in ("labels", "datasets")})
+    args = ["figures", "--dataset", str(tmp_path / "dataset.npz"), "--settings", settings]
+    for name in ("fig4", "fig5", "fig9", "dkw-fig"):
+        args += [f"--{name}", str(figs / f"{name}.png")]
+    args += ["--dkw-csv", str(tables / "dkw.csv"), "--js-csv", str(tables / "js.csv")]
+    assert D.main(args) == 0
+    for name in ("fig4", "fig5", "fig9", "dkw-fig"):
+        assert (figs / f"{name}.png").stat().st_size > 1000
+    dkw = pd.read_csv(tables / "dkw.csv")
+    assert list(dkw.level_pct) == [10, 50, 100]
+    assert dkw.loc[dkw.level_pct == 100, "median_sup"].item() == 0.0
+    assert ((dkw.fraction_inside_band >= 0) & (dkw.fraction_inside_band <= 1)).all()
+    js = pd.read_csv(tables / "js.csv")
+    assert js.loc[js.level_pct == 100, "median_js"].item() == pytest.approx(0.0, abs=1e-12)
+    assert (js.median_js.diff().dropna() <= 1e-12).all()  # more drops, closer to the full run here
+
+
+def test_dkw_inside_band_for_exchangeable_drops():
+    # i.i.d. drops: the prefix ECDF stays inside the DKW band for about >= 95 % of configurations
+    rng = np.random.default_rng(5)
+    n, drops = 200, 400
+    y = rng.uniform(0, 360, (n, drops))
+    levels = np.array([10, 25, 50, 100])
+    ds = {"part": np.array(["p"] * n), "final_yaw_deg": y, "n_drops": np.full(n, drops), "levels_pct": levels,
+          "n_ok_levels": np.tile(drops * levels // 100, (n, 1))}
+    table, sup = D.dkw_table(ds, 0.05)
+    assert (table.fraction_inside_band >= 0.9).all()
+    # a drifting sequence (first half all near 0 deg) falls outside
+    y2 = y.copy()
+    y2[:, : drops // 2] = rng.uniform(0, 10, (n, drops // 2))
+    table2, _ = D.dkw_table({**ds, "final_yaw_deg": y2}, 0.05)
+    assert table2.loc[table2.level_pct == 10, "fraction_inside_band"].item() < 0.05
+
+
+# ---------------------------------------------------------------- bad data
+def _break(path, how):
+    if how == "missing":
+        path.unlink()
+    elif how == "truncated":
+        data = path.read_bytes()
+        path.write_bytes(data[: len(data) // 2])
+    elif how == "few_ok":
+        with np.load(path) as z:
+            arrays = {k: z[k] for k in z.files}
+        arrays["status"] = np.where(np.arange(arrays["status"].size) < 5, "ok", "fell_off")
+        arrays["final_yaw_deg"] = np.where(arrays["status"] == "ok", 10.0, np.nan)
+        np.savez(path, **arrays)
+
+
+@pytest.mark.parametrize("how", ["missing", "truncated", "few_ok"])
+def test_bad_sim_file_error_mode_names_file_and_writes_nothing(tmp_path, how):
+    cfg = small_config()
+    df, csv = make_world(tmp_path, cfg)
+    bad = tmp_path / "sim" / df.part[2] / f"{df.config_id[2]}.npz"
+    _break(bad, how)
+    with pytest.raises(FeederError) as err:
+        run_build(tmp_path, csv, cfg)
+    assert str(bad) in str(err.value) and "\n" not in str(err.value)
+    assert not (tmp_path / "dataset.npz").exists()
+
+
+@pytest.mark.parametrize("how", ["missing", "truncated", "few_ok"])
+def test_bad_sim_file_exclude_mode_counts_it(tmp_path, how, caplog):
+    cfg = small_config()
+    cfg["labels"]["on_bad"] = "exclude"
+    df, csv = make_world(tmp_path, cfg)
+    fen = df.index[df.dataset == "fences"][0]
+    bad = tmp_path / "sim" / df.part[fen] / f"{df.config_id[fen]}.npz"
+    _break(bad, how)
+    with caplog.at_level("WARNING"):
+        assert run_build(tmp_path, csv, cfg) == 0
+    assert str(bad) in caplog.text
+    ds = D.load_dataset(tmp_path / "dataset.npz")
+    assert len(ds["part"]) == len(df) - 1
+    assert list(ds["excluded_config_id"]) == [df.config_id[fen]] and str(bad) in ds["excluded_reason"][0]
+    assert np.isfinite(ds["pmf"]).all()
+    t4 = D.table4(ds).set_index("dataset")
+    assert t4.loc["Fences", "excluded"] == 1 and t4.loc["Total (All)", "excluded"] == 1
+    assert t4.loc["Fences", "samples"] == (df.dataset == "fences").sum() - 1
+
+
+def test_bad_feature_file_is_an_error(tmp_path):
+    cfg = small_config()
+    df, csv = make_world(tmp_path, cfg)
+    (tmp_path / "features" / f"{df.part[0]}.json").write_text('{"k": [1, 2]}')
+    with pytest.raises(FeederError, match=f"{df.part[0]}.json"):
+        run_build(tmp_path, csv, cfg)
