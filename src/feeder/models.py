@@ -1,0 +1,400 @@
+"""The eight regression networks of paper Table 2, their label PCA and output post-processing.
+
+A model is described by its Hydra node ``model`` (``config/model/m1.yaml`` … ``m8.yaml``):
+
+* ``label``: ``pmf`` or ``cdf`` — which distribution the network outputs;
+* ``repr``: ``full`` (360 bins) or ``pca`` (``components`` principal-component scores);
+* ``arch``: ``standard`` (53 → ``hidden`` → out) or ``branched`` (45 part features →
+  ``part_hidden``, 8 feeder features → ``feeder_hidden``, concatenated → ``shared_hidden`` → out);
+* ``output_activation``: ``softmax`` (full PMF), ``sigmoid`` or ``linear`` (full CDF),
+  ``linear`` (PCA scores).
+
+The network's forward pass returns the *raw* distribution in 360-bin space (PCA outputs are
+reconstructed with the stored training mean and loadings inside the graph, so the losses of
+Table 2 are always computed on 360-bin PMFs/CDFs): ``pmf``, ``cdf`` and, for softmax outputs,
+``log_pmf``. PMFs of CDF models are first differences of the CDF; CDFs of PMF models cumulative
+sums. The output layer starts with zero weights and the training-mean label as its bias (zero PCA
+scores, the logarithm of the mean PMF for softmax, the logit of the mean CDF for sigmoid), so
+training starts from the mean-distribution baseline.
+
+Post-processing (§3.4.1, numpy, :func:`postprocess`) turns raw outputs into valid distributions
+before any metric or plot: CDF outputs are projected onto non-decreasing sequences
+(pool-adjacent-violators isotonic regression), clipped at 0 and divided by their last value;
+PCA PMFs are clipped at 0 and renormalised; softmax PMFs are left alone.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+from torch import nn
+
+PART_DIM = 45
+FEEDER_DIM = 8
+INPUT_DIM = PART_DIM + FEEDER_DIM
+
+LABELS = ("pmf", "cdf")
+REPRS = ("full", "pca")
+ARCHS = ("standard", "branched")
+ACTIVATIONS = ("softmax", "sigmoid", "linear")
+# Floor for probabilities/CDF values turned into logits for the output bias.
+_BIAS_FLOOR = 1e-6
+
+
+# ----------------------------------------------------------------------------------------------
+# Label PCA
+# ----------------------------------------------------------------------------------------------
+@dataclass
+class LabelPCA:
+    """PCA of label rows: ``scores = (Y − mean) @ components.T``, ``Y ≈ scores @ components + mean``."""
+
+    mean: np.ndarray  # (B,)
+    components: np.ndarray  # (K, B), orthonormal rows
+    explained_variance_ratio: np.ndarray  # (K,)
+    requested: int
+
+    @property
+    def n_components(self) -> int:
+        return int(self.components.shape[0])
+
+    @property
+    def capped(self) -> bool:
+        return self.n_components < self.requested
+
+    def transform(self, y: np.ndarray) -> np.ndarray:
+        return (np.asarray(y, dtype=np.float64) - self.mean) @ self.components.T
+
+    def inverse(self, scores: np.ndarray) -> np.ndarray:
+        return np.asarray(scores, dtype=np.float64) @ self.components + self.mean
+
+
+def fit_pca(y: np.ndarray, n_components: int) -> LabelPCA:
+    """PCA on zero-centred rows of ``y`` (training rows only) via SVD.
+
+    The number of components is capped at what the rows support: min(requested, rows − 1, bins)
+    (after centring, n rows span at most n − 1 directions). ``LabelPCA.capped`` tells. Signs are
+    fixed so each component's largest-magnitude loading is positive (deterministic output).
+    """
+    y = np.asarray(y, dtype=np.float64)
+    if y.ndim != 2 or y.shape[0] < 2:
+        raise ValueError(f"PCA needs at least 2 label rows, got shape {y.shape}")
+    if n_components < 1:
+        raise ValueError(f"PCA needs at least one component, got {n_components}")
+    mean = y.mean(axis=0)
+    centred = y - mean
+    _, s, vt = np.linalg.svd(centred, full_matrices=False)
+    k = int(min(n_components, y.shape[0] - 1, y.shape[1]))
+    comps = vt[:k]
+    flip = np.sign(comps[np.arange(k), np.abs(comps).argmax(axis=1)])
+    comps = comps * np.where(flip == 0, 1.0, flip)[:, None]
+    var = s**2
+    total = var.sum()
+    ratio = var[:k] / total if total > 0 else np.zeros(k)
+    return LabelPCA(mean=mean, components=comps, explained_variance_ratio=ratio, requested=int(n_components))
+
+
+# ----------------------------------------------------------------------------------------------
+# Networks
+# ----------------------------------------------------------------------------------------------
+def _mlp(sizes: list[int], final_relu: bool) -> nn.Sequential:
+    layers: list[nn.Module] = []
+    for i, (a, b) in enumerate(zip(sizes[:-1], sizes[1:])):
+        layers.append(nn.Linear(a, b))
+        if final_relu or i < len(sizes) - 2:
+            layers.append(nn.ReLU())
+    return nn.Sequential(*layers)
+
+
+class StandardFC(nn.Module):
+    """53 → hidden (ReLU) → out (no activation)."""
+
+    def __init__(self, hidden: list[int], out_dim: int):
+        super().__init__()
+        self.net = _mlp([INPUT_DIM, *hidden, out_dim], final_relu=False)
+
+    @property
+    def head(self) -> nn.Linear:
+        return self.net[-1]
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        return self.net(x)
+
+
+class BranchedFC(nn.Module):
+    """Part branch (45 → part_hidden) and feeder branch (8 → feeder_hidden), concatenated,
+    then shared layers (→ shared_hidden → out). ReLU after every hidden layer."""
+
+    def __init__(self, part_hidden: list[int], feeder_hidden: list[int], shared_hidden: list[int], out_dim: int):
+        super().__init__()
+        if not part_hidden or not feeder_hidden:
+            raise ValueError("a branched network needs at least one layer in each branch")
+        self.part = _mlp([PART_DIM, *part_hidden], final_relu=True)
+        self.feeder = _mlp([FEEDER_DIM, *feeder_hidden], final_relu=True)
+        self.shared = _mlp([part_hidden[-1] + feeder_hidden[-1], *shared_hidden, out_dim], final_relu=False)
+
+    @property
+    def head(self) -> nn.Linear:
+        return self.shared[-1]
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        h = torch.cat([self.part(x[:, :PART_DIM]), self.feeder(x[:, PART_DIM:])], dim=1)
+        return self.shared(h)
+
+
+@dataclass(frozen=True)
+class ModelSpec:
+    """The architecture part of a model config (plain values, stored with the weights)."""
+
+    name: str
+    label: str
+    repr: str
+    arch: str
+    output_activation: str
+    bins: int
+    components: int | None = None
+    hidden: tuple[int, ...] = ()
+    part_hidden: tuple[int, ...] = ()
+    feeder_hidden: tuple[int, ...] = ()
+    shared_hidden: tuple[int, ...] = ()
+
+    def __post_init__(self) -> None:
+        if self.label not in LABELS:
+            raise ValueError(f"model {self.name}: label must be one of {LABELS}, got {self.label!r}")
+        if self.repr not in REPRS:
+            raise ValueError(f"model {self.name}: repr must be one of {REPRS}, got {self.repr!r}")
+        if self.arch not in ARCHS:
+            raise ValueError(f"model {self.name}: arch must be one of {ARCHS}, got {self.arch!r}")
+        if self.output_activation not in ACTIVATIONS:
+            raise ValueError(f"model {self.name}: output_activation must be one of {ACTIVATIONS}")
+        if self.output_activation == "softmax" and not (self.label == "pmf" and self.repr == "full"):
+            raise ValueError(f"model {self.name}: softmax output is only for full PMF labels")
+        if self.label == "pmf" and self.repr == "full" and self.output_activation != "softmax":
+            raise ValueError(f"model {self.name}: a full PMF output needs softmax")
+        if self.repr == "pca" and self.output_activation != "linear":
+            raise ValueError(f"model {self.name}: PCA scores need a linear output")
+        if self.repr == "pca" and not (self.components and self.components > 0):
+            raise ValueError(f"model {self.name}: PCA labels need a positive number of components")
+
+    @classmethod
+    def from_config(cls, model_cfg, bins: int) -> "ModelSpec":
+        get = model_cfg.get  # a dict or an OmegaConf DictConfig
+
+        def tup(key: str) -> tuple[int, ...]:
+            return tuple(int(v) for v in (get(key) or ()))
+
+        return cls(
+            name=str(get("name")),
+            label=str(get("label")),
+            repr=str(get("repr")),
+            arch=str(get("arch")),
+            output_activation=str(get("output_activation")),
+            bins=int(bins),
+            components=None if get("components") is None else int(get("components")),
+            hidden=tup("hidden"),
+            part_hidden=tup("part_hidden"),
+            feeder_hidden=tup("feeder_hidden"),
+            shared_hidden=tup("shared_hidden"),
+        )
+
+    def to_dict(self) -> dict:
+        return {k: (list(v) if isinstance(v, tuple) else v) for k, v in self.__dict__.items()}
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "ModelSpec":
+        d = dict(d)
+        for k in ("hidden", "part_hidden", "feeder_hidden", "shared_hidden"):
+            d[k] = tuple(d.get(k) or ())
+        return cls(**d)
+
+
+class RegressionModel(nn.Module):
+    """Body network + output head. ``forward(x)`` returns raw 360-bin ``pmf``, ``cdf`` and
+    ``log_pmf`` (softmax outputs only; ``None`` otherwise)."""
+
+    def __init__(self, spec: ModelSpec, n_out: int, pca_mean: np.ndarray | None = None,
+                 pca_components: np.ndarray | None = None):
+        super().__init__()
+        self.spec = spec
+        if spec.arch == "standard":
+            if not spec.hidden:
+                raise ValueError(f"model {spec.name}: a standard network needs hidden layers")
+            self.body = StandardFC(list(spec.hidden), n_out)
+        else:
+            self.body = BranchedFC(list(spec.part_hidden), list(spec.feeder_hidden), list(spec.shared_hidden), n_out)
+        if spec.repr == "pca":
+            if pca_mean is None or pca_components is None or pca_components.shape[0] != n_out:
+                raise ValueError(f"model {spec.name}: PCA output needs mean and {n_out} components")
+            self.register_buffer("pca_mean", torch.as_tensor(pca_mean, dtype=torch.float32))
+            self.register_buffer("pca_components", torch.as_tensor(pca_components, dtype=torch.float32))
+        elif n_out != spec.bins:
+            raise ValueError(f"model {spec.name}: full output must have {spec.bins} values, got {n_out}")
+
+    def init_output_to_mean(self, mean_pmf: np.ndarray, mean_cdf: np.ndarray) -> None:
+        """Zero the output layer's weights and set its bias to the training-mean label, so the
+        untrained network predicts the mean-distribution baseline for every input (hidden
+        layers still get gradients once the output weights move off zero)."""
+        spec = self.spec
+        head = self.body.head
+        with torch.no_grad():
+            head.weight.zero_()
+            if spec.repr == "pca":
+                bias = np.zeros(head.bias.shape[0])
+            elif spec.label == "pmf":  # softmax
+                bias = np.log(np.clip(mean_pmf, _BIAS_FLOOR, None))
+                bias = bias - bias.mean()
+            elif spec.output_activation == "sigmoid":
+                c = np.clip(mean_cdf, _BIAS_FLOOR, 1.0 - _BIAS_FLOOR)
+                bias = np.log(c) - np.log1p(-c)
+            else:
+                bias = np.asarray(mean_cdf, dtype=np.float64)
+            head.bias.copy_(torch.as_tensor(bias, dtype=head.bias.dtype))
+
+    def forward(self, x: torch.Tensor) -> dict[str, torch.Tensor | None]:
+        out = self.body(x)
+        spec = self.spec
+        log_pmf = None
+        if spec.repr == "pca":
+            values = out @ self.pca_components + self.pca_mean
+        elif spec.output_activation == "softmax":
+            log_pmf = torch.log_softmax(out, dim=-1)
+            values = torch.exp(log_pmf)
+        elif spec.output_activation == "sigmoid":
+            values = torch.sigmoid(out)
+        else:
+            values = out
+        if spec.label == "pmf":
+            pmf, cdf = values, torch.cumsum(values, dim=-1)
+        else:
+            cdf = values
+            pmf = torch.diff(cdf, dim=-1, prepend=torch.zeros_like(cdf[..., :1]))
+        return {"pmf": pmf, "cdf": cdf, "log_pmf": log_pmf}
+
+
+# ----------------------------------------------------------------------------------------------
+# Post-processing (§3.4.1)
+# ----------------------------------------------------------------------------------------------
+def isotonic_increasing(y: np.ndarray) -> np.ndarray:
+    """Least-squares projection of a 1-D sequence onto non-decreasing sequences
+    (pool adjacent violators, equal weights)."""
+    y = np.asarray(y, dtype=np.float64)
+    if y.ndim != 1:
+        raise ValueError("isotonic_increasing takes one sequence")
+    vals: list[float] = []
+    wts: list[int] = []
+    for v in y.tolist():
+        val, w = v, 1
+        while vals and vals[-1] > val:
+            pv, pw = vals.pop(), wts.pop()
+            val = (pv * pw + val * w) / (pw + w)
+            w += pw
+        vals.append(val)
+        wts.append(w)
+    return np.repeat(np.asarray(vals), wts)
+
+
+def postprocess_cdf(cdf: np.ndarray) -> np.ndarray:
+    """Isotonic projection of every row, clipped at 0, divided by its last value.
+    A row whose projected last value is not positive becomes the uniform CDF."""
+    cdf = np.atleast_2d(np.asarray(cdf, dtype=np.float64))
+    out = np.empty_like(cdf)
+    bins = cdf.shape[1]
+    uniform = np.arange(1, bins + 1) / bins
+    for i, row in enumerate(cdf):
+        iso = np.clip(isotonic_increasing(row), 0.0, None)
+        last = iso[-1]
+        out[i] = iso / last if last > 0 and np.isfinite(last) else uniform
+    return out
+
+
+def postprocess_pmf(pmf: np.ndarray) -> np.ndarray:
+    """Clip rows at 0 and renormalise to sum 1 (an all-zero row becomes uniform)."""
+    pmf = np.clip(np.atleast_2d(np.asarray(pmf, dtype=np.float64)), 0.0, None)
+    total = pmf.sum(axis=1, keepdims=True)
+    uniform = np.full(pmf.shape[1], 1.0 / pmf.shape[1])
+    return np.where(total > 0, pmf / np.where(total > 0, total, 1.0), uniform)
+
+
+def postprocess(spec: ModelSpec, raw_pmf: np.ndarray, raw_cdf: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Valid (pmf, cdf) rows from raw network outputs, per §3.4.1."""
+    if spec.label == "cdf":
+        cdf = postprocess_cdf(raw_cdf)
+        pmf = np.diff(cdf, axis=1, prepend=0.0)
+        return pmf, cdf
+    if spec.repr == "pca":
+        pmf = postprocess_pmf(raw_pmf)
+    else:  # softmax: valid by construction
+        pmf = np.atleast_2d(np.asarray(raw_pmf, dtype=np.float64))
+        pmf = pmf / pmf.sum(axis=1, keepdims=True)  # float32 -> float64 round-off only
+    return pmf, np.cumsum(pmf, axis=1)
+
+
+# ----------------------------------------------------------------------------------------------
+# A trained model on disk: weights + the input scaler (+ label PCA inside the weights)
+# ----------------------------------------------------------------------------------------------
+WEIGHTS_FILE = "model.pt"
+SCALER_FILE = "scaler.json"  # feeder.datasets.Scaler.to_dict()
+
+
+class TrainedModel:
+    """A fitted network with its input scaler: raw features in, valid distributions out."""
+
+    def __init__(self, net: RegressionModel, scaler):
+        self.net = net.eval()
+        self.spec = net.spec
+        self.scaler = scaler
+
+    def raw(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Raw (pmf, cdf) network outputs for scaled inputs ``x`` (N, 53), float64."""
+        with torch.no_grad():
+            out = self.net(torch.as_tensor(np.asarray(x), dtype=torch.float32))
+        return out["pmf"].double().numpy(), out["cdf"].double().numpy()
+
+    def predict_scaled(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Post-processed (pmf, cdf) for scaled inputs."""
+        return postprocess(self.spec, *self.raw(x))
+
+    def predict(self, part_raw: np.ndarray, feeder_raw: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Post-processed (pmf, cdf) for raw DFT triplets (N, 45) and feeder vectors (N, 8)."""
+        x = self.scaler.transform(np.atleast_2d(part_raw), np.atleast_2d(feeder_raw))
+        return self.predict_scaled(x)
+
+    def save(self, out_dir) -> None:
+        """Write ``model.pt`` (spec + weights) and ``scaler.json`` atomically into ``out_dir``."""
+        import io as _io
+        from pathlib import Path
+
+        from feeder.io import write_bytes, write_json
+
+        out_dir = Path(out_dir)
+        buf = _io.BytesIO()
+        torch.save({"spec": self.spec.to_dict(), "n_out": int(self.net.body.head.out_features),
+                    "state_dict": self.net.state_dict()}, buf)
+        write_json(out_dir / SCALER_FILE, self.scaler.to_dict())
+        write_bytes(out_dir / WEIGHTS_FILE, buf.getvalue())
+
+    @classmethod
+    def load(cls, model_dir) -> "TrainedModel":
+        from pathlib import Path
+
+        from feeder.errors import FeederError
+
+        model_dir = Path(model_dir)
+        weights, scaler_path = model_dir / WEIGHTS_FILE, model_dir / SCALER_FILE
+        for path in (weights, scaler_path):
+            if not path.is_file():
+                raise FeederError(f"{path}: missing (is {model_dir} a trained model directory?)")
+        blob = torch.load(weights, map_location="cpu", weights_only=True)
+        spec = ModelSpec.from_dict(blob["spec"])
+        state = blob["state_dict"]
+        pca_mean = state["pca_mean"].numpy() if "pca_mean" in state else None
+        pca_comp = state["pca_components"].numpy() if "pca_components" in state else None
+        net = RegressionModel(spec, int(blob["n_out"]), pca_mean, pca_comp)
+        net.load_state_dict(state)
+        import json
+
+        from feeder.datasets import Scaler
+
+        scaler = Scaler.from_dict(json.loads(scaler_path.read_text()))
+        return cls(net, scaler)

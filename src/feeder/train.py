@@ -1,0 +1,299 @@
+"""``feeder train``: train one regression model of paper Table 2 from its Hydra config.
+
+The config is ``config/train.yaml`` (defaults: ``model: m3``, ``trainer: default``); the model
+group ``config/model/m1.yaml`` … ``m8.yaml`` holds each model's label, architecture, learning
+rate and loss terms, ``config/trainer/default.yaml`` the shared settings (Adam, batch 64, at most
+400 epochs, early stopping with patience 20 on a 10 % validation carve-out of the training rows).
+
+    feeder train model=m3 paths.dataset=results/datasets/dataset.npz \\
+        paths.out=results/models/m3 hydra.run.dir=results/models/m3/hydra
+    feeder train -m hparams_search=grid model=m3          # the §3.4.1 grid search (multirun)
+
+:func:`train` is a plain function of a composed config (tests call it through Hydra's compose
+API); :func:`fit` trains on any row mask (the GroupKFold study reuses it). A model directory
+holds ``model.pt`` (spec + weights, PCA loadings as buffers), ``scaler.npz`` (input scaler),
+``config.yaml`` (the resolved config), ``history.csv`` (per-epoch losses) and ``metrics.json``
+(``train_s`` = training wall seconds, best epoch, validation loss, PCA components kept, and the
+CDF R² per split).
+
+Reproducibility: the seed fixes network initialisation, the validation carve-out and the batch
+order; torch runs single-threaded (``trainer.threads``) with deterministic algorithms, so the
+same inputs and seed give the same metrics on CPU.
+"""
+
+from __future__ import annotations
+
+import copy
+import json
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from feeder.errors import FeederError
+
+CONFIG_DIR = Path(__file__).resolve().parents[2] / "config"
+CONFIG_NAME = "train"
+DATASET_KEYS = ("part", "config_id", "split", "group_fold", "part_raw", "feeder_raw", "pmf", "cdf")
+SPLITS = ("train", "test", "fences", "parts")
+
+
+# ----------------------------------------------------------------------------------------------
+# Config
+# ----------------------------------------------------------------------------------------------
+def compose_config(overrides=(), config_dir: Path | str = CONFIG_DIR):
+    """Compose ``train.yaml`` with Hydra's compose API (no output directory, no logging setup)."""
+    from hydra import compose, initialize_config_dir
+    from hydra.core.global_hydra import GlobalHydra
+
+    if GlobalHydra.instance().is_initialized():
+        GlobalHydra.instance().clear()
+    with initialize_config_dir(version_base="1.3", config_dir=str(Path(config_dir).resolve())):
+        return compose(config_name=CONFIG_NAME, overrides=list(overrides))
+
+
+def resolved_config_yaml(model: str, overrides=(), config_dir: Path | str = CONFIG_DIR) -> str:
+    """The resolved settings that determine a trained model (``model``, ``trainer``, ``seed``) as
+    YAML. The workflow passes it as a rule param, so editing one model's Hydra file reruns only
+    that model."""
+    from omegaconf import OmegaConf
+
+    cfg = compose_config([f"model={model}", *overrides], config_dir)
+    keep = {k: cfg[k] for k in cfg if k != "paths"}
+    return OmegaConf.to_yaml(OmegaConf.create(OmegaConf.to_container(OmegaConf.create(keep), resolve=True)))
+
+
+# ----------------------------------------------------------------------------------------------
+# Data
+# ----------------------------------------------------------------------------------------------
+def load_dataset(path) -> dict[str, np.ndarray]:
+    """The arrays of ``results/datasets/dataset.npz`` (docs/data.md), checked for what training needs."""
+    from feeder import datasets
+
+    data = datasets.load_dataset(path)
+    missing = [k for k in DATASET_KEYS if k not in data]
+    if missing:
+        raise FeederError(f"{path}: missing keys {', '.join(missing)}")
+    n = data["pmf"].shape[0]
+    if data["part_raw"].shape != (n, 45) or data["feeder_raw"].shape != (n, 8) or data["cdf"].shape != data["pmf"].shape:
+        raise FeederError(f"{path}: part_raw/feeder_raw/pmf/cdf shapes do not match docs/data.md")
+    for k in ("part_raw", "feeder_raw", "pmf", "cdf"):
+        if not np.isfinite(data[k]).all():
+            raise FeederError(f"{path}: {k} has non-finite values")
+    data["split"] = data["split"].astype(str)
+    data["part"] = data["part"].astype(str)
+    data["config_id"] = data["config_id"].astype(str)
+    return data
+
+
+def validation_split(rows: np.ndarray, fraction: float, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    """Split row indices into (fit, validation) with a seeded permutation; at least one of each."""
+    rows = np.asarray(rows)
+    if rows.size < 2:
+        raise FeederError(f"need at least 2 training rows, got {rows.size}")
+    if not 0.0 < fraction < 1.0:
+        raise FeederError(f"trainer.val_fraction must be in (0, 1), got {fraction}")
+    n_val = int(min(max(1, round(fraction * rows.size)), rows.size - 1))
+    perm = np.random.default_rng(seed).permutation(rows)
+    return np.sort(perm[n_val:]), np.sort(perm[:n_val])
+
+
+# ----------------------------------------------------------------------------------------------
+# Training
+# ----------------------------------------------------------------------------------------------
+@dataclass
+class Fitted:
+    model: object  # feeder.models.TrainedModel
+    history: list[dict] = field(default_factory=list)
+    best_epoch: int = 0
+    best_val_loss: float = float("nan")
+    train_s: float = 0.0
+    n_fit: int = 0
+    n_val: int = 0
+    pca_components: int | None = None
+    pca_requested: int | None = None
+
+
+def setup_torch(threads: int) -> None:
+    import torch
+
+    torch.set_num_threads(int(threads))
+    torch.use_deterministic_algorithms(True)
+
+
+def fit(cfg, data: dict[str, np.ndarray], train_mask: np.ndarray, seed: int | None = None,
+        progress: bool | None = None) -> Fitted:
+    """Train the model of ``cfg.model`` on the rows in ``train_mask`` (scaler and PCA fit on
+    them, a ``trainer.val_fraction`` carve-out of them for early stopping)."""
+    import torch
+    from tqdm import tqdm
+
+    from feeder import losses
+    from feeder.datasets import fit_scaler
+    from feeder.models import ModelSpec, RegressionModel, TrainedModel, fit_pca
+
+    t0 = time.perf_counter()
+    tr = cfg.trainer
+    seed = int(cfg.seed if seed is None else seed)
+    setup_torch(tr.threads)
+    if str(tr.optimizer).lower() != "adam":
+        raise FeederError(f"trainer.optimizer {tr.optimizer!r}: only adam is implemented")
+    train_mask = np.asarray(train_mask, dtype=bool)
+    rows = np.flatnonzero(train_mask)
+    fit_rows, val_rows = validation_split(rows, float(tr.val_fraction), seed)
+
+    bins = data["pmf"].shape[1]
+    try:
+        spec = ModelSpec.from_config(cfg.model, bins)
+        weights = {str(k): float(v) for k, v in cfg.model.loss.items()}
+        losses.check_terms(weights, has_log_pmf=spec.output_activation == "softmax")
+    except ValueError as err:
+        raise FeederError(str(err)) from None
+
+    scaler = fit_scaler(data["part_raw"], data["feeder_raw"], train_mask)
+    x_all = np.asarray(scaler.transform(data["part_raw"], data["feeder_raw"]), dtype=np.float64)
+    pca = None
+    if spec.repr == "pca":
+        pca = fit_pca(data[spec.label][rows], spec.components)
+        if pca.capped:
+            print(f"feeder train: {spec.name}: PCA capped at {pca.n_components} components "
+                  f"(requested {spec.components}; {rows.size} training rows)", file=sys.stderr)
+    n_out = pca.n_components if pca is not None else bins
+
+    torch.manual_seed(seed)
+    net = RegressionModel(spec, n_out, None if pca is None else pca.mean, None if pca is None else pca.components)
+    net.init_output_to_mean(data["pmf"][rows].mean(axis=0), data["cdf"][rows].mean(axis=0))
+    opt = torch.optim.Adam(net.parameters(), lr=float(cfg.model.lr))
+    gen = torch.Generator().manual_seed(seed)
+
+    f32 = lambda a: torch.as_tensor(a, dtype=torch.float32)  # noqa: E731
+    xf, pf, cf = f32(x_all[fit_rows]), f32(data["pmf"][fit_rows]), f32(data["cdf"][fit_rows])
+    xv, pv, cv = f32(x_all[val_rows]), f32(data["pmf"][val_rows]), f32(data["cdf"][val_rows])
+
+    def loss_of(x, p, c):
+        out = net(x)
+        return losses.composite(weights, out["pmf"], out["log_pmf"], out["cdf"], p, c)
+
+    batch = int(tr.batch_size)
+    patience = int(tr.patience)
+    max_epochs = int(tr.max_epochs)
+    if batch < 1 or max_epochs < 1 or patience < 1:
+        raise FeederError("trainer.batch_size, max_epochs and patience must be >= 1")
+    best_val, best_epoch, best_state = float("inf"), 0, copy.deepcopy(net.state_dict())
+    history: list[dict] = []
+    show = sys.stderr.isatty() if progress is None else progress
+    bar = tqdm(range(1, max_epochs + 1), desc=f"train {spec.name}", disable=not show, file=sys.stderr)
+    for epoch in bar:
+        net.train()
+        order = torch.randperm(xf.shape[0], generator=gen)
+        total, seen = 0.0, 0
+        for start in range(0, xf.shape[0], batch):
+            idx = order[start:start + batch]
+            loss, _ = loss_of(xf[idx], pf[idx], cf[idx])
+            if not torch.isfinite(loss):
+                raise FeederError(f"{spec.name}: non-finite training loss at epoch {epoch}")
+            opt.zero_grad(set_to_none=True)
+            loss.backward()
+            opt.step()
+            total += loss.item() * idx.numel()
+            seen += idx.numel()
+        net.eval()
+        with torch.no_grad():
+            val_loss, parts = loss_of(xv, pv, cv)
+        val_loss = float(val_loss)
+        if not np.isfinite(val_loss):
+            raise FeederError(f"{spec.name}: non-finite validation loss at epoch {epoch}")
+        history.append({"epoch": epoch, "train_loss": total / seen, "val_loss": val_loss,
+                        **{f"val_{k}": float(v) for k, v in parts.items()}})
+        bar.set_postfix(val=f"{val_loss:.4g}")
+        if val_loss < best_val:
+            best_val, best_epoch, best_state = val_loss, epoch, copy.deepcopy(net.state_dict())
+        elif epoch - best_epoch >= patience:
+            break
+    net.load_state_dict(best_state)
+    return Fitted(
+        model=TrainedModel(net, scaler), history=history, best_epoch=best_epoch, best_val_loss=best_val,
+        train_s=time.perf_counter() - t0, n_fit=int(fit_rows.size), n_val=int(val_rows.size),
+        pca_components=None if pca is None else pca.n_components,
+        pca_requested=None if pca is None else pca.requested,
+    )
+
+
+def split_metrics(model, data: dict[str, np.ndarray]) -> dict[str, float]:
+    """Mean CDF R² and W1 of the post-processed predictions on every split present."""
+    from feeder.labels import r2_cdf, w1
+
+    x_raw = (data["part_raw"], data["feeder_raw"])
+    _, cdf = model.predict(*x_raw)
+    out: dict[str, float] = {}
+    for split in SPLITS:
+        mask = data["split"] == split
+        if mask.any():
+            out[f"r2_{split}"] = float(r2_cdf(data["cdf"][mask], cdf[mask]).mean())
+            out[f"w1_{split}"] = float(w1(data["cdf"][mask], cdf[mask]).mean())
+    return out
+
+
+def train(cfg) -> dict:
+    """Train ``cfg.model`` on the ``train`` rows of ``cfg.paths.dataset`` and write the model
+    directory ``cfg.paths.out``. Returns the metrics written to ``metrics.json``."""
+    import pandas as pd
+    from omegaconf import OmegaConf
+
+    from feeder.io import write_csv, write_json, write_text
+
+    data = load_dataset(cfg.paths.dataset)
+    train_mask = data["split"] == "train"
+    if not train_mask.any():
+        raise FeederError(f"{cfg.paths.dataset}: no rows with split 'train'")
+    fitted = fit(cfg, data, train_mask)
+    metrics = {
+        "model": str(cfg.model.name),
+        "seed": int(cfg.seed),
+        "train_s": fitted.train_s,
+        "best_epoch": fitted.best_epoch,
+        "epochs_run": len(fitted.history),
+        "best_val_loss": fitted.best_val_loss,
+        "n_fit": fitted.n_fit,
+        "n_val": fitted.n_val,
+        "pca_components": fitted.pca_components,
+        "pca_capped": bool(fitted.pca_components is not None and fitted.pca_components < fitted.pca_requested),
+        **split_metrics(fitted.model, data),
+    }
+    out = Path(cfg.paths.out)
+    write_text(out / "config.yaml", OmegaConf.to_yaml(cfg, resolve=True))
+    write_csv(out / "history.csv", pd.DataFrame(fitted.history))
+    write_json(out / "metrics.json", metrics)
+    fitted.model.save(out)  # model.pt last: it is the workflow's completion marker
+    return metrics
+
+
+# ----------------------------------------------------------------------------------------------
+# CLI (Hydra)
+# ----------------------------------------------------------------------------------------------
+def main(argv: list[str]) -> int:
+    """Run Hydra's command line on ``argv`` (overrides, ``-m`` for multiruns, ``--cfg job`` …)."""
+    import hydra
+
+    errors: list[FeederError] = []
+
+    @hydra.main(version_base="1.3", config_path=str(CONFIG_DIR), config_name=CONFIG_NAME)
+    def _app(cfg) -> None:
+        try:
+            metrics = train(cfg)
+        except FeederError as err:  # reported after Hydra returns, as one line
+            errors.append(err)
+            return
+        print(json.dumps(metrics, sort_keys=True))
+
+    saved = sys.argv
+    sys.argv = ["feeder-train", *argv]
+    try:
+        _app()
+    finally:
+        sys.argv = saved
+    if errors:
+        raise errors[0]
+    return 0
