@@ -154,3 +154,15 @@ def test_ecdf_sup_and_dkw():
     assert L.ecdf_sup_distance([1.0, 2.0], [1.0, 2.0]) == 0.0
     assert L.ecdf_sup_distance([3.0], [1.0, 2.0]) == 1.0
     assert L.dkw_epsilon(100, 0.05) == pytest.approx(math.sqrt(math.log(40) / 200))
+
+
+def test_labels_cli_summarises_a_sim_file(tmp_path, capsys):
+    import json
+
+    path = tmp_path / "s.npz"
+    status = np.array(["ok", "ok", "jammed", "ok"])
+    np.savez(path, final_yaw_deg=np.array([10.2, 10.7, np.nan, 350.0]), status=status,
+             initial_yaw_deg=np.zeros(4), wall_s=np.float64(1.0), meta=np.array("{}"))
+    assert L.main(["pmf", str(path), "--bins", "360", "--sigma", "1"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["drops"] == 4 and out["ok"] == 3 and out["mode_deg"] == 10.5

@@ -635,8 +635,12 @@ def make_figures(ds: dict, settings: dict, out: dict) -> None:
     a1.fill_between(n_axis[keep], q10[keep], q90[keep], alpha=0.3, label="10-90 % of configurations")
     a1.plot(n_axis[keep], med[keep], "o-", ms=3, label="median")
     a1.plot(n_axis[keep], L.dkw_epsilon(np.maximum(n_axis[keep], 1), alpha), "k--", label=f"DKW ε, α={alpha:g}")
+    from matplotlib.ticker import NullFormatter, ScalarFormatter
+
     a1.set_xscale("log")
     a1.set_yscale("log")
+    a1.xaxis.set_major_formatter(ScalarFormatter())
+    a1.xaxis.set_minor_formatter(NullFormatter())
     a1.set_xlabel("drops N")
     a1.set_ylabel(f"sup |CDF_N − CDF_{drops}|")
     a1.legend(fontsize=7)

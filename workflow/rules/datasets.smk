@@ -1,0 +1,104 @@
+# Labels and datasets: the configuration table, the merged dataset.npz, Table 4 and the label
+# convergence study (Figs. 4, 5, 9 and the DKW view). Uses PARTS, CONFIGS, sim_path, pkg and
+# settings_json from common.smk.
+
+DATASET = "results/datasets/dataset.npz"
+
+DATASETS_TARGETS = [
+    "results/datasets/configurations.csv",
+    DATASET,
+    "results/tables/table4.csv",
+    "results/tables/table4.md",
+    "results/tables/convergence_dkw.csv",
+    "results/tables/convergence_js.csv",
+    "results/figures/fig4_js_vs_drops.png",
+    "results/figures/fig5_js_hist.png",
+    "results/figures/fig9_example_pmfs.png",
+    "results/figures/convergence_dkw.png",
+]
+
+
+rule datasets_configurations:
+    """The part x fence configuration table (dataset and split of every row)."""
+    input:
+        pkg("datasets", "labels", "fences"),
+    output:
+        "results/datasets/configurations.csv",
+    params:
+        settings=settings_json("fences", "datasets"),
+        parts=",".join(PARTS),
+    log:
+        "logs/datasets/configurations.log",
+    benchmark:
+        "benchmarks/datasets/configurations.tsv"
+    conda:
+        "../envs/feeder.yaml"
+    shell:
+        "feeder datasets configurations --settings '{params.settings}' --parts '{params.parts}'"
+        " --out {output} > {log} 2>&1"
+
+
+rule datasets_build:
+    """Merge every simulation file and the part features into dataset.npz (docs/data.md)."""
+    input:
+        pkg("datasets", "labels", "fences"),
+        configurations="results/datasets/configurations.csv",
+        sims=[sim_path(p, c) for p, c in zip(CONFIGS["part"], CONFIGS["config_id"])],
+        features=expand("results/features/{part}.json", part=sorted(set(CONFIGS["part"]))),
+    output:
+        DATASET,
+    params:
+        settings=settings_json("sim", "labels", "datasets"),
+    log:
+        "logs/datasets/build.log",
+    benchmark:
+        "benchmarks/datasets/build.tsv"
+    conda:
+        "../envs/feeder.yaml"
+    shell:
+        "feeder datasets build --configurations {input.configurations} --features-dir results/features"
+        " --sim-dir results/sim --settings '{params.settings}' --out {output} > {log} 2>&1"
+
+
+rule datasets_table4:
+    """Table 4: samples and unique parts per dataset, exclusions counted."""
+    input:
+        pkg("datasets", "labels", "fences"),
+        dataset=DATASET,
+    output:
+        csv="results/tables/table4.csv",
+        md="results/tables/table4.md",
+    log:
+        "logs/datasets/table4.log",
+    benchmark:
+        "benchmarks/datasets/table4.tsv"
+    conda:
+        "../envs/feeder.yaml"
+    shell:
+        "feeder datasets table4 --dataset {input.dataset} --out-csv {output.csv} --out-md {output.md} > {log} 2>&1"
+
+
+rule datasets_convergence:
+    """Figs. 4, 5, 9, the DKW convergence view and its tables."""
+    input:
+        pkg("datasets", "labels", "fences"),
+        dataset=DATASET,
+    output:
+        fig4="results/figures/fig4_js_vs_drops.png",
+        fig5="results/figures/fig5_js_hist.png",
+        fig9="results/figures/fig9_example_pmfs.png",
+        dkw_fig="results/figures/convergence_dkw.png",
+        dkw_csv="results/tables/convergence_dkw.csv",
+        js_csv="results/tables/convergence_js.csv",
+    params:
+        settings=settings_json("labels", "datasets"),
+    log:
+        "logs/datasets/convergence.log",
+    benchmark:
+        "benchmarks/datasets/convergence.tsv"
+    conda:
+        "../envs/feeder.yaml"
+    shell:
+        "feeder datasets figures --dataset {input.dataset} --settings '{params.settings}'"
+        " --fig4 {output.fig4} --fig5 {output.fig5} --fig9 {output.fig9} --dkw-fig {output.dkw_fig}"
+        " --dkw-csv {output.dkw_csv} --js-csv {output.js_csv} > {log} 2>&1"
