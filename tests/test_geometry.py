@@ -1,0 +1,237 @@
+import math
+import struct
+
+import numpy as np
+import pytest
+import shapely
+
+from feeder.errors import FeederError
+from feeder.geometry import (
+    PartGeometry,
+    clean_outline,
+    convex_decomposition,
+    face_cloud,
+    is_convex,
+    load_part,
+    polygon_moments,
+    signed_area,
+    stl_bytes,
+)
+
+L_SHAPE = [(0, 0), (2, 0), (2, 1), (1, 1), (1, 2), (0, 2)]
+
+
+def test_rectangle_moments_by_hand():
+    w, h = 0.04, 0.02
+    g = PartGeometry.from_polygon("r", [(0, 0), (w, 0), (w, h), (0, h)], 0.01)
+    assert g.area == pytest.approx(w * h)
+    np.testing.assert_allclose(g.centroid, [w / 2, h / 2])
+    ixx, iyy, ixy = g.second_moment
+    assert ixx == pytest.approx(w * h**3 / 12)
+    assert iyy == pytest.approx(h * w**3 / 12)
+    assert abs(ixy) < 1e-20
+    assert len(g.convex_pieces) == 1
+    assert g.perimeter == pytest.approx(2 * (w + h))
+
+
+def test_right_triangle_and_l_shape_moments_by_hand():
+    a, b = 3.0, 2.0
+    area, c, (ixx, iyy, ixy) = polygon_moments(np.array([(0, 0), (a, 0), (0, b)]))
+    assert area == pytest.approx(a * b / 2)
+    np.testing.assert_allclose(c, [a / 3, b / 3])
+    assert ixx == pytest.approx(a * b**3 / 36)
+    assert iyy == pytest.approx(b * a**3 / 36)
+    assert ixy == pytest.approx(-(a**2) * b**2 / 72)
+    # L = rect [0,2]x[0,1] + rect [0,1]x[1,2]; centroid (5/6, 5/6), parallel-axis sums
+    area, c, (ixx, iyy, ixy) = polygon_moments(np.array(L_SHAPE, float))
+    assert area == pytest.approx(3.0)
+    np.testing.assert_allclose(c, [5 / 6, 5 / 6])
+    assert ixx == pytest.approx(2 / 12 + 2 * (1 / 3) ** 2 + 1 / 12 + (2 / 3) ** 2)
+    assert iyy == pytest.approx(ixx)
+    assert ixy == pytest.approx(2 * (1 / 6) * (-1 / 3) + (-1 / 3) * (2 / 3))
+
+
+def test_outline_is_cleaned_ccw_without_duplicates():
+    cw_closed = [(0, 0), (0, 1), (1, 1), (1, 0.5), (1, 0), (0, 0)]  # CW, closing dup, collinear
+    out = clean_outline(cw_closed)
+    assert len(out) == 4
+    assert signed_area(out) == pytest.approx(1.0)
+    g = PartGeometry.from_polygon("sq", cw_closed, 0.005)
+    assert g.outline.shape == (4, 2)
+    with pytest.raises(ValueError):
+        g.outline[0, 0] = 5.0  # frozen arrays
+
+
+@pytest.mark.parametrize(
+    "outline,msg",
+    [
+        ([(0, 0), (1, 1), (1, 0), (0, 1)], "not a simple polygon"),
+        ([(0, 0), (1, 0)], "fewer than 3"),
+        ([(0, 0), (1, 0), (2, 0)], "fewer than 3"),
+        ([(0, 0), (1, np.nan), (0, 1)], "NaN"),
+    ],
+)
+def test_bad_polygons(outline, msg):
+    with pytest.raises(FeederError, match=msg):
+        PartGeometry.from_polygon("bad", outline, 0.01)
+
+
+def _star(n, ro, ri, phase=0.0):
+    t = phase + np.pi * np.arange(2 * n) / n
+    r = np.where(np.arange(2 * n) % 2 == 0, ro, ri)
+    return np.column_stack([r * np.cos(t), r * np.sin(t)])
+
+
+@pytest.mark.parametrize(
+    "outline",
+    [
+        np.array(L_SHAPE, float),
+        _star(5, 3.0, 1.0),
+        _star(12, 2.0, 1.6, 0.3),
+        # comb: many reflex vertices
+        np.array([(0, 0), (7, 0), (7, 3), (6, 3), (6, 1), (5, 1), (5, 3), (4, 3), (4, 1), (3, 1),
+                  (3, 3), (2, 3), (2, 1), (1, 1), (1, 3), (0, 3)], float),
+    ],
+)
+def test_convex_decomposition_is_exact(outline):
+    pieces = convex_decomposition(clean_outline(outline))
+    total = shapely.Polygon(outline)
+    assert all(is_convex(p) and signed_area(p) > 0 for p in pieces)
+    assert sum(signed_area(p) for p in pieces) == pytest.approx(total.area, rel=1e-12)
+    union = shapely.union_all([shapely.Polygon(p) for p in pieces])
+    assert union.symmetric_difference(total).area < 1e-9 * total.area
+    # only the outline's own vertices are used
+    verts = {tuple(v) for v in outline}
+    assert all(tuple(v) in verts for p in pieces for v in p)
+
+
+def test_stl_round_trip_recovers_outline(tmp_path):
+    outline = np.array(L_SHAPE, float) * 0.02 + [0.003, -0.01]
+    path = tmp_path / "ell.stl"
+    path.write_bytes(stl_bytes(outline, 0.008, "ell"))
+    g = load_part(path)
+    assert g.part_id == "ell"
+    assert g.thickness == pytest.approx(0.008, rel=1e-6)
+    assert len(g.outline) == 6
+    # same vertex set, same frame (float32 precision of binary STL)
+    d = np.linalg.norm(g.outline[:, None, :] - outline[None, :, :], axis=2)
+    assert d.min(axis=1).max() < 1e-8
+    assert g.area == pytest.approx(3 * 0.02**2, rel=1e-6)
+    assert len(g.convex_pieces) == 2
+
+
+def _ascii_stl(tris) -> str:
+    lines = ["solid box"]
+    for t in tris:
+        lines += ["  facet normal 0 0 0", "    outer loop"]
+        lines += [f"      vertex {float(x)!r} {float(y)!r} {float(z)!r}" for x, y, z in t]
+        lines += ["    endloop", "  endfacet"]
+    return "\n".join(lines + ["endsolid box"]) + "\n"
+
+
+def _binary_tris(data: bytes) -> np.ndarray:
+    (n,) = struct.unpack_from("<I", data, 80)
+    rec = np.dtype([("n", "<f4", 3), ("v", "<f4", (3, 3)), ("a", "<u2")])
+    return np.frombuffer(data, rec, count=n, offset=84)["v"].astype(float)
+
+
+def test_ascii_stl_is_read(tmp_path):
+    tris = _binary_tris(stl_bytes(np.array([(0, 0), (0.03, 0), (0.03, 0.02), (0, 0.02)]), 0.005))
+    path = tmp_path / "box.stl"
+    path.write_text(_ascii_stl(tris))
+    g = load_part(path)
+    assert g.area == pytest.approx(0.0006, rel=1e-6)
+
+
+def _write_bad(tmp_path, kind):
+    good = stl_bytes(np.array(L_SHAPE, float) * 0.02, 0.01)
+    path = tmp_path / f"{kind}.stl"
+    tris = _binary_tris(good)
+    if kind == "empty":
+        path.write_bytes(b"")
+    elif kind == "truncated":
+        path.write_bytes(good[:-30])
+    elif kind == "truncated-ascii":
+        path.write_text(_ascii_stl(tris)[:-200])
+    elif kind == "open":
+        path.write_text(_ascii_stl(tris[:-1]))
+    elif kind == "midplane":
+        t = tris.copy()
+        v = t[0, 0].copy()
+        same = np.all(t == v, axis=2)
+        t[same, 2] = 0.004  # one vertex (everywhere it is used) moved to a third z level
+        path.write_text(_ascii_stl(t))
+    elif kind == "slanted":
+        t = tris.copy()
+        top = t[:, :, 2] > 0.005
+        t[top, 0] += 0.003  # shear: top face shifted in x
+        path.write_text(_ascii_stl(t))
+    elif kind == "ring":  # square with a square hole: not simply connected
+        outer = shapely.Polygon([(0, 0), (0.04, 0), (0.04, 0.04), (0, 0.04)],
+                                [[(0.01, 0.01), (0.01, 0.03), (0.03, 0.03), (0.03, 0.01)]])
+        caps = shapely.constrained_delaunay_triangles(outer)
+        out = []
+        for tri in shapely.get_parts(caps):
+            c = np.asarray(tri.exterior.coords)[:3]
+            if signed_area(c) < 0:
+                c = c[::-1]
+            out.append([[*c[0], 0.01], [*c[1], 0.01], [*c[2], 0.01]])
+            out.append([[*c[0], 0.0], [*c[2], 0.0], [*c[1], 0.0]])
+        for ring, sign in [(np.asarray(outer.exterior.coords)[:-1], 1),
+                           (np.asarray(outer.interiors[0].coords)[:-1], -1)]:
+            if signed_area(ring) * sign < 0:
+                ring = ring[::-1]
+            for p, q in zip(ring, np.roll(ring, -1, axis=0)):
+                out.append([[*p, 0], [*q, 0], [*q, 0.01]])
+                out.append([[*p, 0], [*q, 0.01], [*p, 0.01]])
+        path.write_text(_ascii_stl(out))
+    elif kind == "garbage":
+        path.write_bytes(b"\x00\x01hello")
+    return path
+
+
+@pytest.mark.parametrize(
+    "kind,msg",
+    [
+        ("empty", "empty"),
+        ("truncated", "truncated binary STL"),
+        ("truncated-ascii", "truncated ASCII STL"),
+        ("open", "not watertight"),
+        ("midplane", "not an extrusion along z"),
+        ("slanted", "not an extrusion along z"),
+        ("ring", "more than one boundary loop"),
+        ("garbage", "not an STL"),
+    ],
+)
+def test_bad_stl_is_one_line_error_naming_the_file(tmp_path, kind, msg):
+    path = _write_bad(tmp_path, kind)
+    with pytest.raises(FeederError) as err:
+        load_part(path)
+    text = str(err.value)
+    assert msg in text and str(path) in text and "\n" not in text
+
+
+def test_face_cloud_hits_target_and_lies_in_face():
+    outline = clean_outline(_star(5, 30.0, 12.0))
+    pts = face_cloud(outline, 3000)
+    assert abs(len(pts) - 3000) <= 30
+    poly = shapely.Polygon(outline)
+    assert np.all(shapely.distance(poly, shapely.points(pts)) < 1e-9)
+    # boundary is covered: every vertex is a point
+    assert all(np.min(np.linalg.norm(pts - v, axis=1)) == 0 for v in outline)
+    # deterministic
+    np.testing.assert_array_equal(pts, face_cloud(outline, 3000))
+
+
+def test_library_parts_load_with_exact_decomposition():
+    from pathlib import Path
+
+    paths = sorted(Path("parts").glob("*.stl"))
+    assert paths
+    for path in paths:
+        g = load_part(path)
+        assert all(is_convex(p) for p in g.convex_pieces)
+        assert sum(signed_area(p) for p in g.convex_pieces) == pytest.approx(g.area, rel=1e-9)
+        ev = np.linalg.eigvalsh([[g.second_moment[0], g.second_moment[2]],
+                                 [g.second_moment[2], g.second_moment[1]]])
+        assert ev.min() > 0 and math.isfinite(ev.max())
