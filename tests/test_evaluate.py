@@ -1,0 +1,131 @@
+"""Evaluation tables, baselines, GroupKFold and figures on a synthetic dataset."""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from feeder import evaluate as E
+from feeder import train as T
+from test_train import make_dataset, small_overrides
+
+
+@pytest.fixture(scope="module")
+def trained(tmp_path_factory):
+    root = tmp_path_factory.mktemp("eval")
+    ds = root / "dataset.npz"
+    make_dataset(ds)
+    dirs = []
+    for model in ("m3", "m7"):
+        T.train(T.compose_config(small_overrides(ds, root / model, model, epochs=3)))
+        dirs.append(root / model)
+    return root, ds, dirs
+
+
+def test_summarise_uses_population_sd():
+    m = {"r2": np.array([1.0, 0.5]), "w1": np.array([10.0, 20.0, ]), "mse": np.array([0.1, 0.3])}
+    s = E.summarise(m)
+    assert s == pytest.approx({"n": 2, "r2_mean": 0.75, "r2_sd": 0.25, "w1_mean": 15.0, "w1_sd": 5.0, "mse_mean": 0.2})
+
+
+def test_nearest_rows_with_leave_one_out():
+    ref = np.array([[0.0, 0.0], [1.0, 0.0], [5.0, 5.0]])
+    q = np.array([[0.1, 0.0], [4.0, 4.0], [0.0, 0.0]])
+    assert list(E.nearest_rows(q, ref)) == [0, 2, 0]
+    # the third query is reference row 0 itself: it must take its nearest other row
+    assert list(E.nearest_rows(q, ref, exclude_same=np.array([-1, -1, 0]))) == [0, 2, 1]
+
+
+def test_baselines_hand_check():
+    pmf = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [0.5, 0.5, 0.0]])
+    part = np.zeros((4, 45))
+    part[:, 0] = [0.0, 1.0, 10.0, 0.9]
+    feeder = np.tile([0, 1, 0, 30, 1, 0, 0, 0], (4, 1)).astype(float)
+    data = {"pmf": pmf, "cdf": np.cumsum(pmf, 1), "part_raw": part, "feeder_raw": feeder}
+    train = np.array([True, True, True, False])
+    out = E.baseline_predictions(data, train)
+    mean_cdf, _ = out[E.BASELINE_MEAN]
+    assert np.allclose(mean_cdf[3], np.cumsum([1 / 3, 1 / 3, 1 / 3]))
+    near, _ = out[E.BASELINE_NEAREST]
+    # row 3 (x=0.9) -> training row 1; row 0 -> row 1 (not itself); row 2 -> row 1
+    assert np.allclose(near[3], [0, 1, 1]) and np.allclose(near[0], [0, 1, 1]) and np.allclose(near[2], [0, 1, 1])
+    assert np.allclose(near[1], [1, 1, 1])  # row 1 -> row 0
+
+
+def test_combo_label():
+    assert E.combo_label("curved10_curved20") == "curved-1 + curved-2"
+    assert E.combo_label("none_curved45") == "curved-2 only"
+    assert E.combo_label("straight30_none") == "straight-1 only"
+
+
+def test_representative_rows_distinct_and_ordered():
+    r2 = np.array([0.1, 0.9, 0.5, 0.7, 0.3, 0.95, 0.2])
+    rows = E.representative_rows(r2)
+    assert len(set(rows)) == 4
+    assert list(np.argsort(-r2[rows])) == [0, 1, 2, 3]  # best to worst
+    assert len(E.representative_rows(np.array([0.5, 0.6]))) == 2
+
+
+def test_tables_files_and_values(trained, tmp_path):
+    from feeder.labels import r2_cdf
+
+    root, ds, dirs = trained
+    written = E.write_tables(ds, dirs, tmp_path)
+    data = T.load_dataset(ds)
+    for number, split in ((5, "train"), (6, "test"), (7, "fences"), (8, "parts")):
+        df = pd.read_csv(tmp_path / f"table{number}.csv")
+        assert list(df.columns) == E.COLUMNS
+        assert list(df.model) == ["m3", "m7", E.BASELINE_MEAN, E.BASELINE_NEAREST]
+        assert (df.n == (data["split"] == split).sum()).all()
+        assert (tmp_path / f"table{number}.md").read_text().startswith(f"Table {number}.")
+        # the mean baseline's R² recomputed by hand
+        mask = data["split"] == split
+        mean_cdf = np.cumsum(data["pmf"][data["split"] == "train"].mean(0))
+        want = r2_cdf(data["cdf"][mask], mean_cdf[None]).mean()
+        assert df.set_index("model").loc[E.BASELINE_MEAN, "r2_mean"] == pytest.approx(want)
+        assert (df.r2_sd >= 0).all() and (df.w1_mean > 0).all()
+    fences = pd.read_csv(tmp_path / "breakdown_fences.csv")
+    assert set(fences.group) == {"curved-1 + curved-2"}
+    parts = pd.read_csv(tmp_path / "breakdown_parts.csv")
+    assert set(parts.group) == set(data["part"][data["split"] == "parts"])
+    assert len(written) == 6
+
+
+def test_groupkfold_trains_one_model_per_fold(trained, tmp_path):
+    root, ds, _ = trained
+    data = T.load_dataset(ds)
+    cfg = T.compose_config(small_overrides(ds, tmp_path / "unused", "m3", epochs=2))
+    df = E.groupkfold(data, cfg, progress=False)
+    parts = sorted(set(data["part"]))
+    for model in ("m3", E.BASELINE_MEAN, E.BASELINE_NEAREST):
+        sub = df[df.model == model]
+        assert list(sub.group) == [*parts, "all configurations", "over parts"]
+        assert sub[sub.group == "all configurations"].n.item() == len(data["part"])
+        over = sub[sub.group == "over parts"]
+        assert over.r2_mean.item() == pytest.approx(sub[sub.group.isin(parts)].r2_mean.mean())
+        assert np.isfinite(sub.r2_mean).all()
+
+
+def test_figures_written(trained, tmp_path):
+    root, ds, dirs = trained
+    E.write_figures(ds, dirs[0], tmp_path / "f12.png", tmp_path / "f13.png")
+    for name in ("f12.png", "f13.png"):
+        assert (tmp_path / name).read_bytes()[:4] == b"\x89PNG"
+
+
+def test_grid_table(trained, tmp_path):
+    root, ds, _ = trained
+    for lr, bs in ((0.01, 16), (0.001, 32)):
+        out = tmp_path / "grid" / f"lr{lr}_bs{bs}"
+        T.train(T.compose_config(small_overrides(ds, out, "m3", epochs=1,
+                                                 extra=[f"model.lr={lr}", f"trainer.batch_size={bs}"])))
+    df = E.grid_table(tmp_path / "grid")
+    assert len(df) == 2 and set(df.batch_size) == {16, 32}
+    assert df.best_val_loss.is_monotonic_increasing
+
+
+def test_cli_tables(trained, tmp_path):
+    root, ds, dirs = trained
+    assert E.main(["tables", "--dataset", str(ds), "--models", *map(str, dirs), "--out-dir", str(tmp_path)]) == 0
+    assert (tmp_path / "table8.md").is_file()

@@ -1,0 +1,81 @@
+"""`feeder predict` on a tiny trained model."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from feeder import predict as P
+from feeder import train as T
+from feeder.errors import FeederError
+from test_train import make_dataset, small_overrides
+
+PARTS = Path(__file__).resolve().parents[1] / "parts"
+
+
+@pytest.fixture(scope="module")
+def model_dir(tmp_path_factory):
+    root = tmp_path_factory.mktemp("pred")
+    make_dataset(root / "ds.npz")
+    T.train(T.compose_config(small_overrides(root / "ds.npz", root / "m3", "m3", epochs=2)))
+    data = T.load_dataset(root / "ds.npz")
+    raw = data["part_raw"][0].reshape(15, 3)
+    (root / "p0.json").write_text(json.dumps({"k": raw[:, 0].tolist(), "magnitude": raw[:, 1].tolist(),
+                                              "phase": raw[:, 2].tolist()}))
+    return root
+
+
+def test_predict_csv_matches_model(model_dir, tmp_path):
+    from feeder.datasets import feeder_vector
+    from feeder.fences import parse_location
+    from feeder.models import TrainedModel
+
+    out = tmp_path / "pmf.csv"
+    args = ["--model", str(model_dir / "m3"), "--features", str(model_dir / "p0.json"),
+            "--loc1", "straight:30", "--loc2", "none", "--out", str(out), "--plot", str(tmp_path / "p.png")]
+    assert P.main(args) == 0
+    df = pd.read_csv(out)
+    assert list(df.columns) == ["angle_deg", "pmf", "cdf"] and len(df) == 360
+    assert df.angle_deg.iloc[1] == 1.0 and df.pmf.sum() == pytest.approx(1.0)
+    assert np.allclose(np.cumsum(df.pmf), df.cdf)
+    data = T.load_dataset(model_dir / "ds.npz")
+    fv = feeder_vector(parse_location("straight:30"), parse_location("none"))
+    pmf, _ = TrainedModel.load(model_dir / "m3").predict(data["part_raw"][:1], fv[None])
+    assert np.allclose(df.pmf, pmf[0])
+    assert (tmp_path / "p.png").read_bytes()[:4] == b"\x89PNG"
+
+
+def test_predict_to_stdout(model_dir, capsys):
+    P.main(["--model", str(model_dir / "m3"), "--features", str(model_dir / "p0.json"),
+            "--loc1", "curved:45", "--loc2", "straight:20"])
+    out = capsys.readouterr()
+    assert out.out.startswith("angle_deg,pmf,cdf") and "ms" in out.err
+
+
+@pytest.mark.parametrize("loc1", ["straight:95", "wedge:3", "straight"])
+def test_bad_fences_write_nothing(model_dir, tmp_path, loc1):
+    out = tmp_path / "x.csv"
+    with pytest.raises(FeederError):
+        P.main(["--model", str(model_dir / "m3"), "--features", str(model_dir / "p0.json"),
+                "--loc1", loc1, "--loc2", "none", "--out", str(out)])
+    assert not out.exists()
+
+
+def test_missing_model_or_part(model_dir, tmp_path):
+    with pytest.raises(FeederError):
+        P.main(["--model", str(tmp_path), "--features", str(model_dir / "p0.json"), "--loc1", "none", "--loc2", "none"])
+    with pytest.raises(FeederError):
+        P.main(["--model", str(model_dir / "m3"), "--part", str(tmp_path / "nope.stl"), "--loc1", "none", "--loc2", "none"])
+
+
+@pytest.mark.skipif(not any(PARTS.glob("*.stl")), reason="no part library in parts/")
+def test_predict_from_stl(model_dir, tmp_path):
+    stl = sorted(PARTS.glob("*.stl"))[0]
+    out = tmp_path / "stl.csv"
+    assert P.main(["--model", str(model_dir / "m3"), "--part", str(stl), "--loc1", "straight:30",
+                   "--loc2", "none", "--out", str(out)]) == 0
+    assert pd.read_csv(out).pmf.sum() == pytest.approx(1.0)
