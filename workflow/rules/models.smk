@@ -1,0 +1,116 @@
+# Regression models of paper Table 2 (Hydra configs in config/model/), Tables 5-8 with baselines
+# and breakdowns, the leave-parts-out GroupKFold table and Figs. 12-13. Uses DATASET (datasets.smk)
+# and pkg (common.smk).
+#
+# Each model's resolved Hydra config is a param of its training job, so editing one
+# config/model/mK.yaml reruns only model K (and the tables that read it).
+# The §3.4.1 grid search is not part of the DAG: `feeder train -m hparams_search=grid model=m3`.
+import shlex
+
+from feeder.train import resolved_config_yaml
+
+MODELS = config["models"]["regression"]
+HYDRA_OVERRIDES = config["models"]["hydra_overrides"]
+HYDRA_ARGS = " ".join(shlex.quote(o) for o in HYDRA_OVERRIDES)
+REFERENCE_MODEL = "m3"  # the paper's Model 3: Figs. 12-13 and the GroupKFold table
+TRAIN_CODE = pkg("train", "models", "losses", "datasets", "labels", "fences")
+EVAL_CODE = pkg("evaluate", "train", "models", "losses", "datasets", "labels", "fences")
+
+MODELS_TARGETS = [
+    *expand("results/tables/table{n}.{ext}", n=[5, 6, 7, 8], ext=["csv", "md"]),
+    *expand("results/tables/breakdown_{split}.{ext}", split=["fences", "parts"], ext=["csv", "md"]),
+    f"results/tables/groupkfold_{REFERENCE_MODEL}.csv",
+    "results/figures/fig12_test_predictions.png",
+    "results/figures/fig13_parts_predictions.png",
+]
+# resolved Hydra settings of every model the DAG can train (composed once, at parse time)
+HYDRA_SETTINGS = {m: resolved_config_yaml(m, HYDRA_OVERRIDES) for m in dict.fromkeys([*MODELS, REFERENCE_MODEL])}
+
+
+rule train_model:
+    """Train one regression model (Hydra config config/model/{model}.yaml) on the train split."""
+    input:
+        TRAIN_CODE,
+        dataset=DATASET,
+    output:
+        model="results/models/{model}/model.pt",
+        metrics="results/models/{model}/metrics.json",
+    params:
+        hydra=lambda w: HYDRA_SETTINGS[w.model],
+        overrides=HYDRA_ARGS,
+    log:
+        "logs/models/train_{model}.log",
+    benchmark:
+        "benchmarks/models/train_{model}.tsv"
+    conda:
+        "../envs/feeder.yaml"
+    shell:
+        "feeder train model={wildcards.model} paths.dataset={input.dataset}"
+        " paths.out=$(dirname {output.model}) hydra.run.dir=$(dirname {output.model})/hydra"
+        " {params.overrides} > {log} 2>&1"
+
+
+rule evaluate_models:
+    """Tables 5-8 (Train, Test, Fences, Parts) with both baselines, and the Fences/Parts breakdowns."""
+    input:
+        EVAL_CODE,
+        dataset=DATASET,
+        models=expand("results/models/{model}/model.pt", model=MODELS),
+    output:
+        t5="results/tables/table5.csv",
+        t6="results/tables/table6.csv",
+        t7="results/tables/table7.csv",
+        t8="results/tables/table8.csv",
+        md=expand("results/tables/table{n}.md", n=[5, 6, 7, 8]),
+        breakdowns=expand("results/tables/breakdown_{split}.{ext}", split=["fences", "parts"], ext=["csv", "md"]),
+    log:
+        "logs/models/evaluate.log",
+    benchmark:
+        "benchmarks/models/evaluate.tsv"
+    conda:
+        "../envs/feeder.yaml"
+    shell:
+        "feeder evaluate tables --dataset {input.dataset} --models $(dirname {input.models})"
+        " --out-dir $(dirname {output.t5}) > {log} 2>&1"
+
+
+rule groupkfold_model:
+    """Leave-parts-out GroupKFold of one model: one training per fold of datasets.group_folds."""
+    input:
+        EVAL_CODE,
+        dataset=DATASET,
+    output:
+        csv="results/tables/groupkfold_{model}.csv",
+        md="results/tables/groupkfold_{model}.md",
+    params:
+        hydra=lambda w: HYDRA_SETTINGS[w.model],
+        overrides=HYDRA_ARGS,
+    log:
+        "logs/models/groupkfold_{model}.log",
+    benchmark:
+        "benchmarks/models/groupkfold_{model}.tsv"
+    conda:
+        "../envs/feeder.yaml"
+    shell:
+        "feeder evaluate groupkfold --dataset {input.dataset} --out {output.csv}"
+        " model={wildcards.model} {params.overrides} > {log} 2>&1"
+
+
+rule prediction_figures:
+    """Figs. 12 (Test) and 13 (Parts): four representative CDF predictions of Model 3 each."""
+    input:
+        EVAL_CODE,
+        dataset=DATASET,
+        model=f"results/models/{REFERENCE_MODEL}/model.pt",
+    output:
+        fig12="results/figures/fig12_test_predictions.png",
+        fig13="results/figures/fig13_parts_predictions.png",
+    log:
+        "logs/models/prediction_figures.log",
+    benchmark:
+        "benchmarks/models/prediction_figures.tsv"
+    conda:
+        "../envs/feeder.yaml"
+    shell:
+        "feeder evaluate figures --dataset {input.dataset} --model $(dirname {input.model})"
+        " --fig12 {output.fig12} --fig13 {output.fig13} > {log} 2>&1"
