@@ -603,7 +603,8 @@ def make_figures(ds: dict, settings: dict, out: dict) -> None:
 
     # Fig. 5: histogram of JS at the comparison level with the bootstrap noise floor
     li = int(np.argmin(np.abs(levels - int(conv["compare_pct"]))))
-    floor, _ = bootstrap_js_floor(ds, li, int(conv["bootstrap"]), float(conv["noise_quantile"]), int(conv["seed"]), bins, sigma)
+    jst = js_table(ds, conv, bins, sigma)
+    floor = float(jst["noise_floor"].iloc[li])
     fig, ax = plt.subplots(figsize=(5, 3.5))
     ax.hist(js[:, li], bins=30, color="0.6", edgecolor="k")
     ax.axvline(floor, color="r", ls="--", label=f"bootstrap noise floor ({conv['noise_quantile']:g} quantile) = {floor:.3g}")
@@ -651,7 +652,7 @@ def make_figures(ds: dict, settings: dict, out: dict) -> None:
     a2.set_ylabel("fraction inside DKW band")
     fio.save_figure(out["dkw_fig"], fig)
     fio.write_csv(out["dkw_csv"], table)
-    fio.write_csv(out["js_csv"], js_table(ds, conv, bins, sigma))
+    fio.write_csv(out["js_csv"], jst)
 
 
 # ----------------------------------------------------------------------------------------------
