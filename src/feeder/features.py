@@ -15,8 +15,13 @@ Pipeline (:func:`outline_samples` then :func:`dft_features`):
    axis points along positive skewness of the projections (if the skewness is negligible, its
    largest-magnitude component is made positive) and the second axis is the first turned by
    +90°. The alignment is therefore a proper rotation: a part and its mirror image stay
-   distinguishable. Tied eigenvalues (circles, squares, regular stars) give whatever basis
-   ``numpy.linalg.eigh`` returns for that input: finite, and identical for identical input.
+   distinguishable. When the eigenvalues are (nearly) tied (ratio < ``DFT.tie_ratio`` = 1.05,
+   the paper's near-tie criterion: squares, circles, regular polygons, stars, gears) their
+   eigenvectors are arbitrary, and because step 3 scales the larger aligned extent to the
+   canvas, an arbitrary in-plane angle would even change the magnitudes (by up to √2 for a
+   square). For those shapes the first axis is instead the long side of the points' minimum-area
+   bounding rectangle (either side of a square), which follows the shape when it is rotated or
+   resampled. Everything stays finite and identical for identical input.
 3. **Silhouette.** The aligned points are scaled uniformly so that the larger extent spans the
    500 px canvas minus the 10 px margins, centred, and rounded to integer pixels. A face cloud
    drawn as single pixels is a dotted pattern, not a shape, so the dots are closed into a solid
@@ -77,6 +82,7 @@ class DFTSettings:
     edge_bridge_px: int = 3         # square dilation of the Canny edges (bridges 1-px breaks)
     min_outline_fill: float = 0.9   # the chosen contour must enclose this share of the silhouette
     stl_cloud_points: int = 4000    # face cloud size sampled from an STL's top face
+    tie_ratio: float = 1.05         # eigenvalue ratio below which the axes count as tied
     planar_rel_tol: float = 1e-3    # spread of the constant axis / in-plane extent
     collinear_rel_tol: float = 1e-6  # smallest / largest singular value of the 2D points
 
@@ -160,12 +166,14 @@ def load_points(path: str | os.PathLike, settings: DFTSettings = DFT) -> np.ndar
 # --------------------------------------------------------------------------------------------
 # The method (pure functions)
 # --------------------------------------------------------------------------------------------
-def principal_align(xy: np.ndarray) -> np.ndarray:
+def principal_align(xy: np.ndarray, settings: DFTSettings = DFT) -> np.ndarray:
     """Centre and rotate onto the principal axes (largest variance along x); see module doc."""
     c = xy - xy.mean(axis=0)
     cov = c.T @ c / len(c)
     evals, evecs = np.linalg.eigh(cov)  # ascending
     e1 = evecs[:, 1].copy()
+    if evals[1] < settings.tie_ratio * evals[0]:
+        e1 = _tie_axis(c)
     proj = c @ e1
     skew = float(np.mean(proj**3))
     sigma = math.sqrt(max(float(evals[1]), 0.0))
@@ -177,6 +185,19 @@ def principal_align(xy: np.ndarray) -> np.ndarray:
             e1 = -e1
     e2 = np.array([-e1[1], e1[0]])
     return np.column_stack([c @ e1, c @ e2])
+
+
+def _tie_axis(c: np.ndarray) -> np.ndarray:
+    """First axis for (near-)tied eigenvalues: the long side of the minimum-area bounding
+    rectangle of the points (either side for a square); a rotation-covariant choice."""
+    import shapely
+
+    rect = np.asarray(
+        shapely.minimum_rotated_rectangle(shapely.MultiPoint(c)).exterior.coords
+    )[:3]
+    sides = [rect[1] - rect[0], rect[2] - rect[1]]
+    side = max(sides, key=lambda v: float(np.hypot(*v)))
+    return side / np.hypot(*side)
 
 
 def silhouette(aligned: np.ndarray, settings: DFTSettings = DFT) -> np.ndarray:
@@ -247,7 +268,7 @@ def spline_samples(contour: np.ndarray, settings: DFTSettings = DFT) -> np.ndarr
 
 def outline_samples(xy: np.ndarray, source: str = "points", settings: DFTSettings = DFT) -> np.ndarray:
     """Steps 2-5 for a 2D face point set: the recentred complex outline (samples,)."""
-    aligned = principal_align(np.asarray(xy, dtype=np.float64))
+    aligned = principal_align(np.asarray(xy, dtype=np.float64), settings)
     canvas = silhouette(aligned, settings)
     return spline_samples(contour_of(canvas, source, settings), settings)
 
@@ -312,6 +333,8 @@ def figure_reconstructions(paths: list[str], out: str, count: int) -> None:
 
     from feeder.io import save_figure
 
+    if not 1 <= count <= DFT.samples:
+        raise FeederError(f"--coefficients {count} outside 1..{DFT.samples} (the DFT length)")
     n = len(paths)
     cols = min(4, n)
     rows = int(math.ceil(n / cols))
@@ -344,6 +367,8 @@ def study_mse(paths: list[str], table: str, figure: str, max_count: int, chosen:
 
     from feeder.io import save_figure, write_csv
 
+    if not 1 <= max_count <= DFT.samples:
+        raise FeederError(f"--max-coefficients {max_count} outside 1..{DFT.samples} (the DFT length)")
     counts = np.arange(1, max_count + 1)
     errs = []
     for path in tqdm(paths, desc="s1", disable=not sys.stderr.isatty()):

@@ -13,7 +13,8 @@ Subcommands::
     feeder parts xyz PART.stl --out PART.xyz [--points N]   # face cloud of a user's STL
     feeder parts list [--dir parts] [--include ID ...]
     feeder parts fig6 PATH... --out results/figures/fig6_dft_reconstruction.png
-    feeder parts s1 PATH... --table results/tables/s1_dft_mse.csv --figure results/figures/s1_dft_mse.png
+    feeder parts s1 PATH... --table results/tables/s1_dft_mse.csv \
+        --figure results/figures/s1_dft_mse.png --max-coefficients 50
 """
 
 from __future__ import annotations
@@ -397,13 +398,15 @@ def _parser() -> argparse.ArgumentParser:
     f = sub.add_parser("fig6", help="outlines and their DFT reconstructions (Fig. 6 panel b)")
     f.add_argument("paths", nargs="+", help=".xyz or .stl files, one panel each")
     f.add_argument("--out", required=True)
-    f.add_argument("--coefficients", type=int, required=True)
+    f.add_argument("--coefficients", type=int, default=None,
+                   help="coefficients kept (default: the feature count, feeder.features.DFT)")
     s = sub.add_parser("s1", help="mean reconstruction MSE vs number of coefficients (Fig. S1)")
     s.add_argument("paths", nargs="+", help=".xyz or .stl files of the library")
     s.add_argument("--table", required=True)
     s.add_argument("--figure", required=True)
     s.add_argument("--max-coefficients", type=int, required=True)
-    s.add_argument("--chosen", type=int, required=True, help="coefficient count marked on the plot")
+    s.add_argument("--chosen", type=int, default=None,
+                   help="count marked on the plot (default: the feature count)")
     return ap
 
 
@@ -428,13 +431,14 @@ def main(argv: list[str]) -> int:
         print("\n".join(list_parts(args.dir, args.include if args.include else "all")))
         return 0
     if args.cmd == "fig6":
-        from feeder.features import figure_reconstructions
+        from feeder.features import DFT, figure_reconstructions
 
-        figure_reconstructions(args.paths, args.out, args.coefficients)
+        figure_reconstructions(args.paths, args.out, args.coefficients or DFT.coefficients)
         return 0
     if args.cmd == "s1":
-        from feeder.features import study_mse
+        from feeder.features import DFT, study_mse
 
-        study_mse(args.paths, args.table, args.figure, args.max_coefficients, args.chosen)
+        study_mse(args.paths, args.table, args.figure, args.max_coefficients,
+                  args.chosen or DFT.coefficients)
         return 0
     raise AssertionError(args.cmd)  # pragma: no cover

@@ -1,0 +1,265 @@
+import json
+import math
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from feeder.cli import main as cli
+from feeder.errors import FeederError
+from feeder.features import (
+    DFT,
+    as_vector,
+    dft_features,
+    features_of_file,
+    frequencies,
+    outline_samples,
+    planar_points,
+    principal_align,
+    read_xyz,
+    reconstruct,
+    reconstruction_mse,
+)
+from feeder.geometry import face_cloud, load_part, stl_bytes
+
+PARTS = Path("parts")
+FEEDER = str(Path(sys.executable).with_name("feeder"))
+
+
+def _rot(deg):
+    a = math.radians(deg)
+    return np.array([[math.cos(a), -math.sin(a)], [math.sin(a), math.cos(a)]])
+
+
+def _write_xyz(path, pts2, z=5.0):
+    arr = np.column_stack([pts2, np.full(len(pts2), z)])
+    path.write_text("".join(f"{float(x)!r} {float(y)!r} {float(zz)!r}\n" for x, y, zz in arr))
+    return path
+
+
+# ---------------------------------------------------------------- pure pieces by hand
+def test_dft_selection_by_hand():
+    n = np.arange(DFT.samples)
+    z = 3 * np.exp(2j * np.pi * 2 * n / 100) + 1 * np.exp(-2j * np.pi * n / 100 + 0.5j)
+    f = dft_features(z, 3)
+    assert f["k"][:2] == [2, -1]
+    np.testing.assert_allclose(f["magnitude"][:2], [300, 100])
+    np.testing.assert_allclose(f["phase"][:2], [0.0, 0.5], atol=1e-12)
+    assert f["magnitude"][2] < 1e-9
+    assert list(frequencies(4)) == [0, 1, -2, -1]
+    np.testing.assert_allclose(reconstruct(z, 2), z, atol=1e-12)
+    assert as_vector(f).tolist()[:3] == [2, pytest.approx(300), pytest.approx(0.0, abs=1e-12)]
+
+
+def test_principal_align_is_a_proper_rotation_with_long_axis_first():
+    rng = np.random.default_rng(0)
+    pts = rng.uniform([-4, -1], [4, 1], size=(500, 2))
+    pts = np.vstack([pts, [[3.5, 0.9], [3.9, 0.95]]])  # chiral asymmetry
+    moved = pts @ _rot(33).T + [10, -3]
+    a = principal_align(moved)
+    cov = np.cov(a.T)
+    assert cov[0, 0] > cov[1, 1] and abs(cov[0, 1]) < 1e-9
+    # a rotation (det +1) maps the original centred points onto the aligned ones
+    c = pts - pts.mean(axis=0)
+    r, *_ = np.linalg.lstsq(c, a, rcond=None)
+    assert np.linalg.det(r) == pytest.approx(1.0, abs=1e-9)
+    np.testing.assert_allclose(principal_align(pts @ _rot(-71).T), a, atol=1e-9)
+
+
+# ---------------------------------------------------------------- invariances
+@pytest.mark.parametrize("part", ["lshape-a", "star5-a", "rect-sq", "crescent-a", "gear12-a"])
+def test_rotated_translated_copy_gives_same_sorted_magnitudes(part):
+    pts = read_xyz(PARTS / f"{part}.xyz")
+    base = np.sort(dft_features(outline_samples(planar_points(pts, part)))["magnitude"])
+    rng = np.random.default_rng(1)
+    for deg in [23.0, 90.0, 161.0, 287.0]:
+        moved = pts.copy()
+        moved[:, :2] = pts[:, :2] @ _rot(deg).T + [312.5, -87.25]
+        moved = moved[rng.permutation(len(moved))] / 1000.0  # shuffled, and in metres
+        mags = np.sort(dft_features(outline_samples(planar_points(moved, part)))["magnitude"])
+        np.testing.assert_allclose(mags, base, rtol=0.02)
+
+
+@pytest.mark.parametrize("part", ["lshape-a", "keyhole-a", "tshape-a", "blob-b", "rect-sq",
+                                  "hex-a", "circle-a"])
+def test_resampled_rotated_face_gives_same_magnitudes(part):
+    """A face sampled afresh in a rotated pose (a different lattice): within 2 % of |a|max."""
+    outline = load_part(PARTS / f"{part}.stl").outline * 1000.0
+    base = np.sort(dft_features(outline_samples(face_cloud(outline, 4000)))["magnitude"])
+    for deg in [17.0, 133.0]:
+        moved = outline @ _rot(deg).T + [250.0, -40.0]
+        mags = np.sort(dft_features(outline_samples(face_cloud(moved, 4000)))["magnitude"])
+        assert np.max(np.abs(mags - base)) <= 0.02 * base.max()
+
+
+def test_ellipse_is_reconstructed_by_its_dominant_coefficients():
+    a, b = 30.0, 12.0
+    t = 2 * np.pi * np.arange(128) / 128
+    outline = np.column_stack([a * np.cos(t), b * np.sin(t)]) @ _rot(25).T
+    z = outline_samples(face_cloud(outline, 4000))
+    f = dft_features(z)
+    # centrally symmetric: the dominant harmonics are odd, led by k = +1 and k = -1
+    assert set(f["k"][:2]) == {1, -1}
+    assert all(k % 2 == 1 for k in f["k"][:6])
+    energy = np.abs(np.fft.fft(z)) ** 2
+    assert np.sum(np.square(f["magnitude"][:2])) > 0.98 * energy.sum()
+    assert np.sum(np.square(f["magnitude"][:6])) > 0.999 * energy.sum()
+    rec = reconstruct(z, 15)
+    assert reconstruction_mse(z, 15) < 1e-5
+    assert reconstruction_mse(z, 4) < reconstruction_mse(z, 2) < reconstruction_mse(z, 1)
+    # the reconstruction keeps the ellipse's proportions
+    assert np.ptp(rec.real) / np.ptp(rec.imag) == pytest.approx(a / b, rel=0.02)
+
+
+@pytest.mark.parametrize("shape", ["circle", "square"])
+def test_tied_axes_give_finite_identical_output(tmp_path, shape):
+    if shape == "circle":
+        t = 2 * np.pi * np.arange(64) / 64
+        outline = 20 * np.column_stack([np.cos(t), np.sin(t)])
+    else:
+        outline = np.array([(0, 0), (40, 0), (40, 40), (0, 40)], float)
+    path = _write_xyz(tmp_path / f"{shape}.xyz", face_cloud(outline, 3000))
+    f1, f2 = features_of_file(path), features_of_file(path)
+    assert f1 == f2
+    assert np.all(np.isfinite(as_vector(f1)))
+    stl = tmp_path / f"{shape}.stl"
+    stl.write_bytes(stl_bytes(outline / 1000.0, 0.008))
+    assert features_of_file(stl) == features_of_file(stl)
+
+
+def test_units_and_stl_agree_with_xyz(tmp_path):
+    pts = read_xyz(PARTS / "keyhole-a.xyz")
+    mm = features_of_file(PARTS / "keyhole-a.xyz")
+    metres = features_of_file(_write_xyz(tmp_path / "m.xyz", pts[:, :2] / 1000.0, 0.008))
+    np.testing.assert_allclose(metres["magnitude"], mm["magnitude"], rtol=0.01)
+    stl = features_of_file(PARTS / "keyhole-a.stl")
+    assert np.max(np.abs(np.array(stl["magnitude"]) - mm["magnitude"])) < 0.02 * mm["magnitude"][0]
+
+
+def test_constant_axis_other_than_z_is_dropped(tmp_path):
+    pts = read_xyz(PARTS / "tshape-a.xyz")
+    path = tmp_path / "yz.xyz"
+    path.write_text("".join(f"7.5,{x},{y}\n" for x, y, _ in pts))  # commas, constant x
+    ref = features_of_file(PARTS / "tshape-a.xyz")
+    got = features_of_file(path)
+    np.testing.assert_allclose(np.sort(got["magnitude"]), np.sort(ref["magnitude"]), rtol=0.02)
+
+
+# ---------------------------------------------------------------- CLI and bad input
+def test_cli_prints_the_45_values(capsys):
+    assert cli(["features", str(PARTS / "star5-a.xyz")]) == 0
+    f = json.loads(capsys.readouterr().out)
+    assert sorted(f) == ["k", "magnitude", "phase"]
+    assert len(f["k"]) == len(f["magnitude"]) == len(f["phase"]) == 15
+    assert all(isinstance(k, int) and -50 <= k <= 49 for k in f["k"])
+    assert f["magnitude"] == sorted(f["magnitude"], reverse=True)
+    assert all(-math.pi <= p <= math.pi for p in f["phase"])
+
+
+def test_cli_out_writes_json(tmp_path, capsys):
+    out = tmp_path / "sub" / "f.json"
+    assert cli(["features", str(PARTS / "rect-a2.stl"), "--out", str(out)]) == 0
+    assert capsys.readouterr().out == ""
+    assert json.loads(out.read_text()) == features_of_file(PARTS / "rect-a2.stl")
+
+
+def _bad_inputs(tmp_path):
+    good = stl_bytes(np.array([(0, 0), (0.03, 0), (0.03, 0.02), (0, 0.02)]), 0.005)
+    rng = np.random.default_rng(3)
+    cases = {
+        "empty.xyz": ("", "empty point cloud"),
+        "blank.xyz": ("\n\n# only a comment\n", "empty point cloud"),
+        "two.xyz": ("0 0 0\n1 0 0\n1 0 0\n0 0 0\n", "fewer than 3 distinct points"),
+        "nan.xyz": ("0 0 0\n1 0 0\nnan 1 0\n", "NaN or infinite"),
+        "inf.xyz": ("0 0 0\n1 0 0\n0 inf 0\n", "NaN or infinite"),
+        "text.xyz": ("0 0 0\nhello world again\n", "not numbers"),
+        "cols.xyz": ("0 0\n1 0\n0 1\n", "expected 'x y z'"),
+        "line.xyz": ("".join(f"{i} {2 * i} 5\n" for i in range(50)), "collinear"),
+        "bumpy.xyz": ("".join(f"{x} {y} {z}\n" for x, y, z in rng.uniform(0, 10, (200, 3))),
+                      "not planar"),
+        "empty.stl": (b"", "empty STL"),
+        "cut.stl": (good[:-7], "truncated"),
+        "open.stl": (good[:84 - 4] + (len(good[84:]) // 50 - 1).to_bytes(4, "little")
+                     + good[84:-50], "not watertight"),
+        "shape.obj": ("v 0 0 0\n", "unknown file type"),
+    }
+    out = {}
+    for name, (content, msg) in cases.items():
+        path = tmp_path / name
+        if isinstance(content, bytes):
+            path.write_bytes(content)
+        else:
+            path.write_text(content)
+        out[name] = (path, msg)
+    return out
+
+
+def test_every_bad_input_is_a_one_line_error_without_output(tmp_path, capsys):
+    for name, (path, msg) in _bad_inputs(tmp_path).items():
+        out = tmp_path / f"{name}.json"
+        assert cli(["features", str(path), "--out", str(out)]) == 2, name
+        captured = capsys.readouterr()
+        err = captured.err.strip()
+        assert len(err.splitlines()) == 1, (name, err)
+        assert err.startswith("feeder features: error: ") and str(path) in err, err
+        assert msg in err, (name, err)
+        assert captured.out == ""
+        assert not out.exists(), name
+        assert not list(tmp_path.glob(f".{out.name}*")), name  # no temp file left
+
+
+def test_bad_input_via_subprocess(tmp_path):
+    cases = _bad_inputs(tmp_path)
+    for name in ["nan.xyz", "open.stl"]:
+        path, msg = cases[name]
+        out = tmp_path / "x.json"
+        proc = subprocess.run([FEEDER, "features", str(path), "--out", str(out)],
+                              capture_output=True, text=True, timeout=120)
+        assert proc.returncode == 2
+        assert len(proc.stderr.strip().splitlines()) == 1 and msg in proc.stderr
+        assert not out.exists()
+    proc = subprocess.run([FEEDER, "features", str(PARTS / "blob-a.xyz")],
+                          capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0
+    assert len(json.loads(proc.stdout)["k"]) == 15
+
+
+def test_planar_points_direct_errors():
+    with pytest.raises(FeederError, match="collinear"):
+        planar_points(np.array([[0, 0, 1], [1, 1, 1], [2, 2, 1], [3, 3, 1.0]]), "src")
+
+
+# ---------------------------------------------------------------- the whole library
+@pytest.mark.slow
+def test_features_work_on_every_library_part():
+    xyz = sorted(PARTS.glob("*.xyz"))
+    assert len(xyz) >= 48
+    vectors = []
+    for path in xyz:
+        f = features_of_file(path)
+        v = as_vector(f)
+        assert v.shape == (45,) and np.all(np.isfinite(v))
+        assert f["magnitude"] == sorted(f["magnitude"], reverse=True)
+        vectors.append(v)
+    # different parts give different features
+    assert len({tuple(np.round(v, 6)) for v in vectors}) == len(vectors)
+
+
+def test_figures_and_s1_table(tmp_path):
+    import pandas as pd
+
+    paths = [str(PARTS / f"{p}.xyz") for p in ["rect-a2", "star5-a", "keyhole-a"]]
+    fig = tmp_path / "fig6.png"
+    assert cli(["parts", "fig6", *paths, "--out", str(fig), "--coefficients", "15"]) == 0
+    assert fig.stat().st_size > 10_000
+    table, s1 = tmp_path / "s1.csv", tmp_path / "s1.png"
+    assert cli(["parts", "s1", *paths, "--table", str(table), "--figure", str(s1),
+                "--max-coefficients", "50", "--chosen", "15"]) == 0
+    frame = pd.read_csv(table)
+    assert list(frame["n_coefficients"]) == list(range(1, 51))
+    assert (frame["n_parts"] == 3).all()
+    # more coefficients never reconstruct worse (top-k by magnitude: Parseval)
+    assert np.all(np.diff(frame["mean_mse"]) <= 1e-15)
+    assert s1.stat().st_size > 10_000

@@ -1,0 +1,77 @@
+# Parts: DFT shape features per part (paper §3.2.1), the Fig. 6 reconstruction panel and the
+# Supplementary Fig. S1 coefficient study. Parts are read from config["parts"]["dir"] only (the
+# library is generated and committed by `feeder parts generate`; a user may drop in their own
+# <id>.stl). A part's features come from its <id>.xyz face cloud when there is one, otherwise from
+# its STL's top face. Uses PARTS and pkg() from common.smk; defines rules only.
+
+
+rule part_features:
+    """45 raw DFT values of one part: results/features/{part}.json (docs/data.md)."""
+    input:
+        pkg("features", "geometry"),
+        stl=lambda w: f"{config['parts']['dir']}/{w.part}.stl",
+        src=lambda w: (
+            f"{config['parts']['dir']}/{w.part}.xyz"
+            if exists(f"{config['parts']['dir']}/{w.part}.xyz")
+            else f"{config['parts']['dir']}/{w.part}.stl"
+        ),
+    output:
+        "results/features/{part}.json",
+    log:
+        "logs/features/{part}.log",
+    benchmark:
+        "benchmarks/features/{part}.tsv"
+    conda:
+        "../envs/feeder.yaml"
+    shell:
+        "feeder features {input.src} --out {output} > {log} 2>&1"
+
+
+rule parts_fig6:
+    """Fig. 6 (panel b): outlines and their reconstructions from the kept DFT coefficients, for the
+    parts listed in parts.fig6 that are in use (else the first eight parts)."""
+    input:
+        pkg("features", "geometry", "parts"),
+        src=lambda w: [
+            f"{config['parts']['dir']}/{p}.xyz"
+            if exists(f"{config['parts']['dir']}/{p}.xyz")
+            else f"{config['parts']['dir']}/{p}.stl"
+            for p in ([q for q in config["parts"]["fig6"] if q in PARTS] or PARTS[:8])
+        ],
+    output:
+        "results/figures/fig6_dft_reconstruction.png",
+    log:
+        "logs/features/fig6.log",
+    benchmark:
+        "benchmarks/features/fig6.tsv"
+    conda:
+        "../envs/feeder.yaml"
+    shell:
+        "feeder parts fig6 {input.src} --out {output} > {log} 2>&1"
+
+
+rule parts_s1:
+    """Supplementary Fig. S1: mean reconstruction MSE over every part in use vs the number of
+    largest-magnitude coefficients kept (1 .. parts.s1_max_coefficients)."""
+    input:
+        pkg("features", "geometry", "parts"),
+        src=lambda w: [
+            f"{config['parts']['dir']}/{p}.xyz"
+            if exists(f"{config['parts']['dir']}/{p}.xyz")
+            else f"{config['parts']['dir']}/{p}.stl"
+            for p in PARTS
+        ],
+    output:
+        table="results/tables/s1_dft_mse.csv",
+        figure="results/figures/s1_dft_mse.png",
+    params:
+        max_coefficients=config["parts"]["s1_max_coefficients"],
+    log:
+        "logs/features/s1.log",
+    benchmark:
+        "benchmarks/features/s1.tsv"
+    conda:
+        "../envs/feeder.yaml"
+    shell:
+        "feeder parts s1 {input.src} --table {output.table} --figure {output.figure}"
+        " --max-coefficients {params.max_coefficients} > {log} 2>&1"
