@@ -136,6 +136,10 @@ def test_units_and_stl_agree_with_xyz(tmp_path):
     np.testing.assert_allclose(metres["magnitude"], mm["magnitude"], rtol=0.01)
     stl = features_of_file(PARTS / "keyhole-a.stl")
     assert np.max(np.abs(np.array(stl["magnitude"]) - mm["magnitude"])) < 0.02 * mm["magnitude"][0]
+    outline = load_part(PARTS / "keyhole-a.stl").outline
+    (tmp_path / "mm.stl").write_bytes(stl_bytes(outline * 1000.0, 8.0))
+    assert features_of_file(tmp_path / "mm.stl")["magnitude"] == pytest.approx(stl["magnitude"],
+                                                                              rel=0.01)
 
 
 def test_constant_axis_other_than_z_is_dropped(tmp_path):

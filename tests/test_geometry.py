@@ -185,6 +185,8 @@ def _write_bad(tmp_path, kind):
                 out.append([[*p, 0], [*q, 0], [*q, 0.01]])
                 out.append([[*p, 0], [*q, 0.01], [*p, 0.01]])
         path.write_text(_ascii_stl(out))
+    elif kind == "millimetres":
+        path.write_bytes(stl_bytes(np.array(L_SHAPE, float) * 20.0, 10.0))
     elif kind == "garbage":
         path.write_bytes(b"\x00\x01hello")
     return path
@@ -201,6 +203,7 @@ def _write_bad(tmp_path, kind):
         ("slanted", "not an extrusion along z"),
         ("ring", "more than one boundary loop"),
         ("garbage", "not an STL"),
+        ("millimetres", "must be in metres"),
     ],
 )
 def test_bad_stl_is_one_line_error_naming_the_file(tmp_path, kind, msg):

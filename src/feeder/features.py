@@ -5,7 +5,7 @@ Pipeline (:func:`outline_samples` then :func:`dft_features`):
 1. **Points.** An ``.xyz`` file is read as ``x y z`` lines (spaces or commas; blank lines and
    ``#`` comments allowed). The axis with (nearly) no spread is dropped; the others must span a
    plane (not a line). For an ``.stl`` the exact outline of the top face is recovered
-   (:func:`feeder.geometry.load_part`) and its face is sampled into a point cloud exactly like
+   (:func:`feeder.geometry.read_outline`) and its face is sampled into a point cloud exactly like
    the library's exports (:func:`feeder.geometry.face_cloud`, ``DFT.stl_cloud_points`` points).
    **Units:** millimetres and metres both work and need no detection: step 3 scales the shape
    uniformly to the canvas, so every later quantity is in canvas pixels and the features do not
@@ -154,10 +154,14 @@ def load_points(path: str | os.PathLike, settings: DFTSettings = DFT) -> np.ndar
     path = Path(path)
     suffix = path.suffix.lower()
     if suffix == ".stl":
-        from feeder.geometry import face_cloud, load_part
+        from feeder.geometry import clean_outline, face_cloud, read_outline
 
-        part = load_part(path)
-        return face_cloud(part.outline, settings.stl_cloud_points)
+        outline, _ = read_outline(path)  # metres or millimetres: the features are unit-free
+        try:
+            outline = clean_outline(outline)
+        except FeederError as err:
+            raise FeederError(f"{path}: {err}") from err
+        return face_cloud(outline, settings.stl_cloud_points)
     if suffix == ".xyz":
         return planar_points(read_xyz(path), str(path), settings)
     raise FeederError(f"{path}: unknown file type {suffix!r} (expected .xyz or .stl)")

@@ -31,6 +31,8 @@ from feeder.errors import FeederError
 
 # Relative tolerance (of the part's in-plane size) for "the same z level" and collinear vertices.
 _REL_TOL = 1e-6
+# Plausibility bound for an STL in metres: a part wider than this is almost surely in millimetres.
+MAX_PART_SIZE_M = 1.0
 
 
 # --------------------------------------------------------------------------------------------
@@ -203,7 +205,7 @@ def convex_decomposition(outline: np.ndarray) -> list[np.ndarray]:
 # --------------------------------------------------------------------------------------------
 # The part
 # --------------------------------------------------------------------------------------------
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class PartGeometry:
     """Outline (N, 2) CCW in metres without closing duplicate, thickness (m) and derived values."""
 
@@ -420,6 +422,12 @@ def _outline_from_mesh(tris: np.ndarray, path: Path) -> tuple[np.ndarray, float]
     return outline, thickness
 
 
+def read_outline(path: str | os.PathLike) -> tuple[np.ndarray, float]:
+    """Outline (N, 2) and thickness of an extruded STL in the file's own units (no unit check)."""
+    path = Path(path)
+    return _outline_from_mesh(read_stl(path), path)
+
+
 def load_part(path: str | os.PathLike) -> PartGeometry:
     """Read ``<id>.stl`` (metres, extruded along z) into a :class:`PartGeometry`.
 
@@ -427,8 +435,11 @@ def load_part(path: str | os.PathLike) -> PartGeometry:
     thickness is the z extent. Any defect is a one-line FeederError naming the file.
     """
     path = Path(path)
-    tris = read_stl(path)
-    outline, thickness = _outline_from_mesh(tris, path)
+    outline, thickness = read_outline(path)
+    size = float(np.max(np.ptp(outline, axis=0)))
+    if size > MAX_PART_SIZE_M:
+        raise FeederError(f"{path}: part is {size:g} m across; STL files must be in metres "
+                          f"(is it in millimetres?)")
     try:
         return PartGeometry.from_polygon(path.stem, outline, thickness)
     except FeederError as err:
