@@ -231,3 +231,29 @@ def test_cli_main_runs_hydra_and_saves_resolved_config(dataset, tmp_path):
     assert (out / "hydra" / ".hydra" / "config.yaml").is_file()
     saved = (out / "config.yaml").read_text()
     assert "name: m8" in saved and "${" not in saved
+
+
+def test_grid_search_config_matches_paper():
+    from hydra import compose, initialize_config_dir
+
+    from hydra.core.global_hydra import GlobalHydra
+
+    GlobalHydra.instance().clear()
+    with initialize_config_dir(version_base="1.3", config_dir=str(T.CONFIG_DIR)):
+        cfg = compose("train", overrides=["hparams_search=grid", "model=m5"], return_hydra_config=True)
+    params = cfg.hydra.sweeper.params
+    assert [float(v) for v in params["model.lr"].split(",")] == [0.0001, 0.0003, 0.0004, 0.001]
+    assert [int(v) for v in params["trainer.batch_size"].split(",")] == [16, 32, 64]
+    assert str(cfg.hydra.mode) == "RunMode.MULTIRUN"
+    assert cfg.paths.out == "results/models/grid/m5/lr0.0003_bs64"
+
+
+def test_grid_search_multirun_from_the_cli(dataset, tmp_path, monkeypatch):
+    from feeder.evaluate import grid_table
+
+    monkeypatch.chdir(tmp_path)
+    args = small_overrides(dataset, "unused", "m3", epochs=1)
+    args = [a for a in args if not a.startswith("paths.out")]
+    assert T.main(["-m", "hparams_search=grid", *args, "model.lr=0.01", "trainer.batch_size=32,64"]) == 0
+    df = grid_table(tmp_path / "results/models/grid/m3")
+    assert sorted(df.run) == ["lr0.01_bs32", "lr0.01_bs64"]
