@@ -1,0 +1,239 @@
+"""Accuracy against time of the simulation settings (``feeder bench-sim``).
+
+Over a fixed panel of part × fence configurations (``sim.bench.panel``: shape specs from
+:mod:`feeder.sim_shapes`, so the benchmark does not depend on the part library), the reference
+preset (``faithful``) is run with two base seeds; the two runs' distance is the *noise floor*
+(what sampling alone gives at this drop count). Each setting of ``sim.bench.sweep`` (overrides of
+a base preset: time step, substeps, solver iterations, lanes, shortcuts) runs with the second
+seed and is compared with the reference's first seed — so, like the floor, the comparison holds
+two independent samples and a setting without bias lands at the floor. Drops per configuration
+are swept by using the first k drops (``sim.bench.drop_levels``) of every run.
+
+Distances per configuration (PMFs and CDFs as in :mod:`feeder.labels`, ok drops only): JS
+divergence (bits), W1 on the CDF (degrees) and CDF R² (reference as truth); CPU milliseconds per
+drop from the worker's process time. Writes a CSV (one row per setting × drop level × configuration
+plus ``config = mean`` aggregate rows with the noise floor and the speed-up over the reference)
+and a Pareto plot (mean JS and W1 against CPU ms per drop, log axes, floor as a band).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import time
+from multiprocessing import get_context
+
+import numpy as np
+
+from feeder.errors import FeederError
+
+
+def _run(job):
+    """Worker: one (setting, seed, panel entry) simulation → yaws, statuses, CPU seconds."""
+    name, preset, seed, idx, entry, scene, thickness = job
+    from feeder.fences import parse_location
+    from feeder.sim import simulate
+    from feeder.sim_shapes import shape_part
+
+    shape, loc1, loc2 = entry
+    geom = shape_part(shape, thickness)
+    t0 = time.process_time()
+    res = simulate(geom, parse_location(loc1), parse_location(loc2), preset["drops"], seed, scene,
+                   {k: v for k, v in preset.items() if k != "drops"}, name)
+    cpu = time.process_time() - t0
+    return name, seed, idx, res["final_yaw_deg"], res["status"], cpu
+
+
+def _metrics(yaws_a, yaws_b, bins, sigma):
+    """JS, W1, CDF R² of sample a against sample b (b is the truth); NaN if either has no ok drop."""
+    from feeder import labels
+
+    a, b = yaws_a[np.isfinite(yaws_a)], yaws_b[np.isfinite(yaws_b)]
+    if a.size == 0 or b.size == 0:
+        return np.nan, np.nan, np.nan
+    pa, pb = labels.pmf_from_yaws(a, bins, sigma), labels.pmf_from_yaws(b, bins, sigma)
+    ca, cb = labels.cdf(pa), labels.cdf(pb)
+    return (float(labels.js_divergence(pa, pb)), float(labels.w1(ca, cb)), float(labels.r2_cdf(cb, ca)))
+
+
+def resolve_setting(presets: dict, setting: dict) -> dict:
+    base = setting.get("base", "fast")
+    if base not in presets:
+        raise FeederError(f"bench setting {setting.get('name')!r}: unknown base preset {base!r}")
+    out = dict(presets[base])
+    out.update({k: v for k, v in setting.items() if k not in ("name", "base")})
+    return out
+
+
+def run_bench(scene, presets, labels_cfg, bench, progress=False):
+    panel = [tuple(e) for e in bench["panel"]]
+    drops = int(bench["drops"])
+    seeds = [int(s) for s in bench["seeds"]]
+    if len(seeds) != 2:
+        raise FeederError("sim.bench.seeds must hold two seeds (reference pair)")
+    ref_name = bench["reference"]
+    if ref_name not in presets:
+        raise FeederError(f"sim.bench.reference {ref_name!r} is not a preset")
+    thickness = float(bench["thickness"])
+    settings = {ref_name: dict(presets[ref_name])}
+    for s in bench["sweep"]:
+        settings[s["name"]] = resolve_setting(presets, s)
+    jobs = []
+    for name, preset in settings.items():
+        p = dict(preset, drops=drops)
+        run_seeds = seeds if name == ref_name else [seeds[1]]
+        for seed in run_seeds:
+            for i, entry in enumerate(panel):
+                jobs.append((name, p, seed, i, entry, scene, thickness))
+    # most expensive first (small internal steps, full path) so the pool stays busy
+    jobs.sort(key=lambda j: -(j[1]["substeps"] / j[1]["time_step"]) * (3.0 if j[1]["full_path"] else 1.0))
+    results = {}
+    workers = max(1, int(bench["workers"]))
+    bar = None
+    if progress:
+        from tqdm import tqdm
+
+        bar = tqdm(total=len(jobs), unit="run", file=sys.stderr)
+    ctx = get_context("fork")
+    with ctx.Pool(workers) as pool:
+        for name, seed, idx, yaws, status, cpu in pool.imap_unordered(_run, jobs):
+            results[(name, seed, idx)] = (yaws, status, cpu)
+            if bar is not None:
+                bar.update(1)
+    if bar is not None:
+        bar.close()
+    return summarize(results, settings, panel, seeds, ref_name, drops, bench, labels_cfg)
+
+
+def summarize(results, settings, panel, seeds, ref_name, drops, bench, labels_cfg):
+    import pandas as pd
+
+    bins, sigma = int(labels_cfg["bins"]), float(labels_cfg["sigma_bins"])
+    levels = sorted({int(k) for k in bench["drop_levels"] if int(k) <= drops} | {drops})
+    s0, s1 = seeds
+    rows = []
+    ref_ms = np.mean([results[(ref_name, s, i)][2] for s in seeds for i in range(len(panel))]) * 1e3 / drops
+    for name, preset in settings.items():
+        seed = s1
+        for k in levels:
+            per = []
+            for i, entry in enumerate(panel):
+                yaws, status, cpu = results[(name, seed, i)]
+                ref_yaws = results[(ref_name, s0, i)][0]
+                floor_yaws = results[(ref_name, s1, i)][0]
+                js, w1, r2 = _metrics(yaws[:k], ref_yaws, bins, sigma)
+                fjs, fw1, fr2 = _metrics(floor_yaws[:k], ref_yaws, bins, sigma)
+                ok = float(np.mean(status[:k] == "ok"))
+                ref_ok = float(np.mean(results[(ref_name, s0, i)][1] == "ok"))
+                per.append(dict(setting=name, drops=k, config=f"{entry[0]}|{entry[1]}|{entry[2]}",
+                                ms_per_drop=cpu * 1e3 / drops, js=js, w1_deg=w1, r2_cdf=r2,
+                                js_floor=fjs, w1_floor_deg=fw1, r2_floor=fr2, ok_rate=ok, ref_ok_rate=ref_ok))
+            rows += per
+            df = pd.DataFrame(per)
+            ms = float(df["ms_per_drop"].mean())
+            agg = dict(setting=name, drops=k, config="mean", ms_per_drop=ms,
+                       js=df["js"].mean(), w1_deg=df["w1_deg"].mean(), r2_cdf=df["r2_cdf"].mean(),
+                       js_floor=df["js_floor"].mean(), w1_floor_deg=df["w1_floor_deg"].mean(),
+                       r2_floor=df["r2_floor"].mean(), ok_rate=df["ok_rate"].mean(),
+                       ref_ok_rate=df["ref_ok_rate"].mean())
+            agg["speedup_vs_reference"] = ref_ms / ms if ms > 0 else np.nan
+            agg["within_floor"] = bool(agg["js"] <= agg["js_floor"] and agg["w1_deg"] <= agg["w1_floor_deg"])
+            rows.append(agg)
+    out = pd.DataFrame(rows)
+    for name, preset in settings.items():
+        m = out["setting"] == name
+        out.loc[m, "time_step"] = preset["time_step"]
+        out.loc[m, "substeps"] = preset["substeps"]
+        out.loc[m, "internal_step_ms"] = 1e3 * preset["time_step"] / preset["substeps"]
+        out.loc[m, "solver_iterations"] = preset["solver_iterations"]
+        out.loc[m, "lanes"] = preset["lanes"]
+        out.loc[m, "full_path"] = bool(preset["full_path"])
+        out.loc[m, "skip_slides"] = bool(preset["skip_slides"])
+    first = ["setting", "drops", "config", "time_step", "substeps", "internal_step_ms", "solver_iterations",
+             "lanes", "full_path", "skip_slides", "ms_per_drop", "speedup_vs_reference", "js", "js_floor",
+             "w1_deg", "w1_floor_deg", "r2_cdf", "r2_floor", "within_floor", "ok_rate", "ref_ok_rate"]
+    return out[first]
+
+
+def pareto_figure(df, ref_name):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    agg = df[df["config"] == "mean"]
+    full = agg[agg["drops"] == agg["drops"].max()]
+    fig, axes = plt.subplots(1, 2, figsize=(12, 4.8))
+    for ax, col, floor, label in [(axes[0], "js", "js_floor", "JS divergence to reference (bits)"),
+                                  (axes[1], "w1_deg", "w1_floor_deg", "W1 on the CDF to reference (deg)")]:
+        fl = full[floor].mean()
+        ax.axhspan(0, fl, color="0.85", label=f"two-seed noise floor ({fl:.3g})")
+        for _, r in full.iterrows():
+            mk = "*" if r["setting"] == ref_name else "o"
+            ax.scatter(r["ms_per_drop"], r[col], marker=mk, s=60 if mk == "*" else 30,
+                       color="C3" if not r["within_floor"] else "C0", zorder=3)
+            ax.annotate(r["setting"], (r["ms_per_drop"], r[col]), fontsize=7, xytext=(3, 3),
+                        textcoords="offset points")
+        # Pareto front: no other setting both cheaper and closer
+        pts = full.sort_values("ms_per_drop")
+        best, front = np.inf, []
+        for _, r in pts.iterrows():
+            if r[col] < best:
+                best = r[col]
+                front.append((r["ms_per_drop"], r[col]))
+        if front:
+            fx, fy = zip(*front)
+            ax.step(fx, fy, where="post", color="C2", lw=1, label="Pareto front")
+        # drops per configuration for the cheapest within-floor setting
+        fast = agg[agg["setting"] == "fast"]
+        if len(fast):
+            ax.plot(fast["ms_per_drop"] * fast["drops"] / fast["drops"].max(), fast[col], "x--", color="C1",
+                    lw=0.8, label="fast with fewer drops (cost scaled)")
+        ax.set_xscale("log")
+        ax.set_xlabel("CPU ms per drop (log)")
+        ax.set_ylabel(label)
+        ax.legend(fontsize=7)
+    fig.suptitle(f"Simulation accuracy against time ({int(full['drops'].max())} drops per configuration, "
+                 f"{df[df['config'] != 'mean']['config'].nunique()} configurations; blue = within floor)")
+    fig.tight_layout()
+    return fig
+
+
+def main(argv: list[str]) -> int:
+    parser = argparse.ArgumentParser(prog="feeder bench-sim", description=__doc__.splitlines()[0])
+    parser.add_argument("--out-csv", required=True)
+    parser.add_argument("--out-png", required=True)
+    parser.add_argument("--settings", default=None,
+                        help="JSON {scene, sim, labels} config sections; default config/config.yaml")
+    args = parser.parse_args(argv)
+    if args.settings is not None:
+        try:
+            cfg = json.loads(args.settings)
+        except json.JSONDecodeError as err:
+            raise FeederError(f"--settings is not valid JSON: {err.msg}") from None
+    else:
+        import yaml
+
+        if not os.path.isfile("config/config.yaml"):
+            raise FeederError("config/config.yaml not found (run from the project root or pass --settings)")
+        with open("config/config.yaml") as fh:
+            cfg = yaml.safe_load(fh)
+    try:
+        scene, sim_cfg, labels_cfg = cfg["scene"], cfg["sim"], cfg["labels"]
+        presets, bench = sim_cfg["presets"], sim_cfg["bench"]
+    except (KeyError, TypeError) as err:
+        raise FeederError(f"settings lack section {err}") from None
+    df = run_bench(scene, presets, labels_cfg, bench, progress=sys.stderr.isatty())
+    from feeder.io import save_figure, write_csv
+
+    fig = pareto_figure(df, bench["reference"])
+    write_csv(args.out_csv, df)
+    save_figure(args.out_png, fig)
+    agg = df[(df["config"] == "mean") & (df["drops"] == df["drops"].max())]
+    for _, r in agg.iterrows():
+        print(f"{r['setting']:>16}: {r['ms_per_drop']:8.1f} ms/drop  x{r['speedup_vs_reference']:6.1f}  "
+              f"JS {r['js']:.4f} (floor {r['js_floor']:.4f})  W1 {r['w1_deg']:.2f} (floor {r['w1_floor_deg']:.2f})  "
+              f"R2 {r['r2_cdf']:.3f}  ok {r['ok_rate']:.3f}", file=sys.stderr)
+    return 0

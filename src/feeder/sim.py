@@ -1,0 +1,688 @@
+"""pybullet simulation of one part through one fence configuration (``feeder simulate``).
+
+The scene (see :mod:`feeder.scene`) is a belt moving along ``+y`` with containment walls and up to
+two fences. One *drop* places the part flat, centred, already moving with the belt, with a yaw
+drawn uniformly from [0, 360), carries it past the fences and records its final in-plane yaw
+once it is past the last fence and at rest on the belt.
+
+What is simulated (the preset decides; ``faithful`` is the paper's setting, the reference):
+
+* no fence the part's lane can reach → no physics at all: final yaw = initial yaw (exact: a part
+  at rest on a belt is carried without turning). Fences the lane cannot reach are not built.
+* ``full_path: true``: the part starts at ``belt.start_y`` and is recorded at the record point
+  ``max(end_y, last fence end + end_margin)`` once at rest.
+* ``full_path: false``: the part starts ``approach_margin`` before the first point of a fence its
+  lane (centred band of its circumradius) can reach; whenever it rests on the belt with a fence
+  still ahead in its lane it is moved forward to just before that fence (free transport is a
+  pure translation); it is recorded as soon as it rests with no fence left in its lane.
+* ``lanes``: that many drops run side by side in one world, each on its own copy of the belt
+  lane (walls and fences), their parts collision-filtered so they never touch each other.
+  A lane takes the next drop as soon as its part is done.
+
+Each drop ends ``ok``, ``jammed`` (moved less than ``jam_travel`` in ``jam_window_s``),
+``fell_off``, ``flipped``, ``timed_out`` or ``nan``; a non-ok drop has a NaN final yaw and never
+stops the configuration. Seeds: the initial yaws come from a generator seeded by a SHA-256 hash
+of (part id, fence configuration id, base seed); a rerun of one configuration is bit-identical.
+
+The part body is a compound of the exact convex pieces of its outline, each inset by the
+collision margin and extruded (so the margin-inflated shape is the true part), in the part's
+centroidal principal frame; mass, centre of mass and the inertia diagonal are set from the
+polygon. The belt is a fixed-base box whose pose is reset and velocity set every step.
+"""
+
+from __future__ import annotations
+
+import argparse
+import hashlib
+import json
+import math
+import os
+import sys
+import tempfile
+import time
+from collections import deque
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from feeder.errors import FeederError
+from feeder.fences import Fence, config_id, parse_location
+from feeder.scene import FenceGeom, load_settings, scene_fences
+
+STATUSES = ("ok", "jammed", "fell_off", "timed_out", "flipped", "nan")
+PRESET_KEYS = ("time_step", "substeps", "solver_iterations", "lanes", "full_path", "skip_slides")
+# Part collision filter: group bit 1 (dynamic) colliding only with static bodies (group bit 2).
+_PART_GROUP, _PART_MASK = 1, 2
+_TRACE = None  # debugging: a list collects per-check states when set
+_REACH_SAMPLE = 0.001
+_MAX_COMPOUND = 16  # pybullet's createCollisionShapeArray silently drops shapes beyond 16  # m: spacing of fence outline samples used for lane-reach queries
+
+
+# --------------------------------------------------------------------------------------------
+# Seeds
+# --------------------------------------------------------------------------------------------
+def drop_seed(part_id: str, cfg_id: str, base_seed: int) -> int:
+    """Stable 64-bit seed from (part id, fence configuration id, base seed)."""
+    digest = hashlib.sha256(f"{part_id}|{cfg_id}|{int(base_seed)}".encode()).digest()
+    return int.from_bytes(digest[:8], "little")
+
+
+def initial_yaws(seed: int, drops: int) -> np.ndarray:
+    """Initial yaws in degrees, uniform on [0, 360), in drop order."""
+    return np.random.default_rng(seed).uniform(0.0, 360.0, size=int(drops))
+
+
+# --------------------------------------------------------------------------------------------
+# Part model (pure)
+# --------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class PartModel:
+    """A part ready for pybullet: pieces in its centroidal principal frame (inset), mass, inertia."""
+
+    part_id: str
+    thickness: float
+    mass: float
+    inertia: tuple[float, float, float]  # principal diagonal (kg m²)
+    alpha: float  # rad: principal frame yaw in the part's own frame
+    radius: float  # m: circumradius about the centroid
+    pieces: tuple[np.ndarray, ...] = field(repr=False)  # (M, 2) inset convex pieces, principal frame
+    hull: np.ndarray = field(repr=False, default=None)  # (H, 2) convex hull of the outline, principal frame
+
+
+def principal_inertia(area, second_moment, thickness, density):
+    """(mass, (Ixx, Iyy, Izz) principal, alpha) of a uniform prism from its area moments.
+
+    ``second_moment = (∫y², ∫x², ∫xy)`` about the centroid (geometry convention). ``alpha`` is the
+    yaw of the principal x axis (largest ∫x'²) in the part frame.
+    """
+    sxx_y, sxx_x, sxy = second_moment  # ∫y², ∫x², ∫xy
+    alpha = 0.5 * math.atan2(2.0 * sxy, sxx_x - sxx_y)
+    mean = 0.5 * (sxx_x + sxx_y)
+    half = math.hypot(0.5 * (sxx_x - sxx_y), sxy)
+    lam1, lam2 = mean + half, mean - half  # ∫x'², ∫y'²
+    rho_t = density * thickness
+    mass = rho_t * area
+    flat = mass * thickness**2 / 12.0
+    return mass, (rho_t * lam2 + flat, rho_t * lam1 + flat, rho_t * (lam1 + lam2)), alpha
+
+
+def part_model(geom, scene: dict) -> PartModel:
+    """Pieces rotated into the centroidal principal frame and inset by the collision margin."""
+    from shapely.geometry import Polygon
+
+    pc = scene["part"]
+    margin = float(pc["collision_margin"])
+    mass, inertia, alpha = principal_inertia(geom.area, geom.second_moment, geom.thickness,
+                                             float(pc["density"]))
+    c, s = math.cos(-alpha), math.sin(-alpha)
+    rot = np.array([[c, -s], [s, c]])
+    centroid = np.asarray(geom.centroid, dtype=np.float64)
+    pieces = []
+    for piece in geom.convex_pieces:
+        local = (np.asarray(piece, np.float64) - centroid) @ rot.T
+        poly = Polygon(local).buffer(-margin, join_style=2)
+        if poly.is_empty or poly.area <= 0 or poly.geom_type != "Polygon":
+            continue  # a sliver thinner than twice the margin: the neighbours' margins cover it
+        pieces.append(np.asarray(poly.exterior.coords)[:-1])
+    if not pieces:
+        raise FeederError(f"part {geom.part_id}: thinner than twice the collision margin")
+    if geom.thickness <= 2 * margin:
+        raise FeederError(f"part {geom.part_id}: thickness {geom.thickness} <= 2 x collision margin")
+    outline = np.asarray(geom.outline, np.float64) - centroid
+    radius = float(np.max(np.hypot(outline[:, 0], outline[:, 1])))
+    hull = np.asarray(Polygon(outline @ rot.T).convex_hull.exterior.coords)[:-1]
+    return PartModel(geom.part_id, float(geom.thickness), mass, inertia, alpha, radius, tuple(pieces), hull)
+
+
+def obj_text(pieces, half_height: float) -> str:
+    """Wavefront OBJ with one object per convex piece extruded to ±half_height (pybullet: compound)."""
+    lines, base = [], 1
+    for k, piece in enumerate(pieces):
+        n = len(piece)
+        lines.append(f"o piece{k}")
+        for z in (-half_height, half_height):
+            lines += [f"v {x:.10g} {y:.10g} {z:.10g}" for x, y in piece]
+        lines += [f"f {base} {base + i + 1} {base + i}" for i in range(1, n - 1)]  # bottom
+        lines += [f"f {base + n} {base + n + i} {base + n + i + 1}" for i in range(1, n - 1)]  # top
+        for i in range(n):
+            j = (i + 1) % n
+            lines.append(f"f {base + i} {base + j} {base + n + j} {base + n + i}")
+        base += 2 * n
+    return "\n".join(lines) + "\n"
+
+
+def quat_yaw(q) -> float:
+    """Yaw (rad) of a quaternion (x, y, z, w) about world z."""
+    x, y, z, w = q
+    return math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+
+
+def quat_tilt_deg(q) -> float:
+    """Angle between the body z axis and world z (degrees)."""
+    x, y, _, _ = q
+    cz = 1.0 - 2.0 * (x * x + y * y)
+    return math.degrees(math.acos(max(-1.0, min(1.0, cz))))
+
+
+# --------------------------------------------------------------------------------------------
+# Settings
+# --------------------------------------------------------------------------------------------
+def get_preset(presets: dict, name: str) -> dict:
+    if name not in presets:
+        raise FeederError(f"preset {name!r} is not one of {', '.join(sorted(presets))}")
+    preset = dict(presets[name])
+    missing = [k for k in PRESET_KEYS if k not in preset]
+    if missing:
+        raise FeederError(f"preset {name!r} lacks {', '.join(missing)}")
+    if preset["time_step"] <= 0 or preset["substeps"] < 1 or preset["solver_iterations"] < 1 or preset["lanes"] < 1:
+        raise FeederError(f"preset {name!r}: time_step, substeps, solver_iterations and lanes must be positive")
+    return preset
+
+
+# --------------------------------------------------------------------------------------------
+# Scene plan: what to build and where a part starts (pure)
+# --------------------------------------------------------------------------------------------
+@dataclass
+class Plan:
+    fences: list[FenceGeom]  # fences to build
+    samples: np.ndarray  # (P, 2) outline samples of the built fences (reach queries)
+    start_y: float
+    record_y: float
+    time_limit: float
+
+
+def fence_samples(fences: list[FenceGeom]) -> np.ndarray:
+    pts = []
+    for f in fences:
+        fp = f.footprint()
+        rings = [fp.exterior] if fp.geom_type == "Polygon" else [g.exterior for g in fp.geoms]
+        for ring in rings:
+            n = max(4, int(math.ceil(ring.length / _REACH_SAMPLE)))
+            d = np.linspace(0.0, ring.length, n, endpoint=False)
+            pts.append(np.array([[p.x, p.y] for p in (ring.interpolate(v) for v in d)]))
+    return np.concatenate(pts) if pts else np.zeros((0, 2))
+
+
+def reach_y(samples: np.ndarray, x: float, half_band: float, y_from: float) -> float | None:
+    """Smallest fence y in the band |X - x| <= half_band (widened by the sample spacing), Y >= y_from."""
+    if samples.size == 0:
+        return None
+    sel = (np.abs(samples[:, 0] - x) <= half_band + _REACH_SAMPLE) & (samples[:, 1] >= y_from)
+    if not sel.any():
+        return None
+    return float(samples[sel, 1].min())
+
+
+def hull_at(hull: np.ndarray, yaw_rad: float, x: float, y: float) -> np.ndarray:
+    """The part's convex hull (principal frame) placed at body yaw ``yaw_rad`` and centroid (x, y)."""
+    c, s = math.cos(yaw_rad), math.sin(yaw_rad)
+    return hull @ np.array([[c, s], [-s, c]]) + np.array([x, y])
+
+
+def gap_ahead(poly: np.ndarray, samples: np.ndarray, pad: float) -> float | None:
+    """How far the convex polygon ``poly`` can move along +y before touching a fence sample point.
+
+    Only fence points within ``pad`` of the polygon's x-range and not behind it (at or above its
+    lower boundary, less ``pad``) count. None: nothing ahead (the part is clear of every fence).
+    A point inside the polygon gives a gap <= 0.
+    """
+    if samples.size == 0:
+        return None
+    xlo, xhi = poly[:, 0].min() - pad, poly[:, 0].max() + pad
+    cand = samples[(samples[:, 0] >= xlo) & (samples[:, 0] <= xhi)]
+    if cand.size == 0:
+        return None
+    a, b = poly, np.roll(poly, -1, axis=0)
+    ax, ay, bx, by = a[:, 0], a[:, 1], b[:, 0], b[:, 1]
+    px = np.clip(cand[:, 0], poly[:, 0].min(), poly[:, 0].max())[:, None]  # x-padding: clamp
+    lo_x, hi_x = np.minimum(ax, bx), np.maximum(ax, bx)
+    cover = (px >= lo_x) & (px <= hi_x) & (hi_x > lo_x)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ys = ay + (px - ax) * (by - ay) / np.where(hi_x > lo_x, bx - ax, 1.0)
+    upper = np.where(cover, ys, -np.inf).max(axis=1)
+    lower = np.where(cover, ys, np.inf).min(axis=1)
+    ahead = cand[:, 1] >= lower - pad
+    if not ahead.any():
+        return None
+    return float(np.min(cand[ahead, 1] - upper[ahead]))
+
+
+def make_plan(scene: dict, loc1: Fence, loc2: Fence, model: PartModel, full_path: bool,
+              prune: bool = True) -> Plan:
+    st, belt = scene["status"], scene["belt"]
+    pad = float(st["clear_margin"])
+    half = model.radius + pad
+    all_fences = scene_fences(scene, loc1, loc2)  # upstream first
+    built: list[FenceGeom] = []
+    for f in all_fences:
+        own = fence_samples([f])
+        in_lane = reach_y(own, 0.0, half, -math.inf) is not None
+        # A fence downstream of a built one can be reached from anywhere the first one pushes to.
+        if in_lane or built or not prune:
+            built.append(f)
+    samples = fence_samples(built)
+    v = float(belt["speed"])
+    start = float(belt["start_y"])
+    fence_end = float(samples[:, 1].max()) if samples.size else start
+    record = max(float(belt["end_y"]), fence_end + float(belt["end_margin"]))
+    if built and not full_path:
+        first = reach_y(samples, 0.0, half, -math.inf)
+        if first is None:  # only reachable through the upstream fence's push: start before any fence
+            first = float(samples[:, 1].min())
+        start = max(start, first - model.radius - float(st["approach_margin"]))
+    fence_len = sum(f.length for f in built)
+    limit = float(st["timeout_factor"]) * ((record - start) + fence_len) / v + float(st["timeout_extra_s"])
+    return Plan(built, samples, start, record, limit)
+
+
+# --------------------------------------------------------------------------------------------
+# The world
+# --------------------------------------------------------------------------------------------
+class World:
+    """One pybullet DIRECT client with ``lanes`` copies of the belt lane, in the belt's frame.
+
+    Galilean-equivalent formulation: the belt slab is static (zero velocity, never reset) and each
+    lane's walls and fences are kinematic bodies (mass 0) moving at ``-speed`` along y. A lane's
+    bodies get their pose and velocity set only when a drop starts or is moved forward, so no
+    body is ever reset to a pose inconsistent with its motion (resetting a moving belt back every
+    step disturbs the contact manifold: parts then sank into the belt at internal steps >= 1 ms).
+    Coordinates in the *fence frame* of lane j: ``x - lane_x[j]``, ``y - offset_j(t)``.
+    """
+
+    def __init__(self, scene: dict, preset: dict, plan: Plan, lanes: int, model: PartModel):
+        import pybullet as pb
+
+        self.pb = pb
+        self.scene, self.preset, self.plan, self.model = scene, preset, plan, model
+        self.cid = pb.connect(pb.DIRECT)
+        c = self.cid
+        pb.resetSimulation(physicsClientId=c)
+        pb.setGravity(0, 0, -float(scene["gravity"]), physicsClientId=c)
+        pb.setPhysicsEngineParameter(
+            fixedTimeStep=float(preset["time_step"]), numSubSteps=int(preset["substeps"]),
+            numSolverIterations=int(preset["solver_iterations"]), enableConeFriction=1,
+            deterministicOverlappingPairs=1, enableFileCaching=0, physicsClientId=c)
+        if preset.get("engine"):
+            pb.setPhysicsEngineParameter(**dict(preset["engine"]), physicsClientId=c)
+        belt, walls, fc = scene["belt"], scene["walls"], scene["fences"]
+        self.speed = float(belt["speed"])
+        self.fence_vel = [0.0, -self.speed, 0.0]
+        self.pitch = 2.0 * (float(belt["half_width"]) + float(walls["thickness"])) + 0.1
+        self.lane_x = [(j - 0.5 * (lanes - 1)) * self.pitch for j in range(lanes)]
+        travel = self.speed * plan.time_limit  # how far the fences can move during one drop
+        # belt: one static slab under every lane, covering where parts can be in the belt frame
+        bt = float(belt["thickness"])
+        # (a part sliding along a straight fence may be moved forward by up to the fence length)
+        blo, bhi = plan.start_y - travel - 1.0, plan.start_y + 1.0 + sum(f.length for f in plan.fences)
+        shape = pb.createCollisionShape(
+            pb.GEOM_BOX, halfExtents=[0.5 * lanes * self.pitch, 0.5 * (bhi - blo), 0.5 * bt], physicsClientId=c)
+        self.belt = pb.createMultiBody(0, shape, basePosition=[0.0, 0.5 * (blo + bhi), -0.5 * bt], physicsClientId=c)
+        self._surface(self.belt, float(belt["friction"]))
+        # walls and fences per lane (kinematic); fence-frame y span of the walls
+        wlo, whi = plan.start_y - 1.0, max(plan.record_y, plan.start_y + travel) + 1.0
+        self.wall_mid = 0.5 * (wlo + whi)
+        wt, wh = float(walls["thickness"]), float(walls["height"])
+        wx = float(belt["half_width"]) + 0.5 * wt
+        fh, fclr = float(fc["height"]), float(fc["clearance"])
+        self.wall_z, self.fence_z = 0.5 * wh, fclr + 0.5 * fh
+        self.lane_bodies: list[list[tuple[int, float, float]]] = []  # (body, base y, base z)
+        for x0 in self.lane_x:
+            bodies = []
+            ws = pb.createCollisionShapeArray(
+                shapeTypes=[pb.GEOM_BOX, pb.GEOM_BOX], halfExtents=[[0.5 * wt, 0.5 * (whi - wlo), 0.5 * wh]] * 2,
+                collisionFramePositions=[[-wx, 0, 0], [wx, 0, 0]], physicsClientId=c)
+            wb = pb.createMultiBody(0, ws, basePosition=[x0, self.wall_mid, self.wall_z], physicsClientId=c)
+            self._surface(wb, float(walls["friction"]))
+            bodies.append((wb, self.wall_mid, self.wall_z))
+            for f in plan.fences:
+                for k in range(0, len(f.boxes), _MAX_COMPOUND):  # pybullet keeps <= 16 shapes per array
+                    chunk = f.boxes[k:k + _MAX_COMPOUND]
+                    fs = pb.createCollisionShapeArray(
+                        shapeTypes=[pb.GEOM_BOX] * len(chunk),
+                        halfExtents=[[b[2], b[3], 0.5 * fh] for b in chunk],
+                        collisionFramePositions=[[b[0], b[1], 0.0] for b in chunk],
+                        collisionFrameOrientations=[pb.getQuaternionFromEuler([0, 0, b[4]]) for b in chunk],
+                        physicsClientId=c)
+                    fb = pb.createMultiBody(0, fs, basePosition=[x0, 0.0, self.fence_z], physicsClientId=c)
+                    self._surface(fb, float(fc["friction"]))
+                    bodies.append((fb, 0.0, self.fence_z))
+            self.lane_bodies.append(bodies)
+        self.offset = [0.0] * lanes  # fence-frame offset at time set_t
+        self.set_t = [0.0] * lanes
+        # the part's collision shape, shared by every part body
+        self._tmp = tempfile.TemporaryDirectory(prefix="feeder-sim-")
+        obj = Path(self._tmp.name) / "part.obj"
+        margin = float(scene["part"]["collision_margin"])
+        obj.write_text(obj_text(model.pieces, 0.5 * model.thickness - margin))
+        self.part_shape = pb.createCollisionShape(pb.GEOM_MESH, fileName=str(obj), physicsClientId=c)
+        if self.part_shape < 0:
+            raise FeederError(f"part {model.part_id}: pybullet rejected its collision shape")
+
+    def _surface(self, body: int, friction: float) -> None:
+        self.pb.changeDynamics(body, -1, lateralFriction=friction, restitution=float(self.scene["restitution"]),
+                               rollingFriction=0.0, spinningFriction=0.0, physicsClientId=self.cid)
+
+    def set_lane(self, lane: int, offset: float, t: float) -> None:
+        """Place lane's walls and fences at fence-frame offset ``offset`` (belt y) at time t, moving at -v."""
+        pb, c = self.pb, self.cid
+        for body, by, bz in self.lane_bodies[lane]:
+            pb.resetBasePositionAndOrientation(body, [self.lane_x[lane], by + offset, bz], [0, 0, 0, 1], physicsClientId=c)
+            pb.resetBaseVelocity(body, self.fence_vel, [0.0, 0.0, 0.0], physicsClientId=c)
+        self.offset[lane], self.set_t[lane] = offset, t
+
+    def lane_offset(self, lane: int, t: float) -> float:
+        return self.offset[lane] - self.speed * (t - self.set_t[lane])
+
+    def add_part(self, lane: int, x: float, y: float, yaw_deg: float) -> int:
+        """A part at rest on the belt at belt-frame (x, y) of the lane."""
+        pb, c, m = self.pb, self.cid, self.model
+        yb = math.radians(yaw_deg) + m.alpha
+        body = pb.createMultiBody(
+            m.mass, self.part_shape, basePosition=[self.lane_x[lane] + x, y, 0.5 * m.thickness],
+            baseOrientation=[0.0, 0.0, math.sin(0.5 * yb), math.cos(0.5 * yb)], physicsClientId=c)
+        pb.changeDynamics(body, -1, localInertiaDiagonal=list(m.inertia),
+                          collisionMargin=float(self.scene["part"]["collision_margin"]),
+                          linearDamping=0.0, angularDamping=0.0, physicsClientId=c)
+        self._surface(body, float(self.scene["part"]["friction"]))
+        pb.setCollisionFilterGroupMask(body, -1, _PART_GROUP, _PART_MASK, physicsClientId=c)
+        pb.resetBaseVelocity(body, [0.0, 0.0, 0.0], [0.0, 0.0, 0.0], physicsClientId=c)
+        return body
+
+    def step(self) -> None:
+        self.pb.stepSimulation(physicsClientId=self.cid)
+
+    def close(self) -> None:
+        try:
+            self.pb.disconnect(physicsClientId=self.cid)
+        finally:
+            self._tmp.cleanup()
+
+
+# --------------------------------------------------------------------------------------------
+# Drops
+# --------------------------------------------------------------------------------------------
+@dataclass
+class _Lane:
+    drop: int
+    body: int
+    t0: float
+    hist: deque
+    rest: int = 0
+    max_speed: float = 0.0
+    max_omega: float = 0.0
+    slide: int = 0
+    slide_f: int = -1
+    w_prev: tuple = (0.0, 0.0)
+    skips: int = 0
+    inside_fence: bool = False
+    teleports: int = 0
+    probe_yaw: float = math.nan
+
+
+def _fence_boxes_array(fences: list[FenceGeom]) -> np.ndarray:
+    rows = [b for f in fences for b in f.boxes]
+    return np.array(rows, dtype=np.float64).reshape(-1, 5)
+
+
+def _inside_any_box(boxes: np.ndarray, x: float, y: float) -> bool:
+    if boxes.size == 0:
+        return False
+    dx, dy = x - boxes[:, 0], y - boxes[:, 1]
+    c, s = np.cos(boxes[:, 4]), np.sin(boxes[:, 4])
+    u, v = c * dx + s * dy, -s * dx + c * dy
+    return bool(np.any((np.abs(u) < boxes[:, 2]) & (np.abs(v) < boxes[:, 3])))
+
+
+def run_drops(geom, loc1: Fence, loc2: Fence, yaws0: np.ndarray, scene: dict, preset: dict,
+              progress: bool = False, probe_x: float | None = None, check_fences: bool = False,
+              prune: bool = True) -> dict:
+    """Simulate every drop; returns final yaws, statuses and per-drop diagnostics.
+
+    ``check_fences`` tests at every state check whether the part's centroid lies inside a fence
+    (tunnelling; diagnostics only). ``probe_x`` records the yaw when the centroid first reaches
+    fence-frame ``x <= probe_x`` (e.g. while a part is pushed along a fence).
+    """
+    drops = len(yaws0)
+    final = np.full(drops, np.nan)
+    status = np.array(["ok"] * drops, dtype="<U9")
+    diag = {k: np.zeros(drops) for k in ("sim_time", "max_speed", "max_omega", "teleports", "skips")}
+    diag["inside_fence"] = np.zeros(drops, dtype=bool)
+    diag["probe_yaw"] = np.full(drops, np.nan)
+    diag["final_x"] = np.full(drops, np.nan)
+    diag["final_y"] = np.full(drops, np.nan)
+    model = part_model(geom, scene)
+    plan = make_plan(scene, loc1, loc2, model, bool(preset["full_path"]), prune=prune)
+    diag["plan_fences"] = [f.location for f in plan.fences]
+    if not plan.fences:
+        final[:] = np.mod(yaws0, 360.0)
+        return {"final_yaw_deg": final, "status": status, "diag": diag}
+
+    st = scene["status"]
+    v = float(scene["belt"]["speed"])
+    dt = float(preset["time_step"])
+    check_steps = max(1, int(round(float(st["check_interval_s"]) / dt)))
+    t_check = check_steps * dt
+    rest_checks = max(1, int(math.ceil(float(st["rest_window_s"]) / t_check)))
+    jam_window, jam_travel = float(st["jam_window_s"]), float(st["jam_travel"])
+    rest_speed, rest_omega = float(st["rest_speed"]), math.radians(float(st["rest_omega_deg_s"]))
+    flip, fall_z, lat = float(st["flip_tilt_deg"]), float(st["fall_z"]), float(st["lateral_limit"])
+    approach, pad = float(st["approach_margin"]), float(st["clear_margin"])
+    full_path = bool(preset["full_path"])
+    half = model.radius + pad
+    boxes = _fence_boxes_array(plan.fences)
+    skip_slides = bool(preset["skip_slides"]) and not full_path
+    straight = []  # (wall end P, unit direction d to the tip, normal n, length to the tip)
+    for f in plan.fences:
+        if f.fence.type == "straight":
+            cx, cy, hl, ht_, yaw_f = f.boxes[0]
+            d = np.array([math.cos(yaw_f), math.sin(yaw_f)])
+            pw = np.array([cx, cy]) - hl * d
+            straight.append((pw, d, np.array([-d[1], d[0]]), 2.0 * hl, ht_))
+    slide_checks = max(1, int(math.ceil(float(st["slide_window_s"]) / t_check)))
+    slide_tol, slide_yaw = float(st["slide_tol"]), float(st["slide_yaw_deg"])
+    skip_margin, skip_min = float(st["skip_margin"]), float(st["skip_min"])
+
+    n_lanes = int(min(int(preset["lanes"]), drops))
+    world = World(scene, preset, plan, n_lanes, model)
+    pb, c = world.pb, world.cid
+    bar = None
+    if progress:
+        from tqdm import tqdm
+
+        bar = tqdm(total=drops, unit="drop", file=sys.stderr, leave=False)
+    try:
+        queue = deque(range(drops))
+        lanes: list[_Lane | None] = [None] * n_lanes
+        t = 0.0
+
+        def start(j: int) -> None:
+            i = queue.popleft()
+            world.set_lane(j, 0.0, t)
+            body = world.add_part(j, 0.0, plan.start_y, float(yaws0[i]))
+            lanes[j] = _Lane(i, body, t, deque())
+            if not full_path:  # move the fences up to just before the part's own first contact
+                gap = gap_ahead(hull_at(model.hull, math.radians(float(yaws0[i])) + model.alpha, 0.0, plan.start_y),
+                                plan.samples, pad)
+                if gap is not None and gap - approach > 0:
+                    world.set_lane(j, -(gap - approach), t)
+
+        def finish(j: int, code: str, yaw: float = math.nan, pos=None) -> None:
+            ln = lanes[j]
+            i = ln.drop
+            status[i] = code
+            final[i] = yaw if code == "ok" else math.nan
+            diag["sim_time"][i] = t - ln.t0
+            diag["max_speed"][i], diag["max_omega"][i] = ln.max_speed, ln.max_omega
+            diag["inside_fence"][i], diag["teleports"][i] = ln.inside_fence, ln.teleports
+            diag["skips"][i] = ln.skips
+            diag["probe_yaw"][i] = ln.probe_yaw
+            if pos is not None:
+                diag["final_x"][i], diag["final_y"][i] = pos[0], pos[1]
+            pb.removeBody(ln.body, physicsClientId=c)
+            lanes[j] = None
+            if bar is not None:
+                bar.update(1)
+            if queue:
+                start(j)
+
+        for j in range(n_lanes):
+            start(j)
+        while any(ln is not None for ln in lanes):
+            for _ in range(check_steps):
+                world.step()
+            t += t_check
+            for j, ln in enumerate(lanes):
+                if ln is None:
+                    continue
+                pos, q = pb.getBasePositionAndOrientation(ln.body, physicsClientId=c)
+                lin, ang = pb.getBaseVelocity(ln.body, physicsClientId=c)
+                if not (math.isfinite(pos[0] + pos[1] + pos[2] + q[0] + q[1] + q[2] + q[3])
+                        and math.isfinite(lin[0] + lin[1] + lin[2] + ang[0] + ang[1] + ang[2])):
+                    finish(j, "nan")
+                    continue
+                # fence-frame position; belt-frame velocity (world velocity = lin + belt velocity)
+                x, y, z = pos[0] - world.lane_x[j], pos[1] - world.lane_offset(j, t), pos[2]
+                speed = math.hypot(lin[0], lin[1] + v)
+                ln.max_speed = max(ln.max_speed, speed)
+                ln.max_omega = max(ln.max_omega, abs(ang[2]))
+                if check_fences and _inside_any_box(boxes, x, y):
+                    ln.inside_fence = True
+                yaw = (math.degrees(quat_yaw(q) - world.model.alpha)) % 360.0
+                if probe_x is not None and math.isnan(ln.probe_yaw) and x <= probe_x:
+                    ln.probe_yaw = yaw
+                elapsed = t - ln.t0
+                if _TRACE is not None:
+                    _TRACE.append((ln.drop, elapsed, x, y, yaw, lin[0], lin[1], ang[2], ln.slide, ln.rest))
+                if quat_tilt_deg(q) > flip:
+                    finish(j, "flipped", pos=(x, y))
+                    continue
+                if z < fall_z or abs(x) > lat:
+                    finish(j, "fell_off", pos=(x, y))
+                    continue
+                ln.hist.append((elapsed, x, y))
+                while ln.hist and elapsed - ln.hist[0][0] > jam_window + 1e-9:
+                    ln.hist.popleft()
+                h0 = ln.hist[0]
+                if elapsed - h0[0] >= jam_window - 1e-9 and math.hypot(x - h0[1], y - h0[2]) < jam_travel:
+                    finish(j, "jammed", pos=(x, y))
+                    continue
+                if elapsed > plan.time_limit:
+                    finish(j, "timed_out", pos=(x, y))
+                    continue
+                at_rest = math.hypot(lin[0], lin[1]) < rest_speed and abs(ang[2]) < rest_omega
+                if skip_slides and straight and not at_rest:
+                    # steady sliding along a straight fence is translation-invariant: skip ahead
+                    wx_, wy_ = lin[0], lin[1] + v  # fence-frame velocity
+                    sp = math.hypot(wx_, wy_)
+                    match = -1
+                    if sp > rest_speed:
+                        for k, (pw, d, nrm, flen, fht) in enumerate(straight):
+                            if (wx_ * d[0] + wy_ * d[1] > 0 and abs(wx_ * d[1] - wy_ * d[0]) < slide_tol * sp
+                                    and abs((x - pw[0]) * nrm[0] + (y - pw[1]) * nrm[1]) <= model.radius + fht + pad):
+                                match = k
+                                break
+                    # steady: same fence, yaw unchanged since the last check
+                    dyaw = abs((yaw - ln.w_prev[0] + 180.0) % 360.0 - 180.0)
+                    steady = match >= 0 and match == ln.slide_f and dyaw < slide_yaw
+                    ln.slide = ln.slide + 1 if steady else 0
+                    ln.slide_f, ln.w_prev = match, (yaw, 0.0)
+                    if ln.slide >= slide_checks:
+                        pw, d, nrm, flen, fht = straight[match]
+                        yb = quat_yaw(q)
+                        cb, sb = math.cos(yb), math.sin(yb)
+                        dl = (d[0] * cb + d[1] * sb, -d[0] * sb + d[1] * cb)  # d in the body frame
+                        lead = (x - pw[0]) * d[0] + (y - pw[1]) * d[1] + float(np.max(model.hull @ dl))
+                        jump = flen - lead - skip_margin
+                        if jump > skip_min:
+                            pb.resetBasePositionAndOrientation(
+                                ln.body, [pos[0] + jump * d[0], pos[1] + jump * d[1], pos[2]], q, physicsClientId=c)
+                            pb.resetBaseVelocity(ln.body, lin, ang, physicsClientId=c)
+                            ln.skips += 1
+                            ln.hist.clear()
+                        ln.slide = 0
+                ln.rest = ln.rest + 1 if at_rest else 0
+                if ln.rest < rest_checks:
+                    continue
+                if full_path:
+                    if y >= plan.record_y:
+                        finish(j, "ok", yaw, pos=(x, y))
+                    continue
+                gap = gap_ahead(hull_at(model.hull, quat_yaw(q), x, y), plan.samples, pad)
+                if gap is None:
+                    finish(j, "ok", yaw, pos=(x, y))
+                    continue
+                if gap - approach > skip_min:
+                    # free transport to just before the next fence (a pure translation): the
+                    # lane's fences jump back instead, the part resting on the belt stays put
+                    world.set_lane(j, world.lane_offset(j, t) - (gap - approach), t)
+                    ln.teleports += 1
+                    ln.hist.clear()
+                    ln.rest = 0
+    finally:
+        if bar is not None:
+            bar.close()
+        world.close()
+    return {"final_yaw_deg": final, "status": status, "diag": diag}
+
+
+def simulate(geom, loc1: Fence, loc2: Fence, drops: int, seed: int, scene: dict, preset: dict,
+             preset_name: str = "custom", progress: bool = False, probe_x: float | None = None,
+             check_fences: bool = False, prune: bool = True) -> dict:
+    """One configuration: the npz payload (docs/data.md) plus ``diag`` (not written)."""
+    if int(drops) != drops or drops < 1:
+        raise FeederError(f"drops must be a positive integer, got {drops!r}")
+    cfg = config_id(loc1, loc2)
+    s = drop_seed(geom.part_id, cfg, seed)
+    y0 = initial_yaws(s, int(drops))
+    t0 = time.perf_counter()
+    out = run_drops(geom, loc1, loc2, y0, scene, preset, progress=progress, probe_x=probe_x,
+                    check_fences=check_fences, prune=prune)
+    wall = time.perf_counter() - t0
+    meta = {"part": geom.part_id, "loc1": loc1.spec, "loc2": loc2.spec, "config_id": cfg,
+            "preset": preset_name, "seed": int(seed), "drops": int(drops),
+            "settings": {"scene": scene, "preset": preset},
+            "status_counts": {k: int(np.sum(out["status"] == k)) for k in STATUSES}}
+    return {"final_yaw_deg": out["final_yaw_deg"].astype(np.float64), "initial_yaw_deg": y0,
+            "status": out["status"].astype(str), "wall_s": np.float64(wall),
+            "meta": json.dumps(meta, sort_keys=True), "diag": out["diag"]}
+
+
+# --------------------------------------------------------------------------------------------
+# CLI
+# --------------------------------------------------------------------------------------------
+def main(argv: list[str]) -> int:
+    parser = argparse.ArgumentParser(prog="feeder simulate", description=__doc__.splitlines()[0])
+    parser.add_argument("--part", required=True, help="parts/<id>.stl")
+    parser.add_argument("--loc1", required=True, help="none | straight:ANGLE | curved:ANGLE (downstream)")
+    parser.add_argument("--loc2", required=True, help="none | straight:ANGLE | curved:ANGLE (upstream)")
+    parser.add_argument("--drops", type=int, required=True)
+    parser.add_argument("--seed", type=int, default=0, help="base seed")
+    parser.add_argument("--preset", default="fast")
+    parser.add_argument("--settings", default=None, help="JSON {scene, presets}; default config/config.yaml")
+    parser.add_argument("--out", required=True, help="output .npz")
+    args = parser.parse_args(argv)
+
+    loc1, loc2 = parse_location(args.loc1), parse_location(args.loc2)
+    if args.drops < 1:
+        raise FeederError(f"--drops must be positive, got {args.drops}")
+    scene, presets = load_settings(args.settings)
+    preset = get_preset(presets, args.preset)
+    from feeder.geometry import load_part
+
+    path = Path(args.part)
+    if not path.is_file():
+        raise FeederError(f"part file {path} not found")
+    geom = load_part(path)
+    try:
+        res = simulate(geom, loc1, loc2, args.drops, args.seed, scene, preset, args.preset,
+                       progress=sys.stderr.isatty())
+    except KeyError as err:
+        raise FeederError(f"scene settings lack key {err}") from None
+    from feeder.io import write_npz
+
+    write_npz(args.out, **{k: v for k, v in res.items() if k != "diag"})
+    counts = json.loads(res["meta"])["status_counts"]
+    print(f"{geom.part_id} {config_id(loc1, loc2)}: {args.drops} drops in {float(res['wall_s']):.1f} s; "
+          + ", ".join(f"{k} {n}" for k, n in counts.items() if n), file=sys.stderr)
+    return 0

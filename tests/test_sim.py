@@ -1,0 +1,272 @@
+"""feeder.sim / feeder.scene: pure math against hand values, the CLI, determinism, the body model."""
+
+import copy
+import json
+import math
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from feeder import scene as sc
+from feeder import sim
+from feeder.errors import FeederError
+from feeder.fences import Fence, parse_location
+from feeder.geometry import PartGeometry, stl_bytes
+from feeder.sim_shapes import shape_part
+
+ROOT = Path(__file__).resolve().parents[1]
+CFG = yaml.safe_load((ROOT / "config" / "config.yaml").read_text())
+SCENE, PRESETS = CFG["scene"], CFG["sim"]["presets"]
+FAST = PRESETS["fast"]
+RECT = PartGeometry.from_polygon("rect", [(0, 0), (0.04, 0), (0.04, 0.02), (0, 0.02)], 0.005)
+
+
+def run(*args, cwd=ROOT):
+    return subprocess.run([sys.executable, "-m", "feeder", *args], cwd=cwd, capture_output=True, text=True)
+
+
+# ------------------------------------------------------------------------------------------
+# pure functions
+# ------------------------------------------------------------------------------------------
+def test_principal_inertia_rectangle_hand_values():
+    # 40 x 20 mm, 5 mm, 1200 kg/m³: m = 1200·0.005·8e-4; ∫x² = w³h/12, ∫y² = wh³/12
+    m, (ixx, iyy, izz), alpha = sim.principal_inertia(8e-4, (0.04 * 0.02**3 / 12, 0.04**3 * 0.02 / 12, 0.0),
+                                                       0.005, 1200.0)
+    assert m == pytest.approx(0.0048)
+    flat = m * 0.005**2 / 12
+    assert ixx == pytest.approx(6.0 * 0.04 * 0.02**3 / 12 + flat)
+    assert iyy == pytest.approx(6.0 * 0.04**3 * 0.02 / 12 + flat)
+    assert izz == pytest.approx(8.0e-7)
+    assert alpha == pytest.approx(0.0)
+
+
+def test_principal_axes_of_rotated_rectangle():
+    a = math.radians(30)
+    rot = np.array([[math.cos(a), -math.sin(a)], [math.sin(a), math.cos(a)]])
+    pts = np.array([(0, 0), (0.04, 0), (0.04, 0.02), (0, 0.02)]) @ rot.T
+    g = PartGeometry.from_polygon("r30", pts, 0.005)
+    model = sim.part_model(g, SCENE)
+    assert math.degrees(model.alpha) == pytest.approx(30.0, abs=1e-6)
+    ref = sim.part_model(RECT, SCENE)
+    assert np.allclose(model.inertia, ref.inertia, rtol=1e-9)
+    assert model.radius == pytest.approx(math.hypot(0.02, 0.01))
+    # pieces are inset by the collision margin: 40 x 20 becomes 39.8 x 19.8 mm
+    piece = ref.pieces[0]
+    assert np.ptp(piece[:, 0]) == pytest.approx(0.04 - 2e-4) and np.ptp(piece[:, 1]) == pytest.approx(0.02 - 2e-4)
+
+
+def test_seeds_stable_and_distinct():
+    s = sim.drop_seed("rect", "straight30_none", 0)
+    assert s == sim.drop_seed("rect", "straight30_none", 0)
+    assert len({s, sim.drop_seed("rect", "straight30_none", 1), sim.drop_seed("rect", "straight31_none", 0),
+                sim.drop_seed("rectb", "straight30_none", 0)}) == 4
+    y = sim.initial_yaws(s, 500)
+    assert np.array_equal(y, sim.initial_yaws(s, 500)) and y.min() >= 0 and y.max() < 360
+    assert np.array_equal(sim.initial_yaws(s, 100), y[:100])  # drop order: a prefix is a prefix
+
+
+def test_straight_fence_geometry_hand_values():
+    (box,) = sc.fence_geometry(SCENE, "loc1", Fence("straight", 30.0)).boxes
+    cx, cy, hl, ht, yaw = box
+    d = np.array([math.cos(yaw), math.sin(yaw)])
+    tip = np.array([cx, cy]) + hl * d
+    assert tip == pytest.approx([-0.06, 1.0 + 0.30 / math.tan(math.radians(30))])  # 0.06 past the centre
+    assert math.degrees(yaw) == pytest.approx(120.0)  # 30° from +y, inward (towards -x)
+    assert ht == pytest.approx(0.005)
+    # the slot point (0.24, 1.0) lies on the centre line
+    rel = np.array([0.24, 1.0]) - np.array([cx, cy])
+    assert abs(rel[0] * -d[1] + rel[1] * d[0]) < 1e-12
+    # Location 2 is the mirror image on the left, at y = 0.5
+    (b2,) = sc.fence_geometry(SCENE, "loc2", Fence("straight", 30.0)).boxes
+    assert b2[0] == pytest.approx(-cx) and b2[1] == pytest.approx(cy - 0.5)
+    mirrored = copy.deepcopy(SCENE)
+    mirrored["mirror"] = True
+    (bm,) = sc.fence_geometry(mirrored, "loc1", Fence("straight", 30.0)).boxes
+    assert bm[0] == pytest.approx(-cx) and bm[1] == pytest.approx(cy)
+
+
+@pytest.mark.parametrize("theta", [0.0, 30.0, 90.0])
+def test_curved_fence_centre_and_outer_face(theta):
+    pts, centre = sc.curved_polyline(theta, 1, 0.24, 1.0, 0.2, 90.0, 16)
+    th = math.radians(theta)
+    assert centre == pytest.approx([0.24 - 0.2 * math.sin(th), 1.0 + 0.2 * math.cos(th)])  # paper formula
+    assert pts[0] == pytest.approx([0.24, 1.0])  # the arc starts at the slot
+    assert np.allclose(np.hypot(*(pts - centre).T), 0.2)
+    assert np.all(np.diff(pts[:, 0]) < 0)  # runs inward
+    boxes = sc.fence_geometry(SCENE, "loc1", Fence("curved", theta)).boxes
+    assert len(boxes) == 16
+    # outer faces: every box's outer mid-face lies on the circle r + t/2 within the sagitta
+    for cx, cy, hl, ht, yaw in boxes:
+        n = np.array([math.sin(yaw), -math.cos(yaw)])
+        if np.dot(np.array([cx, cy]) - centre, n) < 0:
+            n = -n
+        face = np.array([cx, cy]) + ht * n
+        assert np.hypot(*(face - centre)) == pytest.approx(0.205, abs=3e-4)
+
+
+def test_gap_ahead_hand_values():
+    square = np.array([(-0.01, -0.01), (0.01, -0.01), (0.01, 0.01), (-0.01, 0.01)])
+    pts = np.array([(0.0, 0.05), (0.005, 0.03), (0.5, 0.0), (0.0, -0.2)])
+    assert sim.gap_ahead(square, pts, 0.0) == pytest.approx(0.02)  # (0.005, 0.03) - top 0.01
+    assert sim.gap_ahead(square, pts[[2, 3]], 0.0) is None  # beside and behind: clear
+    assert sim.gap_ahead(square, np.array([(0.0115, 0.02)]), 0.002) == pytest.approx(0.01)  # padded in x
+    tri = np.array([(-0.01, 0.0), (0.01, 0.0), (0.0, 0.01)])
+    assert sim.gap_ahead(tri, np.array([(0.005, 0.02)]), 0.0) == pytest.approx(0.015)
+
+
+def test_quaternion_helpers():
+    q = [0.0, 0.0, math.sin(0.35), math.cos(0.35)]
+    assert sim.quat_yaw(q) == pytest.approx(0.7)
+    assert sim.quat_tilt_deg(q) == pytest.approx(0.0, abs=1e-9)
+    qx = [math.sin(math.radians(20)), 0.0, 0.0, math.cos(math.radians(20))]
+    assert sim.quat_tilt_deg(qx) == pytest.approx(40.0)
+
+
+def test_table1_lists_the_scene_from_config(tmp_path):
+    out = tmp_path / "t1.csv"
+    settings = json.dumps({"scene": SCENE, "sim": CFG["sim"]})
+    r = run("scene-table", "--settings", settings, "--out", str(out))
+    assert r.returncode == 0, r.stderr
+    text = out.read_text()
+    for needle in ["Conveyor speed,0.1", "Part friction (Coulomb mu),0.8", "Fence friction (Coulomb mu),0.5",
+                   "Belt friction (Coulomb mu),1", "Restitution,0", "r = 0.2", "+-0.24 / +-0.272"]:
+        assert needle in text
+    changed = copy.deepcopy(SCENE)
+    changed["part"]["density"] = 777.0
+    run("scene-table", "--settings", json.dumps({"scene": changed, "sim": CFG["sim"]}), "--out", str(out))
+    assert "Part density,777" in out.read_text()
+
+
+# ------------------------------------------------------------------------------------------
+# simulation: no fences, determinism, the CLI
+# ------------------------------------------------------------------------------------------
+def test_no_fences_final_equals_initial_without_physics():
+    res = sim.simulate(RECT, Fence("none"), Fence("none"), 300, 0, SCENE, FAST)
+    assert np.array_equal(res["final_yaw_deg"], res["initial_yaw_deg"])
+    assert set(res["status"]) == {"ok"}
+    assert res["diag"]["plan_fences"] == []
+
+
+def test_unreachable_fence_is_not_built_and_changes_nothing():
+    small = shape_part("rect-20x10", 0.005)
+    # a curved fence at 0° ends 0.04 m from the centre line: a part of radius 11 mm never meets it
+    res = sim.simulate(small, Fence("curved", 0.0), Fence("none"), 6, 0, SCENE, FAST)
+    assert res["diag"]["plan_fences"] == []
+    full = sim.simulate(small, Fence("curved", 0.0), Fence("none"), 6, 0, SCENE, FAST, prune=False)
+    assert full["diag"]["plan_fences"] == ["loc1"]
+    assert set(full["status"]) == {"ok"}
+    d = np.abs((full["final_yaw_deg"] - res["final_yaw_deg"] + 180) % 360 - 180)
+    assert d.max() < 0.5  # built and simulated, the fence does nothing (rest creep only)
+
+
+def _stl(tmp_path, name, outline, thickness=0.005):
+    path = tmp_path / f"{name}.stl"
+    path.write_bytes(stl_bytes(np.asarray(outline, float), thickness))
+    return path
+
+
+def test_cli_writes_npz_per_contract_and_reruns_bit_identical(tmp_path):
+    part = _stl(tmp_path, "rect", [(0, 0), (0.04, 0), (0.04, 0.02), (0, 0.02)])
+    settings = json.dumps({"scene": SCENE, "presets": PRESETS})
+    outs = []
+    for k in range(2):
+        out = tmp_path / f"o{k}.npz"
+        r = run("simulate", "--part", str(part), "--loc1", "straight:45", "--loc2", "none", "--drops", "8",
+                "--seed", "3", "--preset", "fast", "--settings", settings, "--out", str(out))
+        assert r.returncode == 0, r.stderr
+        outs.append(np.load(out))
+    a, b = outs
+    assert set(a.files) == {"final_yaw_deg", "initial_yaw_deg", "status", "wall_s", "meta"}
+    assert a["final_yaw_deg"].dtype == np.float64 and a["final_yaw_deg"].shape == (8,)
+    assert a["status"].dtype.kind == "U" and a["wall_s"].shape == ()
+    meta = json.loads(str(a["meta"]))
+    assert (meta["part"], meta["loc1"], meta["loc2"], meta["preset"], meta["seed"], meta["drops"]) == (
+        "rect", "straight:45", "none", "fast", 3, 8)
+    assert "scene" in meta["settings"] and sum(meta["status_counts"].values()) == 8
+    ok = a["status"] == "ok"
+    assert np.all(np.isnan(a["final_yaw_deg"][~ok]))
+    assert np.all((a["final_yaw_deg"][ok] >= 0) & (a["final_yaw_deg"][ok] < 360))
+    for key in ("final_yaw_deg", "initial_yaw_deg", "status"):
+        assert np.array_equal(a[key], b[key], equal_nan=key != "status")
+
+
+@pytest.mark.parametrize(
+    "args, needle",
+    [
+        (["--loc1", "straight:90"], "straight fence angle 90"),
+        (["--loc1", "curved:-5"], "curved fence angle -5"),
+        (["--loc1", "wiggly:30"], "fence type 'wiggly'"),
+        (["--drops", "0"], "--drops must be positive"),
+        (["--part", "MISSING"], "not found"),
+        (["--part", "BROKEN"], "BROKEN"),
+        (["--preset", "turbo"], "preset 'turbo'"),
+    ],
+)
+def test_cli_bad_input_one_line_error_no_output(tmp_path, args, needle):
+    good = _stl(tmp_path, "rect", [(0, 0), (0.04, 0), (0.04, 0.02), (0, 0.02)])
+    broken = tmp_path / "broken.stl"
+    broken.write_bytes(b"solid nothing\nendsolid\n")
+    base = {"--part": str(good), "--loc1": "straight:30", "--loc2": "none", "--drops": "5", "--preset": "fast"}
+    for k, v in zip(args[::2], args[1::2]):
+        base[k] = {"MISSING": str(tmp_path / "nope.stl"), "BROKEN": str(broken)}.get(v, v)
+    needle = needle.replace("BROKEN", str(broken))
+    out = tmp_path / "out.npz"
+    flat = [x for kv in base.items() for x in kv]
+    r = run("simulate", *flat, "--settings", json.dumps({"scene": SCENE, "presets": PRESETS}), "--out", str(out))
+    assert r.returncode == 2
+    lines = r.stderr.strip().splitlines()
+    assert lines[-1].startswith("feeder simulate: error:") and needle in lines[-1]
+    assert not out.exists()
+
+
+# ------------------------------------------------------------------------------------------
+# the body in pybullet
+# ------------------------------------------------------------------------------------------
+def _world(geom, loc1="straight:45", lanes=1, preset=FAST):
+    model = sim.part_model(geom, SCENE)
+    plan = sim.make_plan(SCENE, parse_location(loc1), parse_location("none"), model, False)
+    return sim.World(SCENE, preset, plan, lanes, model), model, plan
+
+
+def test_part_rests_at_true_half_thickness_with_set_mass_and_inertia():
+    w, model, plan = _world(RECT)
+    try:
+        w.set_lane(0, -1.0, 0.0)  # fences far away
+        body = w.add_part(0, 0.0, plan.start_y, 0.0)
+        for _ in range(200):
+            w.step()
+        pos, q = w.pb.getBasePositionAndOrientation(body)
+        assert abs(pos[2] - 0.0025) < 1e-4  # a 5 mm part within 0.1 mm of its half height
+        info = w.pb.getDynamicsInfo(body, -1)
+        assert info[0] == pytest.approx(model.mass)
+        assert np.allclose(info[2], model.inertia)
+        assert info[3] == pytest.approx((0.0, 0.0, 0.0), abs=1e-12)  # centre of mass at the centroid
+    finally:
+        w.close()
+
+
+def test_parts_in_one_world_never_touch_each_other():
+    w, model, plan = _world(RECT, lanes=2)
+    try:
+        w.set_lane(0, -1.0, 0.0)
+        a = w.add_part(0, 0.0, plan.start_y, 0.0)
+        b = w.add_part(0, 0.01, plan.start_y, 0.0)  # overlapping the first one in the same lane
+        for _ in range(100):
+            w.step()
+        assert w.pb.getContactPoints(a, b) == ()
+        pa, _ = w.pb.getBasePositionAndOrientation(a)
+        pb_, _ = w.pb.getBasePositionAndOrientation(b)
+        assert abs(pa[0] - w.lane_x[0]) < 1e-4 and abs(pb_[0] - w.lane_x[0] - 0.01) < 1e-4
+    finally:
+        w.close()
+
+
+def test_bad_preset_rejected():
+    with pytest.raises(FeederError, match="lacks"):
+        sim.get_preset({"x": {"time_step": 0.005}}, "x")
+    with pytest.raises(FeederError, match="positive"):
+        sim.get_preset({"x": dict(FAST, substeps=0)}, "x")

@@ -1,0 +1,93 @@
+# Simulation stage: one job per part x fence configuration, Table 1 from the scene settings, and
+# the accuracy-against-time benchmark of the simulation settings. Uses config, pkg and
+# sim_path-style paths from common.smk. Outputs:
+#   results/sim/{part}/{fence}.npz                  (docs/data.md)
+#   results/tables/table1.csv                       (every physical parameter of the scene)
+#   results/tables/sim_accuracy_vs_time.csv, results/figures/sim_accuracy_vs_time.png
+import json
+
+from feeder.fences import parse_config_id
+
+SIM_MODULES = ("sim", "scene", "fences", "geometry")
+
+
+def _sim_settings():
+    """Scene + the one preset the workflow uses: an edit to either reruns the simulations."""
+    name = config["sim"]["preset"]
+    return json.dumps(
+        {"scene": config["scene"], "presets": {name: config["sim"]["presets"][name]}},
+        sort_keys=True,
+        separators=(",", ":"),
+    )
+
+
+def _loc(index):
+    return lambda wildcards: parse_config_id(wildcards.fence)[index].spec
+
+
+rule simulate:
+    """Drops of one part through one fence configuration (feeder simulate)."""
+    input:
+        pkg(*SIM_MODULES),
+        part=lambda wildcards: f"{config['parts']['dir']}/{wildcards.part}.stl",
+    output:
+        "results/sim/{part}/{fence}.npz",
+    wildcard_constraints:
+        part=r"[A-Za-z0-9-]+",
+        fence=r"[a-z0-9.]+_[a-z0-9.]+",
+    params:
+        settings=_sim_settings(),
+        preset=config["sim"]["preset"],
+        drops=config["sim"]["drops"],
+        seed=config["sim"]["base_seed"],
+        loc1=_loc(0),
+        loc2=_loc(1),
+    log:
+        "logs/simulate/{part}/{fence}.log",
+    benchmark:
+        "benchmarks/simulate/{part}/{fence}.tsv"
+    conda:
+        "../envs/feeder.yaml"
+    shell:
+        "feeder simulate --part {input.part} --loc1 {params.loc1} --loc2 {params.loc2}"
+        " --drops {params.drops} --seed {params.seed} --preset {params.preset}"
+        " --settings '{params.settings}' --out {output} > {log} 2>&1"
+
+
+rule scene_table:
+    """Table 1: every physical parameter of the simulated scene and the simulation presets."""
+    input:
+        pkg("scene"),
+    output:
+        "results/tables/table1.csv",
+    params:
+        settings=settings_json("scene", "sim"),
+    log:
+        "logs/scene_table/table1.log",
+    benchmark:
+        "benchmarks/scene_table/table1.tsv"
+    conda:
+        "../envs/feeder.yaml"
+    shell:
+        "feeder scene-table --settings '{params.settings}' --out {output} > {log} 2>&1"
+
+
+rule bench_sim:
+    """Accuracy against CPU time of the simulation settings over a fixed panel (feeder bench-sim)."""
+    input:
+        pkg("bench", "sim_shapes", "labels", *SIM_MODULES),
+    output:
+        csv="results/tables/sim_accuracy_vs_time.csv",
+        png="results/figures/sim_accuracy_vs_time.png",
+    params:
+        settings=settings_json("scene", "sim", "labels"),
+    threads: config["sim"]["bench"]["workers"]
+    log:
+        "logs/bench_sim/bench_sim.log",
+    benchmark:
+        "benchmarks/bench_sim/bench_sim.tsv"
+    conda:
+        "../envs/feeder.yaml"
+    shell:
+        "feeder bench-sim --settings '{params.settings}' --out-csv {output.csv} --out-png {output.png}"
+        " > {log} 2>&1"
