@@ -233,3 +233,10 @@ def test_rule_params_carry_the_resolved_config():
     params = vae.rule_params("vae", ["train.epochs=2", "dataset=a b.npz"])
     assert "epochs: 2" in params["resolved"]
     assert params["overrides"] == "train.epochs=2 'dataset=a b.npz'"
+
+
+def test_select_levels_for_the_workflow():
+    assert vae.select_levels("all", [10, 5, 100], "x") == [5, 10, 100]
+    assert vae.select_levels([100, 5], [5, 10, 100], "x") == [5, 100]
+    with pytest.raises(FeederError, match="vae.p2_levels: levels \\[7\\]"):
+        vae.select_levels([5, 7], [5, 10], "vae.p2_levels")

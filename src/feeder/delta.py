@@ -385,8 +385,8 @@ def main(argv: list[str]) -> int:
     p = sub.add_parser("table", help="Table 10 (+ .md) and the S11 figure from level results")
     p.add_argument("--table", type=Path, required=True, help="table10.csv (a .md is written beside it)")
     p.add_argument("--figure", type=Path, required=True, help="S11 sweep figure")
-    p.add_argument("--representative", type=int, nargs="+", default=None,
-                   help="levels shown in the .md (default: representative_levels of config/delta.yaml)")
+    p.add_argument("--override", action="append", default=[], metavar="KEY=VALUE",
+                   help="Hydra override of config/delta.yaml (repeatable; representative_levels is read)")
     p.add_argument("results", nargs="+", type=Path, help="level JSONs from `feeder delta sweep`")
     args = parser.parse_args(argv)
     if args.cmd == "sweep":
@@ -394,7 +394,7 @@ def main(argv: list[str]) -> int:
         io.write_json(args.out, sweep_level(cfg, args.level))
     else:
         results = [_read_json(p) for p in args.results]
-        rep = args.representative or list(compose_config("delta").representative_levels)
+        rep = list(compose_config("delta", args.override).representative_levels)
         frame = table10(results)
         md = table10_markdown(frame, results, rep)
         fig = s11_figure(frame)

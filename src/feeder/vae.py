@@ -106,6 +106,16 @@ def rule_params(name: str, overrides: Sequence[str] = ()) -> dict[str, str]:
     return {"overrides": " ".join(shlex.quote(o) for o in overrides), "resolved": resolved_yaml(name, overrides)}
 
 
+def select_levels(setting, available: Sequence[int], what: str) -> list[int]:
+    """Workflow helper: ``"all"`` -> every available level, else the listed levels (each must be
+    available), sorted."""
+    levels = list(available) if setting == "all" else list(setting)
+    unknown = sorted(set(int(v) for v in levels) - set(int(v) for v in available))
+    if unknown:
+        raise FeederError(f"{what}: levels {unknown} are not in labels.levels_pct {list(available)}")
+    return sorted(int(v) for v in levels)
+
+
 def config_digest(cfg) -> str:
     from omegaconf import OmegaConf
 

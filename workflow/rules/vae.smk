@@ -1,0 +1,156 @@
+# The VAE (paper §3.4.2, Table 9), the partial-iteration study P2 (Fig. 14, p2_levels) and the
+# delta-to-full correction sweep P4 (Table 10, Fig. S11). Uses DATASET (datasets.smk) and pkg
+# (common.smk). Model settings: config/vae.yaml and config/delta.yaml (Hydra); the workflow's
+# `vae:` and `delta:` sections choose the levels and add Hydra overrides (smoke shrinks epochs).
+#
+# Every training job gets the resolved Hydra config as a param, so editing a setting reruns
+# exactly the jobs it affects; one job per level lets the levels run in parallel.
+import shlex
+
+from feeder.vae import rule_params, select_levels
+
+
+VAE_CODE = pkg("vae", "datasets", "labels", "losses", "fences")
+DELTA_CODE = pkg("delta", "vae", "datasets", "labels", "losses", "fences")
+P2_LEVELS = select_levels(config["vae"]["p2_levels"], config["labels"]["levels_pct"], "vae.p2_levels")
+DELTA_LEVELS = select_levels(config["delta"]["levels"], config["labels"]["levels_pct"], "delta.levels")
+VAE_OVERRIDES = [f"dataset={DATASET}", *config["vae"]["hydra_overrides"]]
+DELTA_OVERRIDES = [f"dataset={DATASET}", *config["delta"]["hydra_overrides"]]
+VAE_HYDRA = rule_params("vae", VAE_OVERRIDES)
+DELTA_HYDRA = rule_params("delta", DELTA_OVERRIDES)
+
+VAE_TARGETS = [
+    "results/tables/table9.csv",
+    "results/tables/table9.md",
+    "results/tables/p2_levels.csv",
+    "results/tables/p2_levels.md",
+    "results/figures/fig14_cross_convergence.png",
+    "results/tables/table10.csv",
+    "results/tables/table10.md",
+    "results/figures/s11_delta_sweep.png",
+]
+
+
+rule vae_train:
+    """Train the Table 9 VAE on the Main rows (train + test splits) only."""
+    input:
+        VAE_CODE,
+        dataset=DATASET,
+    output:
+        "results/vae/main.pt",
+    params:
+        hydra=VAE_HYDRA["resolved"],
+        overrides=VAE_HYDRA["overrides"],
+    log:
+        "logs/vae/train.log",
+    benchmark:
+        "benchmarks/vae/train.tsv"
+    conda:
+        "../envs/feeder.yaml"
+    shell:
+        "feeder vae train --out {output} {params.overrides} > {log} 2>&1"
+
+
+rule vae_table9:
+    """Table 9: reconstruction R² of features and CDFs on the Fences and Parts rows."""
+    input:
+        VAE_CODE,
+        dataset=DATASET,
+        model="results/vae/main.pt",
+    output:
+        csv="results/tables/table9.csv",
+        md="results/tables/table9.md",
+    log:
+        "logs/vae/table9.log",
+    benchmark:
+        "benchmarks/vae/table9.tsv"
+    conda:
+        "../envs/feeder.yaml"
+    shell:
+        "feeder vae table9 --model {input.model} --out {output.csv} > {log} 2>&1"
+
+
+rule vae_p2_level:
+    """P2: a VAE trained from scratch on the level-{level} CDFs of the shared 80 % split."""
+    input:
+        VAE_CODE,
+        dataset=DATASET,
+    output:
+        "results/vae/p2/level_{level}.json",
+    wildcard_constraints:
+        level=r"\d+",
+    params:
+        hydra=VAE_HYDRA["resolved"],
+        overrides=VAE_HYDRA["overrides"],
+    log:
+        "logs/vae/p2_level_{level}.log",
+    benchmark:
+        "benchmarks/vae/p2_level_{level}.tsv"
+    conda:
+        "../envs/feeder.yaml"
+    shell:
+        "feeder vae p2-level --level {wildcards.level} --out {output} {params.overrides} > {log} 2>&1"
+
+
+rule vae_p2_gather:
+    """P2 table of every level and Fig. 14 (within-level vs cross-convergence R²)."""
+    input:
+        VAE_CODE,
+        levels=expand("results/vae/p2/level_{level}.json", level=P2_LEVELS),
+    output:
+        csv="results/tables/p2_levels.csv",
+        md="results/tables/p2_levels.md",
+        fig="results/figures/fig14_cross_convergence.png",
+    log:
+        "logs/vae/p2_gather.log",
+    benchmark:
+        "benchmarks/vae/p2_gather.tsv"
+    conda:
+        "../envs/feeder.yaml"
+    shell:
+        "feeder vae p2-gather --table {output.csv} --figure {output.fig} {input.levels} > {log} 2>&1"
+
+
+rule delta_sweep_level:
+    """P4: delta-to-full models at one level, part-level GroupKFold and random configuration folds."""
+    input:
+        DELTA_CODE,
+        dataset=DATASET,
+    output:
+        "results/delta/level_{level}.json",
+    wildcard_constraints:
+        level=r"\d+",
+    params:
+        hydra=DELTA_HYDRA["resolved"],
+        overrides=DELTA_HYDRA["overrides"],
+    log:
+        "logs/delta/level_{level}.log",
+    benchmark:
+        "benchmarks/delta/level_{level}.tsv"
+    conda:
+        "../envs/feeder.yaml"
+    shell:
+        "feeder delta sweep --level {wildcards.level} --out {output} {params.overrides} > {log} 2>&1"
+
+
+rule delta_table:
+    """Table 10 (every swept level in the CSV, the paper's representative rows in the .md) and Fig. S11."""
+    input:
+        DELTA_CODE,
+        levels=expand("results/delta/level_{level}.json", level=DELTA_LEVELS),
+    output:
+        csv="results/tables/table10.csv",
+        md="results/tables/table10.md",
+        fig="results/figures/s11_delta_sweep.png",
+    params:
+        hydra=DELTA_HYDRA["resolved"],
+        overrides=" ".join(f"--override {shlex.quote(o)}" for o in DELTA_OVERRIDES),
+    log:
+        "logs/delta/table.log",
+    benchmark:
+        "benchmarks/delta/table.tsv"
+    conda:
+        "../envs/feeder.yaml"
+    shell:
+        "feeder delta table --table {output.csv} --figure {output.fig} {params.overrides}"
+        " {input.levels} > {log} 2>&1"
