@@ -364,7 +364,7 @@ def s11_figure(frame):
         ax.set_title(title)
         ax.set_xlabel("drops used (% of the full run)")
         ax.grid(alpha=0.3)
-        lo = float(np.nanmin(frame[[f"{mode}_baseline_mean", f"{mode}_r2_mean"]].to_numpy()))
+        lo = float(np.nanmin([(frame[f"{mode}_{k}_mean"] - frame[f"{mode}_{k}_sd"]).min() for k in ("r2", "baseline")]))
         ax.set_ylim(max(-1.5, min(0.0, lo) - 0.1), 1.05)
     axes[0].set_ylabel("CDF R² vs the 100 % CDF (mean ± 1 SD)")
     axes[0].legend(loc="lower right", fontsize=8)
