@@ -2,6 +2,8 @@
 # and the package modules each stage runs (declared as inputs so a code change reruns the stage;
 # Snakemake does not track imported Python modules by itself).
 import json
+import os
+import sys
 
 from snakemake.utils import validate
 
@@ -10,6 +12,10 @@ from feeder.parts import list_parts
 
 
 validate(config, schema="../schemas/config.schema.yaml")
+
+# Jobs call `feeder`: take it from the environment Snakemake itself runs in (e.g. .venv/bin),
+# even when that environment is not activated.
+os.environ["PATH"] = os.pathsep.join([os.path.dirname(sys.executable), os.environ.get("PATH", "")])
 
 PARTS = list_parts(config["parts"]["dir"], config["parts"]["include"])
 CONFIGS = configurations(config, PARTS)
@@ -31,6 +37,14 @@ def pkg(*modules):
     return [f"src/feeder/{name}.py" for name in dict.fromkeys(core + modules)]
 
 
-def settings_json(*sections):
-    """The named config sections as compact JSON: passed as a param so an edit reruns the rule."""
-    return json.dumps({name: config[name] for name in sections}, sort_keys=True, separators=(",", ":"))
+def settings_json(*keys):
+    """The named config sections (``labels``) or single settings (``sim.min_ok_drops``) as compact
+    JSON with their nesting kept: passed as a param so editing exactly these reruns the rule."""
+    picked = {}
+    for key in keys:
+        *path, last = key.split(".")
+        src, dst = config, picked
+        for name in path:
+            src, dst = src[name], dst.setdefault(name, {})
+        dst[last] = src[last]
+    return json.dumps(picked, sort_keys=True, separators=(",", ":"))

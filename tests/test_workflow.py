@@ -1,0 +1,83 @@
+"""The smoke workflow end to end in a scratch copy, lint and dry runs, partial reruns, crash-resume."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import time
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+import yaml
+
+from workflow_helpers import ROOT, SNAKEMAKE, planned_jobs, planned_rules, scratch_copy, snakemake
+
+pytestmark = pytest.mark.slow
+SMOKE = ("--configfile", "config/smoke.yaml")
+
+
+@pytest.fixture(scope="session")
+def smoke_run(tmp_path_factory) -> Path:
+    work = scratch_copy(tmp_path_factory.mktemp("smoke"))
+    proc = snakemake(work, *SMOKE)
+    assert proc.returncode == 0, proc.stderr[-4000:]
+    return work
+
+
+def test_smoke_workflow_builds_every_table_and_figure(smoke_run):
+    tables = smoke_run / "results" / "tables"
+    for name in ["table1", "table4", "table5", "table6", "table7", "table8", "cost_by_stage"]:
+        frame = pd.read_csv(tables / f"{name}.csv")
+        assert len(frame) > 0, name
+    for n in (5, 6, 7, 8):
+        frame = pd.read_csv(tables / f"table{n}.csv").set_index("model")
+        assert {"m3", "baseline_mean_pmf", "baseline_nearest_part"} <= set(frame.index)
+        assert np.isfinite(frame[["r2_mean", "w1_mean", "mse_mean"]].to_numpy()).all()
+        assert (frame.loc["m3", "train_s"] > 0) and (frame["w1_mean"] >= 0).all()
+    cost = pd.read_csv(tables / "cost_by_stage.csv").set_index("stage")
+    assert {"simulate", "train", "TOTAL"} <= set(cost.index)
+    assert cost.loc["TOTAL", "jobs"] == cost.drop("TOTAL")["jobs"].sum()
+    for png in (smoke_run / "results" / "figures").glob("*.png"):
+        assert png.stat().st_size > 1000, png
+    assert not list(smoke_run.rglob("*.tmp")), "a temporary file was left behind"
+
+
+def test_complete_run_has_nothing_left_to_do(smoke_run):
+    assert planned_jobs(smoke_run, *SMOKE) == []
+
+
+@pytest.mark.parametrize("configfile", [None, "config/smoke.yaml"], ids=["default", "smoke"])
+def test_lint_and_dry_run_are_clean(tmp_path, configfile):
+    work = scratch_copy(tmp_path / "w")
+    extra = ("--configfile", configfile) if configfile else ()
+    lint = snakemake(work, "--lint", *extra)
+    assert lint.returncode == 0, lint.stdout[-3000:] + lint.stderr[-3000:]
+    assert planned_jobs(work, *extra), "the dry run plans no jobs"
+
+
+def test_crash_midway_then_restart_gives_identical_outputs(smoke_run, tmp_path):
+    """Kill the whole run hard while simulations are being written, start again, compare."""
+    work = scratch_copy(tmp_path / "crash")
+    proc = subprocess.Popen(
+        [SNAKEMAKE, "--cores", "2", *SMOKE], cwd=work, start_new_session=True,
+        stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+    )
+    sims = work / "results" / "sim"
+    deadline = time.time() + 300
+    while time.time() < deadline and len(list(sims.rglob("*.npz"))) < 3:
+        time.sleep(0.2)
+    os.killpg(proc.pid, signal.SIGKILL)
+    proc.wait()
+    assert snakemake(work, "--unlock").returncode == 0
+    resumed = snakemake(work, *SMOKE)
+    assert resumed.returncode == 0, resumed.stderr[-4000:]
+    for ref in sorted((smoke_run / "results" / "sim").rglob("*.npz")):
+        with np.load(ref) as a, np.load(work / ref.relative_to(smoke_run)) as b:
+            for key in ("final_yaw_deg", "initial_yaw_deg", "status"):
+                np.testing.assert_array_equal(a[key], b[key], err_msg=f"{ref.name}:{key}")
+    with np.load(smoke_run / "results/datasets/dataset.npz") as a, np.load(work / "results/datasets/dataset.npz") as b:
+        for key in ("pmf", "part_raw", "feeder_raw"):
+            np.testing.assert_array_equal(a[key], b[key])
