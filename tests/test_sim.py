@@ -235,8 +235,8 @@ def _world(geom, loc1="straight:45", lanes=1, preset=FAST):
 def test_part_rests_at_true_half_thickness_with_set_mass_and_inertia():
     w, model, plan = _world(RECT)
     try:
-        w.set_lane(0, -1.0, 0.0)  # fences far away
-        body = w.add_part(0, 0.0, plan.start_y, 0.0)
+        w.reset_belt(0)
+        body = w.add_part(0, 0.0, plan.start_y - 0.3, 0.0)  # far upstream of the fence
         for _ in range(200):
             w.step()
         pos, q = w.pb.getBasePositionAndOrientation(body)
@@ -252,9 +252,9 @@ def test_part_rests_at_true_half_thickness_with_set_mass_and_inertia():
 def test_parts_in_one_world_never_touch_each_other():
     w, model, plan = _world(RECT, lanes=2)
     try:
-        w.set_lane(0, -1.0, 0.0)
-        a = w.add_part(0, 0.0, plan.start_y, 0.0)
-        b = w.add_part(0, 0.01, plan.start_y, 0.0)  # overlapping the first one in the same lane
+        w.reset_belt(0)
+        a = w.add_part(0, 0.0, plan.start_y - 0.3, 0.0)
+        b = w.add_part(0, 0.01, plan.start_y - 0.3, 0.0)  # overlapping the first one in the same lane
         for _ in range(100):
             w.step()
         assert w.pb.getContactPoints(a, b) == ()

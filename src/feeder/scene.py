@@ -226,7 +226,10 @@ def table1_rows(scene: dict, presets: dict) -> list[tuple[str, str, str]]:
     rows = [
         ("Simulator", "pybullet (Bullet 3) DIRECT", "one client per process, multibody rigid bodies"),
         ("Gravity", f"{scene['gravity']:g}", "m/s^2, along -z"),
-        ("Conveyor speed", f"{b['speed']:g}", "m/s along +y; simulated in the belt's frame: belt static, walls and fences kinematic at -speed (Galilean-equivalent)"),
+        ("Conveyor speed", f"{b['speed']:g}", "m/s along +y; fixed-base belt slab per lane given this velocity when a drop starts"),
+        ("Friction combination", "product",
+         f"Bullet multiplies the two bodies' coefficients: part-belt {pt['friction'] * b['friction']:g}, "
+         f"part-fence {pt['friction'] * fc['friction']:g}, part-wall {pt['friction'] * w['friction']:g}"),
         ("Belt friction (Coulomb mu)", f"{b['friction']:g}", "static = kinetic"),
         ("Part friction (Coulomb mu)", f"{pt['friction']:g}", "static = kinetic"),
         ("Fence friction (Coulomb mu)", f"{fc['friction']:g}", "static = kinetic"),

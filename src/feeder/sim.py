@@ -11,10 +11,13 @@ What is simulated (the preset decides; ``faithful`` is the paper's setting, the 
   at rest on a belt is carried without turning). Fences the lane cannot reach are not built.
 * ``full_path: true``: the part starts at ``belt.start_y`` and is recorded at the record point
   ``max(end_y, last fence end + end_margin)`` once at rest.
-* ``full_path: false``: the part starts ``approach_margin`` before the first point of a fence its
-  lane (centred band of its circumradius) can reach; whenever it rests on the belt with a fence
-  still ahead in its lane it is moved forward to just before that fence (free transport is a
-  pure translation); it is recorded as soon as it rests with no fence left in its lane.
+* ``full_path: false``: the part starts ``approach_margin`` before its own first contact (its
+  convex hull at its initial yaw, carried straight along the belt); whenever it rests on the belt
+  with a fence still ahead of its hull it is moved forward to just before that fence (free
+  transport is a pure translation); it is recorded as soon as it rests with nothing ahead.
+* ``skip_slides``: a part sliding steadily along a straight fence (same yaw, velocity along the
+  fence, faster than ``slide_min_speed``) for ``slide_window_s`` is moved along the fence to
+  ``skip_margin`` before its tip, keeping its velocity: the steady slide is translation-invariant.
 * ``lanes``: that many drops run side by side in one world, each on its own copy of the belt
   lane (walls and fences), their parts collision-filtered so they never touch each other.
   A lane takes the next drop as soon as its part is done.
@@ -27,7 +30,10 @@ of (part id, fence configuration id, base seed); a rerun of one configuration is
 The part body is a compound of the exact convex pieces of its outline, each inset by the
 collision margin and extruded (so the margin-inflated shape is the true part), in the part's
 centroidal principal frame; mass, centre of mass and the inertia diagonal are set from the
-polygon. The belt is a fixed-base box whose pose is reset and velocity set every step.
+polygon. Each lane's belt is a fixed-base box given the belt velocity (and its start pose) when
+a drop starts; Bullet carries it along (see :class:`World` for why it is not reset every step).
+Bullet combines friction coefficients by multiplication: part-belt 0.8 x 1.0, part-fence
+0.8 x 0.5 = 0.4 (a straight fence holds parts for θ > atan(1/0.4) = 68.2°).
 """
 
 from __future__ import annotations
@@ -280,14 +286,17 @@ def make_plan(scene: dict, loc1: Fence, loc2: Fence, model: PartModel, full_path
 # The world
 # --------------------------------------------------------------------------------------------
 class World:
-    """One pybullet DIRECT client with ``lanes`` copies of the belt lane, in the belt's frame.
+    """One pybullet DIRECT client with ``lanes`` copies of the belt lane (belt, walls, fences).
 
-    Galilean-equivalent formulation: the belt slab is static (zero velocity, never reset) and each
-    lane's walls and fences are kinematic bodies (mass 0) moving at ``-speed`` along y. A lane's
-    bodies get their pose and velocity set only when a drop starts or is moved forward, so no
-    body is ever reset to a pose inconsistent with its motion (resetting a moving belt back every
-    step disturbs the contact manifold: parts then sank into the belt at internal steps >= 1 ms).
-    Coordinates in the *fence frame* of lane j: ``x - lane_x[j]``, ``y - offset_j(t)``.
+    Each lane has its own belt: a fixed-base (mass 0) slab whose velocity is set to the belt speed
+    when a drop starts in that lane, together with its pose; Bullet then carries it along
+    consistently (a mass-0 body keeps its velocity). It is never snapped back while a part rides
+    on it: resetting a moving belt to its start pose every step disturbs the contacts (parts sank
+    into the belt and spun at internal steps >= 1 ms), and the belt's frame (belt still, fences
+    moving at -v) lets parts creep along fences that should hold them. The slab is long enough for
+    one drop's time limit. Walls and fences are static. Lane j's coordinates: ``x - lane_x[j]``, y.
+    Measured (tests/test_sim_physics.py): at internal steps of 2.5 ms a part held by a steep fence
+    still creeps along it (up to ~10 mm/s); at 1.67 ms and below it is held.
     """
 
     def __init__(self, scene: dict, preset: dict, plan: Plan, lanes: int, model: PartModel):
@@ -307,34 +316,31 @@ class World:
             pb.setPhysicsEngineParameter(**dict(preset["engine"]), physicsClientId=c)
         belt, walls, fc = scene["belt"], scene["walls"], scene["fences"]
         self.speed = float(belt["speed"])
-        self.fence_vel = [0.0, -self.speed, 0.0]
+        self.belt_vel = [0.0, self.speed, 0.0]
         self.pitch = 2.0 * (float(belt["half_width"]) + float(walls["thickness"])) + 0.1
         self.lane_x = [(j - 0.5 * (lanes - 1)) * self.pitch for j in range(lanes)]
-        travel = self.speed * plan.time_limit  # how far the fences can move during one drop
-        # belt: one static slab under every lane, covering where parts can be in the belt frame
+        travel = self.speed * plan.time_limit  # how far a belt moves during one drop
+        # a lane's belt at drop start: from behind the start (a held part stays while the belt
+        # runs on) to past the record point (parts may be moved forward by shortcuts)
         bt = float(belt["thickness"])
-        # (a part sliding along a straight fence may be moved forward by up to the fence length)
-        blo, bhi = plan.start_y - travel - 1.0, plan.start_y + 1.0 + sum(f.length for f in plan.fences)
-        shape = pb.createCollisionShape(
-            pb.GEOM_BOX, halfExtents=[0.5 * lanes * self.pitch, 0.5 * (bhi - blo), 0.5 * bt], physicsClientId=c)
-        self.belt = pb.createMultiBody(0, shape, basePosition=[0.0, 0.5 * (blo + bhi), -0.5 * bt], physicsClientId=c)
-        self._surface(self.belt, float(belt["friction"]))
-        # walls and fences per lane (kinematic); fence-frame y span of the walls
-        wlo, whi = plan.start_y - 1.0, max(plan.record_y, plan.start_y + travel) + 1.0
-        self.wall_mid = 0.5 * (wlo + whi)
+        blo, bhi = plan.start_y - travel - 1.0, plan.record_y + 1.0
+        self.belt_start = [0.5 * (blo + bhi), -0.5 * bt]
+        bshape = pb.createCollisionShape(
+            pb.GEOM_BOX, halfExtents=[0.5 * self.pitch, 0.5 * (bhi - blo), 0.5 * bt], physicsClientId=c)
+        wlo, whi = min(blo, plan.start_y - 1.0), bhi + travel
         wt, wh = float(walls["thickness"]), float(walls["height"])
         wx = float(belt["half_width"]) + 0.5 * wt
         fh, fclr = float(fc["height"]), float(fc["clearance"])
-        self.wall_z, self.fence_z = 0.5 * wh, fclr + 0.5 * fh
-        self.lane_bodies: list[list[tuple[int, float, float]]] = []  # (body, base y, base z)
+        self.belts = []
         for x0 in self.lane_x:
-            bodies = []
+            bb = pb.createMultiBody(0, bshape, basePosition=[x0, *self.belt_start], physicsClientId=c)
+            self._surface(bb, float(belt["friction"]))
+            self.belts.append(bb)
             ws = pb.createCollisionShapeArray(
                 shapeTypes=[pb.GEOM_BOX, pb.GEOM_BOX], halfExtents=[[0.5 * wt, 0.5 * (whi - wlo), 0.5 * wh]] * 2,
                 collisionFramePositions=[[-wx, 0, 0], [wx, 0, 0]], physicsClientId=c)
-            wb = pb.createMultiBody(0, ws, basePosition=[x0, self.wall_mid, self.wall_z], physicsClientId=c)
+            wb = pb.createMultiBody(0, ws, basePosition=[x0, 0.5 * (wlo + whi), 0.5 * wh], physicsClientId=c)
             self._surface(wb, float(walls["friction"]))
-            bodies.append((wb, self.wall_mid, self.wall_z))
             for f in plan.fences:
                 for k in range(0, len(f.boxes), _MAX_COMPOUND):  # pybullet keeps <= 16 shapes per array
                     chunk = f.boxes[k:k + _MAX_COMPOUND]
@@ -344,12 +350,8 @@ class World:
                         collisionFramePositions=[[b[0], b[1], 0.0] for b in chunk],
                         collisionFrameOrientations=[pb.getQuaternionFromEuler([0, 0, b[4]]) for b in chunk],
                         physicsClientId=c)
-                    fb = pb.createMultiBody(0, fs, basePosition=[x0, 0.0, self.fence_z], physicsClientId=c)
+                    fb = pb.createMultiBody(0, fs, basePosition=[x0, 0.0, fclr + 0.5 * fh], physicsClientId=c)
                     self._surface(fb, float(fc["friction"]))
-                    bodies.append((fb, 0.0, self.fence_z))
-            self.lane_bodies.append(bodies)
-        self.offset = [0.0] * lanes  # fence-frame offset at time set_t
-        self.set_t = [0.0] * lanes
         # the part's collision shape, shared by every part body
         self._tmp = tempfile.TemporaryDirectory(prefix="feeder-sim-")
         obj = Path(self._tmp.name) / "part.obj"
@@ -363,19 +365,15 @@ class World:
         self.pb.changeDynamics(body, -1, lateralFriction=friction, restitution=float(self.scene["restitution"]),
                                rollingFriction=0.0, spinningFriction=0.0, physicsClientId=self.cid)
 
-    def set_lane(self, lane: int, offset: float, t: float) -> None:
-        """Place lane's walls and fences at fence-frame offset ``offset`` (belt y) at time t, moving at -v."""
+    def reset_belt(self, lane: int) -> None:
+        """Put the lane's belt back at its start pose, moving at the belt speed (no part on it)."""
         pb, c = self.pb, self.cid
-        for body, by, bz in self.lane_bodies[lane]:
-            pb.resetBasePositionAndOrientation(body, [self.lane_x[lane], by + offset, bz], [0, 0, 0, 1], physicsClientId=c)
-            pb.resetBaseVelocity(body, self.fence_vel, [0.0, 0.0, 0.0], physicsClientId=c)
-        self.offset[lane], self.set_t[lane] = offset, t
-
-    def lane_offset(self, lane: int, t: float) -> float:
-        return self.offset[lane] - self.speed * (t - self.set_t[lane])
+        pb.resetBasePositionAndOrientation(self.belts[lane], [self.lane_x[lane], *self.belt_start], [0, 0, 0, 1],
+                                          physicsClientId=c)
+        pb.resetBaseVelocity(self.belts[lane], self.belt_vel, [0.0, 0.0, 0.0], physicsClientId=c)
 
     def add_part(self, lane: int, x: float, y: float, yaw_deg: float) -> int:
-        """A part at rest on the belt at belt-frame (x, y) of the lane."""
+        """A part flat on the lane's belt at (x, y), moving with the belt."""
         pb, c, m = self.pb, self.cid, self.model
         yb = math.radians(yaw_deg) + m.alpha
         body = pb.createMultiBody(
@@ -386,8 +384,16 @@ class World:
                           linearDamping=0.0, angularDamping=0.0, physicsClientId=c)
         self._surface(body, float(self.scene["part"]["friction"]))
         pb.setCollisionFilterGroupMask(body, -1, _PART_GROUP, _PART_MASK, physicsClientId=c)
-        pb.resetBaseVelocity(body, [0.0, 0.0, 0.0], [0.0, 0.0, 0.0], physicsClientId=c)
+        pb.resetBaseVelocity(body, self.belt_vel, [0.0, 0.0, 0.0], physicsClientId=c)
         return body
+
+    def move_part(self, body: int, dx: float, dy: float, keep_velocity=None) -> None:
+        """Translate a part (same orientation); velocity: the given (lin, ang) or riding the belt."""
+        pb, c = self.pb, self.cid
+        pos, q = pb.getBasePositionAndOrientation(body, physicsClientId=c)
+        pb.resetBasePositionAndOrientation(body, [pos[0] + dx, pos[1] + dy, pos[2]], q, physicsClientId=c)
+        lin, ang = keep_velocity if keep_velocity is not None else (self.belt_vel, [0.0, 0.0, 0.0])
+        pb.resetBaseVelocity(body, lin, ang, physicsClientId=c)
 
     def step(self) -> None:
         self.pb.stepSimulation(physicsClientId=self.cid)
@@ -481,6 +487,7 @@ def run_drops(geom, loc1: Fence, loc2: Fence, yaws0: np.ndarray, scene: dict, pr
             straight.append((pw, d, np.array([-d[1], d[0]]), 2.0 * hl, ht_))
     slide_checks = max(1, int(math.ceil(float(st["slide_window_s"]) / t_check)))
     slide_tol, slide_yaw = float(st["slide_tol"]), float(st["slide_yaw_deg"])
+    slide_min_speed = float(st["slide_min_speed"])
     skip_margin, skip_min = float(st["skip_margin"]), float(st["skip_min"])
 
     n_lanes = int(min(int(preset["lanes"]), drops))
@@ -498,14 +505,15 @@ def run_drops(geom, loc1: Fence, loc2: Fence, yaws0: np.ndarray, scene: dict, pr
 
         def start(j: int) -> None:
             i = queue.popleft()
-            world.set_lane(j, 0.0, t)
-            body = world.add_part(j, 0.0, plan.start_y, float(yaws0[i]))
-            lanes[j] = _Lane(i, body, t, deque())
-            if not full_path:  # move the fences up to just before the part's own first contact
-                gap = gap_ahead(hull_at(model.hull, math.radians(float(yaws0[i])) + model.alpha, 0.0, plan.start_y),
+            world.reset_belt(j)
+            y0 = plan.start_y
+            if not full_path:  # start just before the part's own first contact
+                gap = gap_ahead(hull_at(model.hull, math.radians(float(yaws0[i])) + model.alpha, 0.0, y0),
                                 plan.samples, pad)
                 if gap is not None and gap - approach > 0:
-                    world.set_lane(j, -(gap - approach), t)
+                    y0 += gap - approach
+            body = world.add_part(j, 0.0, y0, float(yaws0[i]))
+            lanes[j] = _Lane(i, body, t, deque())
 
         def finish(j: int, code: str, yaw: float = math.nan, pos=None) -> None:
             ln = lanes[j]
@@ -541,9 +549,8 @@ def run_drops(geom, loc1: Fence, loc2: Fence, yaws0: np.ndarray, scene: dict, pr
                         and math.isfinite(lin[0] + lin[1] + lin[2] + ang[0] + ang[1] + ang[2])):
                     finish(j, "nan")
                     continue
-                # fence-frame position; belt-frame velocity (world velocity = lin + belt velocity)
-                x, y, z = pos[0] - world.lane_x[j], pos[1] - world.lane_offset(j, t), pos[2]
-                speed = math.hypot(lin[0], lin[1] + v)
+                x, y, z = pos[0] - world.lane_x[j], pos[1], pos[2]
+                speed = math.hypot(lin[0], lin[1])
                 ln.max_speed = max(ln.max_speed, speed)
                 ln.max_omega = max(ln.max_omega, abs(ang[2]))
                 if check_fences and _inside_any_box(boxes, x, y):
@@ -570,13 +577,13 @@ def run_drops(geom, loc1: Fence, loc2: Fence, yaws0: np.ndarray, scene: dict, pr
                 if elapsed > plan.time_limit:
                     finish(j, "timed_out", pos=(x, y))
                     continue
-                at_rest = math.hypot(lin[0], lin[1]) < rest_speed and abs(ang[2]) < rest_omega
+                at_rest = math.hypot(lin[0], lin[1] - v) < rest_speed and abs(ang[2]) < rest_omega
                 if skip_slides and straight and not at_rest:
                     # steady sliding along a straight fence is translation-invariant: skip ahead
-                    wx_, wy_ = lin[0], lin[1] + v  # fence-frame velocity
+                    wx_, wy_ = lin[0], lin[1]
                     sp = math.hypot(wx_, wy_)
                     match = -1
-                    if sp > rest_speed:
+                    if sp > slide_min_speed:
                         for k, (pw, d, nrm, flen, fht) in enumerate(straight):
                             if (wx_ * d[0] + wy_ * d[1] > 0 and abs(wx_ * d[1] - wy_ * d[0]) < slide_tol * sp
                                     and abs((x - pw[0]) * nrm[0] + (y - pw[1]) * nrm[1]) <= model.radius + fht + pad):
@@ -595,9 +602,7 @@ def run_drops(geom, loc1: Fence, loc2: Fence, yaws0: np.ndarray, scene: dict, pr
                         lead = (x - pw[0]) * d[0] + (y - pw[1]) * d[1] + float(np.max(model.hull @ dl))
                         jump = flen - lead - skip_margin
                         if jump > skip_min:
-                            pb.resetBasePositionAndOrientation(
-                                ln.body, [pos[0] + jump * d[0], pos[1] + jump * d[1], pos[2]], q, physicsClientId=c)
-                            pb.resetBaseVelocity(ln.body, lin, ang, physicsClientId=c)
+                            world.move_part(ln.body, jump * d[0], jump * d[1], keep_velocity=(lin, ang))
                             ln.skips += 1
                             ln.hist.clear()
                         ln.slide = 0
@@ -613,9 +618,8 @@ def run_drops(geom, loc1: Fence, loc2: Fence, yaws0: np.ndarray, scene: dict, pr
                     finish(j, "ok", yaw, pos=(x, y))
                     continue
                 if gap - approach > skip_min:
-                    # free transport to just before the next fence (a pure translation): the
-                    # lane's fences jump back instead, the part resting on the belt stays put
-                    world.set_lane(j, world.lane_offset(j, t) - (gap - approach), t)
+                    # free transport to just before the next fence: a pure translation
+                    world.move_part(ln.body, 0.0, gap - approach)
                     ln.teleports += 1
                     ln.hist.clear()
                     ln.rest = 0

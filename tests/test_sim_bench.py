@@ -1,0 +1,76 @@
+"""feeder.bench: the accuracy-against-time summary (pure) and a tiny end-to-end run."""
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+import yaml
+
+from feeder import bench, labels
+
+ROOT = Path(__file__).resolve().parents[1]
+CFG = yaml.safe_load((ROOT / "config" / "config.yaml").read_text())
+
+
+def _fake_results(rng, drops):
+    panel = [("rect-40x20", "straight:45", "none"), ("tri-40x25", "curved:45", "none")]
+    settings = {"faithful": dict(CFG["sim"]["presets"]["faithful"]), "fast": dict(CFG["sim"]["presets"]["fast"]),
+                "biased": dict(CFG["sim"]["presets"]["fast"])}
+    res = {}
+    ok = np.array(["ok"] * drops)
+    for i in range(len(panel)):
+        ref0 = (180.0 + np.degrees(rng.vonmises(0.0, 4.0, drops))) % 360
+        ref1 = (180.0 + np.degrees(rng.vonmises(0.0, 4.0, drops))) % 360
+        res[("faithful", 0, i)] = (ref0, ok, 10.0)
+        res[("faithful", 1, i)] = (ref1, ok, 10.0)
+        res[("fast", 1, i)] = (ref1.copy(), ok, 0.5)  # the same sample as the floor: distance = floor
+        res[("biased", 1, i)] = ((ref1 + 40.0) % 360, ok, 0.25)  # shifted by 40°
+    return res, settings, panel
+
+
+def test_summary_floor_speedup_and_bias():
+    rng = np.random.default_rng(0)
+    drops = 200
+    res, settings, panel = _fake_results(rng, drops)
+    bcfg = dict(CFG["sim"]["bench"], drop_levels=[50])
+    df = bench.summarize(res, settings, panel, [0, 1], "faithful", drops, bcfg, CFG["labels"])
+    agg = df[(df["config"] == "mean") & (df["drops"] == drops)].set_index("setting")
+    assert agg.loc["fast", "js"] == pytest.approx(agg.loc["fast", "js_floor"])
+    assert agg.loc["fast", "within_floor"] and not agg.loc["biased", "within_floor"]
+    assert agg.loc["fast", "speedup_vs_reference"] == pytest.approx(20.0)  # 10 s vs 0.5 s of CPU
+    assert agg.loc["biased", "speedup_vs_reference"] == pytest.approx(40.0)
+    assert agg.loc["fast", "ms_per_drop"] == pytest.approx(0.5e3 / drops)
+    # W1 of a 40° shift between two concentrated distributions is about 40°
+    assert agg.loc["biased", "w1_deg"] == pytest.approx(40.0, abs=8.0)
+    # drop levels: the first 50 drops, per configuration and as a mean
+    assert set(df["drops"]) == {50, drops}
+    one = df[(df["setting"] == "fast") & (df["drops"] == 50) & (df["config"] != "mean")].iloc[0]
+    p = labels.pmf_from_yaws(res[("fast", 1, 0)][0][:50], CFG["labels"]["bins"], CFG["labels"]["sigma_bins"])
+    q = labels.pmf_from_yaws(res[("faithful", 0, 0)][0], CFG["labels"]["bins"], CFG["labels"]["sigma_bins"])
+    assert one["js"] == pytest.approx(float(labels.js_divergence(p, q)))
+
+
+def test_resolve_setting_overrides_base():
+    s = bench.resolve_setting(CFG["sim"]["presets"], {"name": "x", "substeps": 7})
+    assert s["substeps"] == 7 and s["lanes"] == CFG["sim"]["presets"]["fast"]["lanes"]
+    with pytest.raises(Exception, match="unknown base"):
+        bench.resolve_setting(CFG["sim"]["presets"], {"name": "x", "base": "nope"})
+
+
+@pytest.mark.slow
+def test_bench_cli_tiny_panel(tmp_path):
+    cfg = {"scene": CFG["scene"], "labels": CFG["labels"], "sim": dict(CFG["sim"])}
+    cfg["sim"]["bench"] = dict(CFG["sim"]["bench"], drops=4, drop_levels=[2], workers=1,
+                               panel=[["rect-40x20", "straight:45", "none"]], sweep=[{"name": "fast"}])
+    csv, png = tmp_path / "b.csv", tmp_path / "b.png"
+    r = subprocess.run([sys.executable, "-m", "feeder", "bench-sim", "--settings", json.dumps(cfg),
+                        "--out-csv", str(csv), "--out-png", str(png)], cwd=ROOT, capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    df = pd.read_csv(csv)
+    assert set(df["setting"]) == {"faithful", "fast"} and png.stat().st_size > 0
+    agg = df[(df["config"] == "mean") & (df["drops"] == 4)].set_index("setting")
+    assert agg.loc["fast", "speedup_vs_reference"] > 1.0
