@@ -270,3 +270,30 @@ def test_bad_preset_rejected():
         sim.get_preset({"x": {"time_step": 0.005}}, "x")
     with pytest.raises(FeederError, match="positive"):
         sim.get_preset({"x": dict(FAST, substeps=0)}, "x")
+
+
+def test_merge_pieces_hand_cases():
+    from shapely.geometry import Polygon
+    from shapely.ops import unary_union
+
+    halves = [np.array([(0, 0), (0.02, 0), (0.02, 0.02), (0, 0.02)]),
+              np.array([(0.02, 0), (0.04, 0), (0.04, 0.02), (0.02, 0.02)])]
+    merged = sim.merge_pieces(halves, 0.0)  # the union is exactly convex: one piece
+    assert len(merged) == 1 and Polygon(merged[0]).area == pytest.approx(8e-4)
+    ell = [np.array([(0, 0), (0.04, 0), (0.04, 0.01), (0, 0.01)]),
+           np.array([(0, 0.01), (0.01, 0.01), (0.01, 0.03), (0, 0.03)])]
+    assert len(sim.merge_pieces(ell, 2e-4)) == 2  # an L's corner is far deeper than 0.2 mm
+    # a shallow notch (0.1 mm deep) is filled at 0.2 mm, kept at 0
+    notch = [np.array([(0, 0), (0.02, 0), (0.02, 0.0099), (0, 0.01)]),
+             np.array([(0.02, 0), (0.04, 0), (0.04, 0.01), (0.02, 0.0099)])]
+    assert len(sim.merge_pieces(notch, 2e-4)) == 1 and len(sim.merge_pieces(notch, 0.0)) == 2
+    # the merged shape never leaves the true outline by more than the tolerance
+    from feeder.geometry import load_part
+
+    g = load_part(ROOT / "parts" / "crescent-a.stl")
+    pieces = sim.merge_pieces(g.convex_pieces, 2e-4)
+    assert len(pieces) < len(g.convex_pieces)
+    true = Polygon(g.outline)
+    approx = unary_union([Polygon(p) for p in pieces])
+    assert approx.difference(true.buffer(2e-4 + 1e-9, join_style=2)).area < 1e-12
+    assert true.difference(approx).area < 1e-12

@@ -4,9 +4,10 @@ Theory (quasi-static pushing; Goldberg's radius function; Mason / Peshkin & Sand
 pushed by a long fence turns until an edge lies flush; with a uniform initial yaw the long edge of
 a 2:1 rectangle ends flush with probability 2·atan(2)/π; a fence whose normal makes β with the
 belt velocity holds parts unless tan β > μ_fence. Every shortcut of the fast preset is compared
-with the full simulation on the same seeds: its JS divergence must stay below the two-seed noise
-floor of the full simulation (95 % of bootstrap JS values from its two seeds pooled, never below
-the two-seed value).
+with the full simulation on the same seeds: its JS divergence must stay below the noise floor of
+the full simulation (the two-seed JS, or 95 % of bootstrap JS values from the two seeds pooled if
+larger: near-discrete outcomes have a tiny two-seed JS while any numerical change reshuffles drops
+within their sub-degree peaks).
 """
 
 import copy
@@ -109,13 +110,13 @@ def test_three_to_one_rectangle_concentrates_after_a_long_fence():
 
 
 @pytest.mark.slow
-def test_halving_the_time_step_moves_the_pmf_less_than_the_noise_floor():
+@pytest.mark.parametrize("shape, loc1, loc2", [("rect-40x20", "straight:45", "none"), ("tri-40x25", "curved:30", "none")])
+def test_halving_the_time_step_moves_the_pmf_less_than_the_noise_floor(shape, loc1, loc2):
     half = dict(FAST, substeps=2 * FAST["substeps"])
-    for shape, loc1, loc2 in [("rect-40x20", "straight:45", "none"), ("tri-40x25", "curved:45", "none")]:
-        a0 = _sim(shape, loc1, loc2, 120, seed=0)["final_yaw_deg"]
-        a1 = _sim(shape, loc1, loc2, 120, seed=1)["final_yaw_deg"]
-        h0 = _sim(shape, loc1, loc2, 120, seed=0, preset=half)["final_yaw_deg"]
-        assert _w1(h0, a0) < _w1(a1, a0)
+    a0 = _sim(shape, loc1, loc2, 100, seed=0)["final_yaw_deg"]
+    a1 = _sim(shape, loc1, loc2, 100, seed=1)["final_yaw_deg"]
+    h0 = _sim(shape, loc1, loc2, 100, seed=0, preset=half)["final_yaw_deg"]
+    assert _w1(h0, a0) < _w1(a1, a0)
 
 
 # ------------------------------------------------------------------------------------------
@@ -123,32 +124,35 @@ def test_halving_the_time_step_moves_the_pmf_less_than_the_noise_floor():
 # ------------------------------------------------------------------------------------------
 SCENES = [("rect-40x20", "straight:45", "none"), ("tri-40x25", "curved:30", "none"),
           ("l-40x30x10", "straight:30", "straight:45")]
+SHORTCUT_DROPS = 80
+# a shorter belt for the full path (start 0.2 m before Location 2, record just past the fences)
+SHORT_BELT = copy.deepcopy(SCENE)
+SHORT_BELT["belt"].update(start_y=0.3, end_y=0.0, end_margin=0.1)
+_FULL_CACHE = {}
 
 
-@pytest.fixture(scope="module")
-def full_runs():
-    out = {}
-    for s in SCENES:
-        out[s] = [_sim(*s, 120, seed=k, preset=FULL) for k in (0, 1)]
-    return out
+def _full(scene_key, seed):
+    """The full simulation (no shortcut at all) of one scene, cached per test module."""
+    if (scene_key, seed) not in _FULL_CACHE:
+        _FULL_CACHE[(scene_key, seed)] = _sim(*scene_key, SHORTCUT_DROPS, seed=seed, preset=FULL, scene=SHORT_BELT)
+    return _FULL_CACHE[(scene_key, seed)]
 
 
 @pytest.mark.slow
+@pytest.mark.parametrize("scene_key", SCENES, ids=lambda s: "_".join(s))
 @pytest.mark.parametrize(
     "name, overrides",
     [("all shortcuts (fast)", {}), ("lanes only", {"full_path": True, "skip_slides": False}),
      ("start/teleport/stop only", {"lanes": 1, "skip_slides": False}),
      ("slide skipping only", {"lanes": 1, "full_path": False, "skip_slides": True})],
 )
-def test_shortcut_matches_full_simulation(full_runs, name, overrides):
-    preset = dict(FAST, **overrides)
-    for s in SCENES:
-        r0, r1 = full_runs[s]
-        short = _sim(*s, 120, seed=0, preset=preset)
-        assert np.array_equal(short["initial_yaw_deg"], r0["initial_yaw_deg"])  # the same drops
-        f0, f1 = r0["final_yaw_deg"], r1["final_yaw_deg"]
-        js, floor = _js(short["final_yaw_deg"], f0), _floor(f1, f0)
-        assert js < floor, f"{name} on {s}: JS {js:.4f} >= floor {floor:.4f}"
+def test_shortcut_matches_full_simulation(scene_key, name, overrides):
+    r0, r1 = _full(scene_key, 0), _full(scene_key, 1)
+    short = _sim(*scene_key, SHORTCUT_DROPS, seed=0, preset=dict(FAST, **overrides), scene=SHORT_BELT)
+    assert np.array_equal(short["initial_yaw_deg"], r0["initial_yaw_deg"])  # the same drops
+    f0, f1 = r0["final_yaw_deg"], r1["final_yaw_deg"]
+    js, floor = _js(short["final_yaw_deg"], f0), _floor(f1, f0)
+    assert js < floor, f"{name} on {scene_key}: JS {js:.4f} >= floor {floor:.4f}"
 
 
 # ------------------------------------------------------------------------------------------
@@ -192,3 +196,4 @@ def test_hard_case_is_stable(shape, loc1, loc2):
         cx, cy, hl, ht, yaw = box
         tip_x = cx + hl * math.cos(yaw)
         assert (d["final_x"][ok] < tip_x + model.radius).all()
+

@@ -181,8 +181,9 @@ def summarize(results, settings, panel, seeds, ref_name, drops, bench, labels_cf
         out.loc[m, "lanes"] = preset["lanes"]
         out.loc[m, "full_path"] = bool(preset["full_path"])
         out.loc[m, "skip_slides"] = bool(preset["skip_slides"])
+        out.loc[m, "merge_tolerance"] = float(preset.get("merge_tolerance", 0.0))
     first = ["setting", "drops", "config", "time_step", "substeps", "internal_step_ms", "solver_iterations",
-             "lanes", "full_path", "skip_slides", "ms_per_drop", "speedup_vs_reference", "js", "js_floor",
+             "lanes", "full_path", "skip_slides", "merge_tolerance", "ms_per_drop", "speedup_vs_reference", "js", "js_floor",
              "js_floor_boot", "w1_deg", "w1_floor_deg", "r2_cdf", "r2_floor", "within_floor",
              "configs_within_boot_floor", "ok_rate", "ref_ok_rate"]
     return out[first]

@@ -259,7 +259,8 @@ def table1_rows(scene: dict, presets: dict) -> list[tuple[str, str, str]]:
         rows.append((f"Preset '{name}'",
                      f"step {p['time_step'] * 1e3:g} ms, {p['substeps']} substeps, {p['solver_iterations']} solver iterations",
                      f"{p['lanes']} lanes per world; " + ("full belt path" if p["full_path"] else "only the fence region is stepped")
-                     + ("; steady slides along straight fences skipped" if p.get("skip_slides") else "")))
+                     + ("; steady slides along straight fences skipped" if p.get("skip_slides") else "")
+                     + (f"; convex pieces merged within {p['merge_tolerance'] * 1e3:g} mm" if p.get("merge_tolerance") else "")))
     return rows
 
 

@@ -57,7 +57,7 @@ from feeder.fences import Fence, config_id, parse_location
 from feeder.scene import FenceGeom, load_settings, scene_fences
 
 STATUSES = ("ok", "jammed", "fell_off", "timed_out", "flipped", "nan")
-PRESET_KEYS = ("time_step", "substeps", "solver_iterations", "lanes", "full_path", "skip_slides")
+PRESET_KEYS = ("time_step", "substeps", "solver_iterations", "lanes", "full_path", "skip_slides", "merge_tolerance")
 # Part collision filter: group bit 1 (dynamic) colliding only with static bodies (group bit 2).
 _PART_GROUP, _PART_MASK = 1, 2
 _TRACE = None  # debugging: a list collects per-check states when set
@@ -113,8 +113,40 @@ def principal_inertia(area, second_moment, thickness, density):
     return mass, (rho_t * lam2 + flat, rho_t * lam1 + flat, rho_t * (lam1 + lam2)), alpha
 
 
-def part_model(geom, scene: dict) -> PartModel:
-    """Pieces rotated into the centroidal principal frame and inset by the collision margin."""
+def merge_pieces(pieces, tolerance: float) -> list[np.ndarray]:
+    """Merge touching convex pieces whose union's convex hull lies within ``tolerance`` of the union.
+
+    Greedy: any pair whose hull adds nothing beyond ``tolerance`` (m) is replaced by that hull,
+    until no pair qualifies. ``tolerance = 0`` merges only pieces whose union is exactly convex.
+    Fewer pieces make fewer contact manifolds (the simulation's cost grows with the piece count);
+    the shape changes by at most ``tolerance`` (concave corners filled).
+    """
+    from shapely.geometry import Polygon
+    from shapely.ops import unary_union
+
+    polys = [Polygon(p) for p in pieces]
+    merged = True
+    while merged:
+        merged = False
+        for i in range(len(polys)):
+            for j in range(i + 1, len(polys)):
+                a, b = polys[i], polys[j]
+                if a.distance(b) > 0.0:
+                    continue
+                union = unary_union([a, b])
+                hull = union.convex_hull
+                if hull.difference(union).area <= 1e-12 * hull.area or (
+                        tolerance > 0 and union.buffer(tolerance, join_style=2).contains(hull)):
+                    polys = [q for k, q in enumerate(polys) if k not in (i, j)] + [hull]
+                    merged = True
+                    break
+            if merged:
+                break
+    return [np.asarray(q.exterior.coords)[:-1] for q in polys]
+
+
+def part_model(geom, scene: dict, merge_tolerance: float = 0.0) -> PartModel:
+    """Pieces (merged within ``merge_tolerance``) in the centroidal principal frame, inset by the margin."""
     from shapely.geometry import Polygon
 
     pc = scene["part"]
@@ -125,7 +157,7 @@ def part_model(geom, scene: dict) -> PartModel:
     rot = np.array([[c, -s], [s, c]])
     centroid = np.asarray(geom.centroid, dtype=np.float64)
     pieces = []
-    for piece in geom.convex_pieces:
+    for piece in merge_pieces(geom.convex_pieces, merge_tolerance):
         local = (np.asarray(piece, np.float64) - centroid) @ rot.T
         poly = Polygon(local).buffer(-margin, join_style=2)
         if poly.is_empty or poly.area <= 0 or poly.geom_type != "Polygon":
@@ -457,7 +489,7 @@ def run_drops(geom, loc1: Fence, loc2: Fence, yaws0: np.ndarray, scene: dict, pr
     diag["probe_yaw"] = np.full(drops, np.nan)
     diag["final_x"] = np.full(drops, np.nan)
     diag["final_y"] = np.full(drops, np.nan)
-    model = part_model(geom, scene)
+    model = part_model(geom, scene, float(preset["merge_tolerance"]))
     plan = make_plan(scene, loc1, loc2, model, bool(preset["full_path"]), prune=prune)
     diag["plan_fences"] = [f.location for f in plan.fences]
     if not plan.fences:
