@@ -343,6 +343,9 @@ def table10_markdown(frame, results: Sequence[dict], representative: Sequence[in
     n_models = sum(len(r["modes"][m]["folds"]) for r in results for m in MODES)
     lines += ["", "Provenance:",
               f"- {n_models} models trained over {len(results)} levels, training wall time {wall:.1f} s in total",
+              "- training wall time per level: " + ", ".join(
+                  f"{int(r['level_pct'])}%: {float(r['train_wall_s']):.1f} s"
+                  for r in sorted(results, key=lambda r: int(r["level_pct"]))),
               f"- rows per level: {sorted({int(r['n_rows']) for r in results})}; "
               f"config digests: {sorted({r['config_digest'] for r in results})}"]
     return "\n".join(lines) + "\n"
