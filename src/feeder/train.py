@@ -37,7 +37,6 @@ from feeder.errors import FeederError
 CONFIG_DIR = Path(__file__).resolve().parents[2] / "config"
 CONFIG_NAME = "train"
 DATASET_KEYS = ("part", "config_id", "split", "group_fold", "part_raw", "feeder_raw", "pmf", "cdf")
-SPLITS = ("train", "test", "fences", "parts")
 
 
 # ----------------------------------------------------------------------------------------------
@@ -223,6 +222,7 @@ def fit(cfg, data: dict[str, np.ndarray], train_mask: np.ndarray, seed: int | No
 
 def split_metrics(model, data: dict[str, np.ndarray]) -> dict[str, float]:
     """Mean CDF R² and W1 of the post-processed predictions on every split present."""
+    from feeder.datasets import SPLITS
     from feeder.labels import r2_cdf, w1
 
     x_raw = (data["part_raw"], data["feeder_raw"])
