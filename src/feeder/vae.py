@@ -484,7 +484,7 @@ def table9_markdown(frame, blob: dict, cfg) -> str:
         "|---|---|---|---|",
     ]
     for r in frame.itertuples():
-        lines.append(f"| {r.dataset} | {r.n} | {r.r2_features_mean:.2f} ± {r.r2_features_sd:.2f} | "
+        lines.append(f"| {r.dataset.capitalize()} | {r.n} | {r.r2_features_mean:.2f} ± {r.r2_features_sd:.2f} | "
                      f"{r.r2_cdf_mean:.2f} ± {r.r2_cdf_sd:.2f} |")
     lines += [
         "",
