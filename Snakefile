@@ -5,6 +5,16 @@
 configfile: "config/config.yaml"
 
 
+envvars:
+    "PATH",
+
+
+wildcard_constraints:
+    part=r"[A-Za-z0-9-]+",
+    fence=r"[a-z0-9.]+_[a-z0-9.]+",
+    model=r"m[1-8]",
+
+
 include: "workflow/rules/common.smk"
 include: "workflow/rules/parts.smk"
 include: "workflow/rules/simulate.smk"

@@ -1,0 +1,38 @@
+"""Helpers the Snakemake workflow uses at parse time (kept here so they are importable and tested)."""
+
+from __future__ import annotations
+
+import json
+import os
+import sys
+
+# Modules every `feeder` command runs through: a change to them can change any output.
+CORE_MODULES = ("__init__", "errors", "io")
+
+
+def module_files(*modules: str, root: str = "src/feeder") -> list[str]:
+    """Source files of the given feeder modules (plus the core), for a rule's inputs: Snakemake does
+    not track imported Python modules itself, so listing them is what reruns a stage on a code edit."""
+    return [f"{root}/{name}.py" for name in dict.fromkeys(CORE_MODULES + modules)]
+
+
+def select_settings(config: dict, *keys: str) -> str:
+    """Compact JSON of the named config sections (``labels``) or single settings
+    (``sim.min_ok_drops``), nesting kept. As a rule param, editing exactly these reruns the rule."""
+    picked: dict = {}
+    for key in keys:
+        *path, last = key.split(".")
+        src, dst = config, picked
+        for name in path:
+            src, dst = src[name], dst.setdefault(name, {})
+        dst[last] = src[last]
+    return json.dumps(picked, sort_keys=True, separators=(",", ":"))
+
+
+def put_interpreter_on_path(environ=os.environ) -> None:
+    """Jobs call ``feeder``: take it from the environment Snakemake runs in (e.g. ``.venv/bin``),
+    even when that environment is not activated."""
+    here = os.path.dirname(sys.executable)
+    parts = environ.get("PATH", "").split(os.pathsep)
+    if parts[:1] != [here]:
+        environ["PATH"] = os.pathsep.join([here, *[p for p in parts if p]])

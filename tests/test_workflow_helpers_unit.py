@@ -1,0 +1,26 @@
+import json
+import os
+import sys
+
+from feeder.workflow import module_files, put_interpreter_on_path, select_settings
+
+
+def test_select_settings_keeps_nesting_and_only_the_named_keys():
+    config = {"sim": {"drops": 50, "min_ok_drops": 20, "presets": {"fast": {}}}, "labels": {"bins": 360}}
+    picked = json.loads(select_settings(config, "sim.min_ok_drops", "labels"))
+    assert picked == {"sim": {"min_ok_drops": 20}, "labels": {"bins": 360}}
+    # the same settings in another order give the same string (a stable rerun trigger)
+    assert select_settings(config, "labels", "sim.min_ok_drops") == select_settings(config, "sim.min_ok_drops", "labels")
+
+
+def test_module_files_include_core_once():
+    files = module_files("sim", "io", "scene")
+    assert files[:3] == ["src/feeder/__init__.py", "src/feeder/errors.py", "src/feeder/io.py"]
+    assert files.count("src/feeder/io.py") == 1 and files[-2:] == ["src/feeder/sim.py", "src/feeder/scene.py"]
+
+
+def test_interpreter_dir_goes_first_on_path():
+    env = {"PATH": "/usr/bin:/bin"}
+    put_interpreter_on_path(env)
+    put_interpreter_on_path(env)  # idempotent
+    assert env["PATH"].split(os.pathsep) == [os.path.dirname(sys.executable), "/usr/bin", "/bin"]
