@@ -9,6 +9,7 @@ import yaml
 
 from feeder import datasets as D
 from feeder import labels as L
+from feeder.cli import main as cli
 from feeder.errors import FeederError
 from feeder.fences import parse_config_id
 
@@ -242,14 +243,29 @@ def test_build_end_to_end_and_tables(tmp_path):
     assert t4.set_index("dataset").loc["Total (All)", "samples"] == n
     assert t4.set_index("dataset").loc["Parts", "unique_parts"] == 1
 
-    figs = tmp_path / "figs"
+    figdata = tmp_path / "figdata"
     settings = json.dumps({k: cfg[k] for k in ("labels", "datasets")})
-    args = ["figures", "--dataset", str(tmp_path / "dataset.npz"), "--settings", settings]
-    for name in ("fig4", "fig5", "fig9", "dkw-fig"):
-        args += [f"--{name}", str(figs / f"{name}.png")]
-    args += ["--dkw-csv", str(tables / "dkw.csv"), "--js-csv", str(tables / "js.csv")]
+    args = ["convergence", "--dataset", str(tmp_path / "dataset.npz"), "--settings", settings,
+            "--dkw-csv", str(tables / "dkw.csv"), "--js-csv", str(tables / "js.csv"),
+            "--fig4-data", str(figdata / "fig4.csv")]
+    for name in ("fig5", "fig9", "dkw"):
+        args += [f"--{name}-data", str(figdata / f"{name}.npz")]
     assert D.main(args) == 0
-    for name in ("fig4", "fig5", "fig9", "dkw-fig"):
+    fig4 = pd.read_csv(figdata / "fig4.csv")
+    assert list(fig4.level_pct) == [10, 50, 100] and list(fig4.n_drops) == [6, 30, 60]
+    assert fig4.mean_js.iloc[-1] == pytest.approx(0.0, abs=1e-12) and (fig4.configurations == 4).all()
+    with np.load(figdata / "fig5.npz") as z:
+        assert z["js"].shape == (n,) and int(z["n_drops_full"]) == 60 and np.isfinite(z["noise_floor"])
+    with np.load(figdata / "fig9.npz") as z:
+        assert z["pmf"].shape == (z["label"].size, cfg["labels"]["bins"]) and z["yaw_deg"].size == cfg["labels"]["bins"]
+        np.testing.assert_allclose(z["pmf"].sum(axis=1), 1.0)
+    with np.load(figdata / "dkw.npz") as z:
+        assert list(z["n_drops"]) == [6, 30, 60] and z["median_sup"][-1] == 0.0
+        assert np.all(z["q10_sup"] <= z["median_sup"]) and np.all(z["median_sup"] <= z["q90_sup"])
+    figs = tmp_path / "figs"
+    for name, data in (("fig4_js_vs_drops", "fig4.csv"), ("fig5_js_hist", "fig5.npz"),
+                       ("fig9_example_pmfs", "fig9.npz"), ("convergence_dkw", "dkw.npz")):
+        assert cli(["figure", name, "--data", str(figdata / data), "--out", str(figs / f"{name}.png")]) == 0
         assert (figs / f"{name}.png").stat().st_size > 1000
     dkw = pd.read_csv(tables / "dkw.csv")
     assert list(dkw.level_pct) == [10, 50, 100]

@@ -251,19 +251,40 @@ def test_features_work_on_every_library_part():
     assert len({tuple(np.round(v, 6)) for v in vectors}) == len(vectors)
 
 
-def test_figures_and_s1_table(tmp_path):
+def test_figure_data_and_s1_table(tmp_path):
     import pandas as pd
 
     paths = [str(PARTS / f"{p}.xyz") for p in ["rect-a2", "star5-a", "keyhole-a"]]
+    data_file = tmp_path / "fig6.npz"
+    assert cli(["parts", "fig6-data", *paths, "--out", str(data_file), "--coefficients", "15"]) == 0
+    with np.load(data_file) as z:
+        assert list(z["name"]) == ["rect-a2", "star5-a", "keyhole-a"] and int(z["coefficients"]) == 15
+        assert z["outline"].shape == z["reconstruction"].shape == (3, DFT.samples)
+        # normalised units: the larger extent of each aligned outline is the drawable canvas (1),
+        # give or take the few pixels the edge dilation and the spline add
+        unit = DFT.canvas_px - 1 - 2 * DFT.margin_px
+        extent = np.maximum(np.ptp(z["outline"].real, axis=1), np.ptp(z["outline"].imag, axis=1))
+        np.testing.assert_allclose(extent, 1.0, atol=5.0 / unit)
+        expected = [reconstruction_mse(o * unit, 15) for o in z["outline"]]
+        np.testing.assert_allclose(z["mse"], expected)
+        np.testing.assert_allclose(z["reconstruction"][0], reconstruct(z["outline"][0], 15))
     fig = tmp_path / "fig6.png"
-    assert cli(["parts", "fig6", *paths, "--out", str(fig), "--coefficients", "15"]) == 0
+    assert cli(["figure", "fig6_dft_reconstruction", "--data", str(data_file), "--out", str(fig)]) == 0
     assert fig.stat().st_size > 10_000
     table, s1 = tmp_path / "s1.csv", tmp_path / "s1.png"
-    assert cli(["parts", "s1", *paths, "--table", str(table), "--figure", str(s1),
-                "--max-coefficients", "50", "--chosen", "15"]) == 0
+    assert cli(["parts", "s1", *paths, "--table", str(table), "--max-coefficients", "50"]) == 0
     frame = pd.read_csv(table)
     assert list(frame["n_coefficients"]) == list(range(1, 51))
     assert (frame["n_parts"] == 3).all()
     # more coefficients never reconstruct worse (top-k by magnitude: Parseval)
     assert np.all(np.diff(frame["mean_mse"]) <= 1e-15)
+    assert cli(["figure", "s1_dft_mse", "--data", str(table), "--chosen", "15", "--out", str(s1)]) == 0
     assert s1.stat().st_size > 10_000
+
+
+def test_figure_data_rejects_a_bad_count(tmp_path):
+    out = tmp_path / "fig6.npz"
+    assert cli(["parts", "fig6-data", str(PARTS / "rect-a2.xyz"), "--out", str(out), "--coefficients", "0"]) == 2
+    assert cli(["parts", "s1", str(PARTS / "rect-a2.xyz"), "--table", str(tmp_path / "s1.csv"),
+                "--max-coefficients", "101"]) == 2
+    assert not out.exists() and not (tmp_path / "s1.csv").exists()

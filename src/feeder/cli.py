@@ -28,6 +28,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "delta": ("feeder.delta", "delta-to-full correction sweep"),
     "report": ("feeder.report", "paper tables and figures"),
     "cost": ("feeder.cost", "gather workflow benchmarks into cost_by_stage"),
+    "figure": ("feeder.figures", "draw one figure from its data file"),
 }
 
 

@@ -1,5 +1,6 @@
-"""What the study cost: gather Snakemake ``benchmark:`` files into a per-stage table and figure,
-and write a provenance record (git commit, config hash, machine, per-stage time).
+"""What the study cost: gather Snakemake ``benchmark:`` files into a per-stage table and write a
+provenance record (git commit, config hash, machine, per-stage time). The figure is drawn from the
+table by ``feeder figure cost_by_stage`` (:mod:`feeder.figures.cost_by_stage`).
 
 Benchmarks are laid out ``benchmarks/<stage>/<job>.tsv`` (one file per job); a stage is the first
 directory below ``benchmarks/``.
@@ -65,25 +66,6 @@ def cost_by_stage(jobs: pd.DataFrame) -> pd.DataFrame:
     return out.round({"wall_s": 2, "cpu_s": 2, "max_rss_mb": 1})
 
 
-def plot_cost(table: pd.DataFrame):
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    stages = table[table["stage"] != "TOTAL"]
-    fig, ax = plt.subplots(figsize=(7, 0.4 * max(len(stages), 3) + 1.2))
-    y = range(len(stages))
-    ax.barh(list(y), stages["wall_s"], label="wall s (sum over jobs)")
-    ax.barh(list(y), stages["cpu_s"], height=0.35, label="CPU s")
-    ax.set_yticks(list(y), [f"{s} ({j} jobs)" for s, j in zip(stages["stage"], stages["jobs"])])
-    ax.invert_yaxis()
-    ax.set_xlabel("seconds")
-    ax.set_title("Cost by workflow stage")
-    ax.legend(loc="lower right")
-    return fig
-
-
 def _git_commit() -> str:
     try:
         out = subprocess.run(["git", "rev-parse", "HEAD"], capture_output=True, text=True, check=True)
@@ -112,13 +94,11 @@ def main(argv: list[str]) -> int:
     parser = argparse.ArgumentParser(prog="feeder cost", description=__doc__)
     parser.add_argument("--benchmarks", default="benchmarks", help="root of the benchmark files")
     parser.add_argument("--out-csv", required=True)
-    parser.add_argument("--out-fig", required=True)
     parser.add_argument("--provenance", help="also write this provenance JSON")
     parser.add_argument("--config-json", default="{}", help="the resolved workflow config (for its hash)")
     args = parser.parse_args(argv)
     table = cost_by_stage(read_benchmarks(args.benchmarks))
     io.write_csv(args.out_csv, table)
-    io.save_figure(args.out_fig, plot_cost(table))
     if args.provenance:
         io.write_json(args.provenance, provenance(args.config_json, table))
     return 0

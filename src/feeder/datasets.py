@@ -576,12 +576,10 @@ def pick_examples(pmf: np.ndarray, prominence_frac: float) -> list[tuple[int, st
     return picks
 
 
-def make_figures(ds: dict, settings: dict, out: dict) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+def convergence_data(ds: dict, settings: dict) -> dict:
+    """Everything the convergence study shows: the two tables (``dkw_table``, ``js_table``) and the
+    data of Figs. 4, 5, 9 and the DKW view (``fig4``, ``fig5``, ``fig9``, ``dkw``: the formats the
+    modules of the same names in :mod:`feeder.figures` read; all drawing is there)."""
     conv = settings["datasets"]["convergence"]
     bins = int(settings["labels"]["bins"])
     sigma = float(settings["labels"]["sigma_bins"])
@@ -594,65 +592,37 @@ def make_figures(ds: dict, settings: dict, out: dict) -> None:
     rng = np.random.default_rng(_seed(conv["seed"], "fig4"))
     pick = rng.choice(len(js), size=min(int(conv["fig4_configurations"]), len(js)), replace=False)
     sub = js[np.sort(pick)]
-    fig, ax = plt.subplots(figsize=(5, 3.5))
-    ax.errorbar(n_axis, sub.mean(axis=0), yerr=sub.std(axis=0), marker="o", ms=3, capsize=2)
-    ax.set_xlabel("drops N")
-    ax.set_ylabel("JS(P_N || P_full) [bits]")
-    ax.set_title(f"JS vs drops, mean ± SD over {len(pick)} configurations")
-    fio.save_figure(out["fig4"], fig)
+    fig4 = pd.DataFrame({"level_pct": levels.astype(np.int64), "n_drops": n_axis.astype(np.int64),
+                         "mean_js": sub.mean(axis=0), "sd_js": sub.std(axis=0), "configurations": len(pick)})
 
-    # Fig. 5: histogram of JS at the comparison level with the bootstrap noise floor
+    # Fig. 5: JS at the comparison level with the bootstrap noise floor
     li = int(np.argmin(np.abs(levels - int(conv["compare_pct"]))))
     jst = js_table(ds, conv, bins, sigma)
-    floor = float(jst["noise_floor"].iloc[li])
-    fig, ax = plt.subplots(figsize=(5, 3.5))
-    ax.hist(js[:, li], bins=30, color="0.6", edgecolor="k")
-    ax.axvline(floor, color="r", ls="--", label=f"bootstrap noise floor ({conv['noise_quantile']:g} quantile) = {floor:.3g}")
-    ax.set_xlabel(f"JS(P_{n_axis[li]} || P_{drops}) [bits]")
-    ax.set_ylabel("configurations")
-    ax.legend(fontsize=7)
-    fio.save_figure(out["fig5"], fig)
+    fig5 = {"js": js[:, li], "noise_floor": np.float64(jst["noise_floor"].iloc[li]),
+            "noise_quantile": np.float64(conv["noise_quantile"]), "n_drops": np.int64(n_axis[li]),
+            "n_drops_full": np.int64(drops)}
 
     # Fig. 9: example PMFs of different shapes
     picks = pick_examples(ds["pmf"], float(conv["peak_prominence"]))
-    fig, axes = plt.subplots(len(picks), 1, figsize=(6, 1.6 * len(picks)), sharex=True, squeeze=False)
-    centers = (np.arange(bins) + 0.5) * 360.0 / bins
-    for a, (i, label) in zip(axes[:, 0], picks):
-        a.plot(centers, ds["pmf"][i], lw=1)
-        a.set_title(f"{ds['part'][i]} / {ds['config_id'][i]}: {label}", fontsize=8)
-        a.set_ylabel("p per bin", fontsize=7)
-    axes[-1, 0].set_xlabel("final yaw θ [deg]")
-    fio.save_figure(out["fig9"], fig)
+    rows = [i for i, _ in picks]
+    fig9 = {"part": np.asarray(ds["part"])[rows].astype(str), "config_id": np.asarray(ds["config_id"])[rows].astype(str),
+            "label": np.array([label for _, label in picks]), "pmf": ds["pmf"][rows],
+            "yaw_deg": (np.arange(bins) + 0.5) * 360.0 / bins}
 
-    # DKW convergence view
+    # DKW convergence view: quantiles over configurations of the sup distance per level
     alpha = float(conv["dkw_alpha"])
     table, sup = dkw_table(ds, alpha)
-    fig, (a1, a2) = plt.subplots(1, 2, figsize=(9, 3.5))
     ok = np.isfinite(sup)
-    med = np.array([np.median(sup[ok[:, j], j]) if ok[:, j].any() else np.nan for j in range(levels.size)])
-    q10 = np.array([np.quantile(sup[ok[:, j], j], 0.1) if ok[:, j].any() else np.nan for j in range(levels.size)])
-    q90 = np.array([np.quantile(sup[ok[:, j], j], 0.9) if ok[:, j].any() else np.nan for j in range(levels.size)])
-    keep = levels < 100
-    a1.fill_between(n_axis[keep], q10[keep], q90[keep], alpha=0.3, label="10-90 % of configurations")
-    a1.plot(n_axis[keep], med[keep], "o-", ms=3, label="median")
-    a1.plot(n_axis[keep], L.dkw_epsilon(np.maximum(n_axis[keep], 1), alpha), "k--", label=f"DKW ε, α={alpha:g}")
-    from matplotlib.ticker import NullFormatter, ScalarFormatter
 
-    a1.set_xscale("log")
-    a1.set_yscale("log")
-    a1.xaxis.set_major_formatter(ScalarFormatter())
-    a1.xaxis.set_minor_formatter(NullFormatter())
-    a1.set_xlabel("drops N")
-    a1.set_ylabel(f"sup |CDF_N − CDF_{drops}|")
-    a1.legend(fontsize=7)
-    a2.plot(n_axis, table["fraction_inside_band"], "o-", ms=3)
-    a2.axhline(1 - alpha, color="k", ls=":", lw=1)
-    a2.set_ylim(0, 1.05)
-    a2.set_xlabel("drops N")
-    a2.set_ylabel("fraction inside DKW band")
-    fio.save_figure(out["dkw_fig"], fig)
-    fio.write_csv(out["dkw_csv"], table)
-    fio.write_csv(out["js_csv"], jst)
+    def per_level(q):
+        return np.array([np.quantile(sup[ok[:, j], j], q) if ok[:, j].any() else np.nan for j in range(levels.size)])
+
+    dkw = {"level_pct": levels.astype(np.int64), "n_drops": n_axis.astype(np.int64), "q10_sup": per_level(0.1),
+           "median_sup": per_level(0.5), "q90_sup": per_level(0.9),
+           "dkw_epsilon": L.dkw_epsilon(np.maximum(n_axis, 1), alpha),
+           "fraction_inside_band": table["fraction_inside_band"].to_numpy(),
+           "alpha": np.float64(alpha), "n_drops_full": np.int64(drops)}
+    return {"dkw_table": table, "js_table": jst, "fig4": fig4, "fig5": fig5, "fig9": fig9, "dkw": dkw}
 
 
 # ----------------------------------------------------------------------------------------------
@@ -702,10 +672,10 @@ def main(argv: list[str]) -> int:
     p.add_argument("--dataset", required=True, type=Path)
     p.add_argument("--out-csv", required=True, type=Path)
     p.add_argument("--out-md", required=True, type=Path)
-    p = sub.add_parser("figures", help="Figs. 4, 5, 9 and the DKW convergence view")
+    p = sub.add_parser("convergence", help="convergence tables and the data of Figs. 4, 5, 9 and the DKW view")
     p.add_argument("--dataset", required=True, type=Path)
     p.add_argument("--settings", required=True, help="JSON with the labels and datasets sections")
-    for name in ("fig4", "fig5", "fig9", "dkw-fig", "dkw-csv", "js-csv"):
+    for name in ("dkw-csv", "js-csv", "fig4-data", "fig5-data", "fig9-data", "dkw-data"):
         p.add_argument(f"--{name}", required=True, type=Path)
     args = parser.parse_args(argv)
     logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s", stream=sys.stderr)
@@ -727,10 +697,14 @@ def main(argv: list[str]) -> int:
         t = table4(load_dataset(args.dataset))
         fio.write_csv(args.out_csv, t)
         fio.write_text(args.out_md, "Table 4. Dataset summary\n\n" + _markdown(t))
-    elif args.cmd == "figures":
+    elif args.cmd == "convergence":
         settings = _settings(args.settings)
         _need(settings, "labels", "datasets")
-        out = {"fig4": args.fig4, "fig5": args.fig5, "fig9": args.fig9, "dkw_fig": args.dkw_fig,
-               "dkw_csv": args.dkw_csv, "js_csv": args.js_csv}
-        make_figures(load_dataset(args.dataset), settings, out)
+        out = convergence_data(load_dataset(args.dataset), settings)
+        fio.write_csv(args.fig4_data, out["fig4"])
+        fio.write_npz(args.fig5_data, **out["fig5"])
+        fio.write_npz(args.fig9_data, **out["fig9"])
+        fio.write_npz(args.dkw_data, **out["dkw"])
+        fio.write_csv(args.dkw_csv, out["dkw_table"])
+        fio.write_csv(args.js_csv, out["js_table"])
     return 0

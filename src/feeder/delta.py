@@ -351,30 +351,6 @@ def table10_markdown(frame, results: Sequence[dict], representative: Sequence[in
     return "\n".join(lines) + "\n"
 
 
-def s11_figure(frame):
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, axes = plt.subplots(1, 2, figsize=(10, 4), sharey=True)
-    lv = frame["level_pct"].to_numpy()
-    for ax, mode, title in zip(axes, MODES, ("part split (unseen parts)", "config split (seen parts)")):
-        for key, color, label in (("r2", "tab:blue", "delta model"), ("baseline", "tab:gray", "partial PMF as answer")):
-            m, s = frame[f"{mode}_{key}_mean"].to_numpy(), frame[f"{mode}_{key}_sd"].to_numpy()
-            ax.plot(lv, m, marker="o", color=color, label=label)
-            ax.fill_between(lv, m - s, m + s, color=color, alpha=0.15)
-        ax.set_title(title)
-        ax.set_xlabel("drops used (% of the full run)")
-        ax.grid(alpha=0.3)
-        lo = float(np.nanmin([(frame[f"{mode}_{k}_mean"] - frame[f"{mode}_{k}_sd"]).min() for k in ("r2", "baseline")]))
-        ax.set_ylim(max(-1.5, min(0.0, lo) - 0.1), 1.05)
-    axes[0].set_ylabel("CDF R² vs the 100 % CDF (mean ± 1 SD)")
-    axes[0].legend(loc="lower right", fontsize=8)
-    fig.suptitle("P4: delta-to-full correction sweep (S11)")
-    return fig
-
-
 # ----------------------------------------------------------------------------------------------
 # CLI
 # ----------------------------------------------------------------------------------------------
@@ -385,9 +361,8 @@ def main(argv: list[str]) -> int:
     p.add_argument("--level", type=int, required=True, help="percentage, one of the dataset's levels")
     p.add_argument("--out", type=Path, required=True, help="level result (.json)")
     p.add_argument("overrides", nargs="*", help="Hydra overrides of config/delta.yaml")
-    p = sub.add_parser("table", help="Table 10 (+ .md) and the S11 figure from level results")
+    p = sub.add_parser("table", help="Table 10 (+ .md; also the data of Fig. S11) from level results")
     p.add_argument("--table", type=Path, required=True, help="table10.csv (a .md is written beside it)")
-    p.add_argument("--figure", type=Path, required=True, help="S11 sweep figure")
     p.add_argument("--override", action="append", default=[], metavar="KEY=VALUE",
                    help="Hydra override of config/delta.yaml (repeatable; representative_levels is read)")
     p.add_argument("results", nargs="+", type=Path, help="level JSONs from `feeder delta sweep`")
@@ -400,8 +375,6 @@ def main(argv: list[str]) -> int:
         rep = list(compose_config("delta", args.override).representative_levels)
         frame = table10(results)
         md = table10_markdown(frame, results, rep)
-        fig = s11_figure(frame)
         io.write_csv(args.table, frame)
         io.write_text(args.table.with_suffix(".md"), md)
-        io.save_figure(args.figure, fig)
     return 0

@@ -327,59 +327,50 @@ def as_vector(features: dict[str, list]) -> np.ndarray:
 
 
 # --------------------------------------------------------------------------------------------
-# Figures (Fig. 6 panel b, Supplementary Fig. S1) - called by `feeder parts fig6|s1`
+# Figure data (Fig. 6 panel b, Supplementary Fig. S1) - called by `feeder parts fig6-data|s1`;
+# the drawing is in feeder.figures.fig6_dft_reconstruction / feeder.figures.s1_dft_mse
 # --------------------------------------------------------------------------------------------
-def figure_reconstructions(paths: list[str], out: str, count: int) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    from feeder.io import save_figure
-
+def reconstruction_data(paths: list[str], count: int) -> dict[str, np.ndarray]:
+    """Fig. 6 data: per part its outline samples and their reconstruction from the ``count``
+    largest coefficients, normalised so the canvas's drawable extent is 1, and the
+    reconstruction MSE in those units² (the arrays of feeder.figures.fig6_dft_reconstruction)."""
     if not 1 <= count <= DFT.samples:
         raise FeederError(f"--coefficients {count} outside 1..{DFT.samples} (the DFT length)")
-    n = len(paths)
-    cols = min(4, n)
-    rows = int(math.ceil(n / cols))
-    fig, axes = plt.subplots(rows, cols, figsize=(3.0 * cols, 3.0 * rows), squeeze=False)
+    if not paths:
+        raise FeederError("no part files given")
     unit = DFT.canvas_px - 1 - 2 * DFT.margin_px
-    for ax, path in zip(axes.ravel(), paths):
+    outlines, recs, errs = [], [], []
+    for path in paths:
         z = outline_samples(load_points(path), str(path)) / unit
-        rec = reconstruct(z, count)
-        zc, rc = np.append(z, z[0]), np.append(rec, rec[0])
-        ax.plot(zc.real, zc.imag, color="tab:blue", lw=2.0, label="outline")
-        ax.plot(rc.real, rc.imag, color="tab:orange", lw=1.2, label=f"{count} coefficients")
-        ax.set_title(f"{Path(path).stem}  (MSE {reconstruction_mse(z * unit, count):.1e})",
-                     fontsize=9)
-        ax.set_aspect("equal")
-        ax.tick_params(labelsize=7)
-    for ax in axes.ravel()[n:]:
-        ax.axis("off")
-    axes.ravel()[0].legend(fontsize=7, loc="best")
-    fig.suptitle(f"DFT reconstruction with the {count} largest coefficients (normalised units)")
-    save_figure(out, fig)
+        outlines.append(z)
+        recs.append(reconstruct(z, count))
+        errs.append(reconstruction_mse(z * unit, count))
+    return {
+        "name": np.array([Path(p).stem for p in paths]),
+        "outline": np.asarray(outlines),
+        "reconstruction": np.asarray(recs),
+        "mse": np.asarray(errs, dtype=np.float64),
+        "coefficients": np.int64(count),
+    }
 
 
-def study_mse(paths: list[str], table: str, figure: str, max_count: int, chosen: int) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+def study_mse(paths: list[str], max_count: int):
+    """Supplementary Fig. S1 table: reconstruction MSE (normalised units²) over the parts for 1 ..
+    ``max_count`` kept coefficients (mean, SD, quartiles, median, max)."""
     import pandas as pd
     from tqdm import tqdm
 
-    from feeder.io import save_figure, write_csv
-
     if not 1 <= max_count <= DFT.samples:
         raise FeederError(f"--max-coefficients {max_count} outside 1..{DFT.samples} (the DFT length)")
+    if not paths:
+        raise FeederError("no part files given")
     counts = np.arange(1, max_count + 1)
     errs = []
     for path in tqdm(paths, desc="s1", disable=not sys.stderr.isatty()):
         z = outline_samples(load_points(path), str(path))
         errs.append([reconstruction_mse(z, int(c)) for c in counts])
     e = np.asarray(errs)
-    frame = pd.DataFrame({
+    return pd.DataFrame({
         "n_coefficients": counts,
         "mean_mse": e.mean(axis=0),
         "std_mse": e.std(axis=0),
@@ -389,19 +380,6 @@ def study_mse(paths: list[str], table: str, figure: str, max_count: int, chosen:
         "max_mse": e.max(axis=0),
         "n_parts": len(paths),
     })
-    write_csv(table, frame)
-    fig, ax = plt.subplots(figsize=(5.5, 3.5))
-    ax.plot(counts, frame["mean_mse"], marker="o", ms=3, label="mean over parts")
-    ax.plot(counts, frame["median_mse"], color="tab:blue", ls=":", label="median")
-    ax.fill_between(counts, frame["q25_mse"], frame["q75_mse"], alpha=0.25,
-                    label="interquartile range")
-    ax.axvline(chosen, color="k", ls="--", lw=1, label=f"{chosen} coefficients")
-    ax.set_yscale("log")
-    ax.set_xlabel("number of largest-magnitude DFT coefficients")
-    ax.set_ylabel("reconstruction MSE (normalised units²)")
-    ax.set_title(f"DFT reconstruction error, {len(paths)} parts")
-    ax.legend(fontsize=8)
-    save_figure(figure, fig)
 
 
 # --------------------------------------------------------------------------------------------

@@ -12,9 +12,12 @@ Subcommands::
     feeder parts generate [--spec parts/library.yaml] [--out parts]
     feeder parts xyz PART.stl --out PART.xyz [--points N]   # face cloud of a user's STL
     feeder parts list [--dir parts] [--include ID ...]
-    feeder parts fig6 PATH... --out results/figures/fig6_dft_reconstruction.png
-    feeder parts s1 PATH... --table results/tables/s1_dft_mse.csv \
-        --figure results/figures/s1_dft_mse.png --max-coefficients 50
+    feeder parts fig6-data PATH... --out results/figdata/fig6_dft_reconstruction.npz
+    feeder parts s1 PATH... --table results/tables/s1_dft_mse.csv --max-coefficients 50
+
+``fig6-data`` and ``s1`` write the numbers of Fig. 6 (panel b) and Supplementary Fig. S1; the
+figures are drawn from them by ``feeder figure fig6_dft_reconstruction`` / ``feeder figure
+s1_dft_mse`` (:mod:`feeder.figures`).
 """
 
 from __future__ import annotations
@@ -395,18 +398,15 @@ def _parser() -> argparse.ArgumentParser:
     li = sub.add_parser("list", help="print the part ids")
     li.add_argument("--dir", default="parts")
     li.add_argument("--include", nargs="*", default=None)
-    f = sub.add_parser("fig6", help="outlines and their DFT reconstructions (Fig. 6 panel b)")
+    f = sub.add_parser("fig6-data", help="outlines and their DFT reconstructions (Fig. 6 panel b data, .npz)")
     f.add_argument("paths", nargs="+", help=".xyz or .stl files, one panel each")
     f.add_argument("--out", required=True)
     f.add_argument("--coefficients", type=int, default=None,
                    help="coefficients kept (default: the feature count, feeder.features.DFT)")
-    s = sub.add_parser("s1", help="mean reconstruction MSE vs number of coefficients (Fig. S1)")
+    s = sub.add_parser("s1", help="reconstruction MSE vs number of coefficients (Fig. S1 table)")
     s.add_argument("paths", nargs="+", help=".xyz or .stl files of the library")
     s.add_argument("--table", required=True)
-    s.add_argument("--figure", required=True)
     s.add_argument("--max-coefficients", type=int, required=True)
-    s.add_argument("--chosen", type=int, default=None,
-                   help="count marked on the plot (default: the feature count)")
     return ap
 
 
@@ -430,15 +430,17 @@ def main(argv: list[str]) -> int:
     if args.cmd == "list":
         print("\n".join(list_parts(args.dir, args.include if args.include else "all")))
         return 0
-    if args.cmd == "fig6":
-        from feeder.features import DFT, figure_reconstructions
+    if args.cmd == "fig6-data":
+        from feeder.features import DFT, reconstruction_data
+        from feeder.io import write_npz
 
-        figure_reconstructions(args.paths, args.out, args.coefficients or DFT.coefficients)
+        count = DFT.coefficients if args.coefficients is None else args.coefficients
+        write_npz(args.out, **reconstruction_data(args.paths, count))
         return 0
     if args.cmd == "s1":
-        from feeder.features import DFT, study_mse
+        from feeder.features import study_mse
+        from feeder.io import write_csv
 
-        study_mse(args.paths, args.table, args.figure, args.max_coefficients,
-                  args.chosen or DFT.coefficients)
+        write_csv(args.table, study_mse(args.paths, args.max_coefficients))
         return 0
     raise AssertionError(args.cmd)  # pragma: no cover

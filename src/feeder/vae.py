@@ -555,33 +555,6 @@ def p2_gather(results: Sequence[dict]) -> "pd.DataFrame":  # noqa: F821
     return frame.sort_values("level_pct", kind="stable").reset_index(drop=True)
 
 
-def fig14(frame):
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, ax = plt.subplots(figsize=(7, 4.2))
-    lv = frame["level_pct"].to_numpy()
-    ax.errorbar(lv, frame["within_r2_mean"], yerr=frame["within_r2_sd"], color="tab:green", marker="o",
-                capsize=3, label="within-level (level-k input, level-k target)")
-    ax.errorbar(lv, frame["cross_r2_mean"], yerr=frame["cross_r2_sd"], color="tab:red", marker="s",
-                capsize=3, label="cross-convergence (level-k input, 100 % target)")
-    ax.plot(lv, frame["partial_baseline_r2_mean"], color="0.5", ls="--", marker=".",
-            label="level-k CDF itself vs 100 % (no model)")
-    ax.set_xlabel("simulation drops used (% of the full run)")
-    ax.set_ylabel("CDF R² on the shared holdout (mean ± 1 SD)")
-    ax.set_xticks(lv)
-    ax.tick_params(axis="x", labelsize=7)
-    lo = float(np.nanmin(np.concatenate([(frame[f"{k}_mean"] - frame[f"{k}_sd"]).to_numpy()
-                                         for k in ("within_r2", "cross_r2")] + [frame["partial_baseline_r2_mean"].to_numpy()])))
-    ax.set_ylim(max(-1.0, min(0.0, lo) - 0.05), 1.05)
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize=8, loc="lower right")
-    ax.set_title("P2: VAEs trained per iteration level (Fig. 14)")
-    return fig
-
-
 def p2_markdown(frame) -> str:
     lines = ["# P2: VAE per iteration level, shared holdout (R² mean ± population SD)", "",
              "| Level | N train | N holdout | Within-level | Cross-convergence | Partial CDF vs 100 % | "
@@ -620,9 +593,8 @@ def main(argv: list[str]) -> int:
     p.add_argument("--level", type=int, required=True, help="percentage, one of the dataset's levels")
     p.add_argument("--out", type=Path, required=True, help="level result (.json)")
     p.add_argument("overrides", nargs="*", help="Hydra overrides of config/vae.yaml")
-    p = sub.add_parser("p2-gather", help="P2 table and Fig. 14 from level results")
+    p = sub.add_parser("p2-gather", help="P2 table (the data of Fig. 14) from level results")
     p.add_argument("--table", type=Path, required=True, help="p2_levels.csv (a .md is written beside it)")
-    p.add_argument("--figure", type=Path, required=True, help="fig14 image")
     p.add_argument("results", nargs="+", type=Path, help="level JSONs from p2-level")
     args = parser.parse_args(argv)
 
@@ -645,8 +617,6 @@ def main(argv: list[str]) -> int:
         io.write_json(args.out, p2_level(cfg, args.level))
     elif args.cmd == "p2-gather":
         frame = p2_gather([_read_json(p) for p in args.results])
-        fig = fig14(frame)
         io.write_csv(args.table, frame)
         io.write_text(args.table.with_suffix(".md"), p2_markdown(frame))
-        io.save_figure(args.figure, fig)
     return 0

@@ -27,3 +27,12 @@ def pkg(*modules):
 def settings_json(*keys):
     """Config sections or single dotted settings as JSON, for a rule's params."""
     return select_settings(config, *keys)
+
+
+def figure_code(name):
+    """Source files that draw one figure (inputs of its drawing job only): the module
+    src/feeder/figures/<name>.py, the shared style, the package's __init__ and the core."""
+    files = pkg() + [f"src/feeder/figures/{m}.py" for m in ("__init__", "style", name)]
+    if not exists(files[-1]):
+        raise ValueError(f"figure_code: no drawing module {files[-1]}")
+    return files

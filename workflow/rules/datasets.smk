@@ -1,6 +1,7 @@
 # Labels and datasets: the configuration table, the merged dataset.npz, Table 4 and the label
-# convergence study (Figs. 4, 5, 9 and the DKW view). Uses PARTS, CONFIGS, sim_path, pkg and
-# settings_json from common.smk.
+# convergence study (Figs. 4, 5, 9 and the DKW view: one compute job writes their data to
+# results/figdata/, one drawing job per figure). Uses PARTS, CONFIGS, sim_path, pkg, figure_code
+# and settings_json from common.smk.
 
 DATASET = "results/datasets/dataset.npz"
 
@@ -66,8 +67,8 @@ rule datasets_table4:
         pkg("datasets", "labels", "fences"),
         dataset=DATASET,
     output:
-        csv="results/tables/table4.csv",
-        md="results/tables/table4.md",
+        csv=report("results/tables/table4.csv", caption="../report/table4.rst", category="Datasets"),
+        md=report("results/tables/table4.md", caption="../report/table4.rst", category="Datasets"),
     log:
         "logs/datasets/table4.log",
     benchmark:
@@ -79,17 +80,21 @@ rule datasets_table4:
 
 
 rule datasets_convergence:
-    """Figs. 4, 5, 9, the DKW convergence view and its tables."""
+    """The convergence tables and the data of Figs. 4, 5, 9 and the DKW view."""
     input:
         pkg("datasets", "labels", "fences"),
         dataset=DATASET,
     output:
-        fig4="results/figures/fig4_js_vs_drops.png",
-        fig5="results/figures/fig5_js_hist.png",
-        fig9="results/figures/fig9_example_pmfs.png",
-        dkw_fig="results/figures/convergence_dkw.png",
-        dkw_csv="results/tables/convergence_dkw.csv",
-        js_csv="results/tables/convergence_js.csv",
+        dkw_csv=report(
+            "results/tables/convergence_dkw.csv", caption="../report/convergence_dkw_table.rst", category="Datasets"
+        ),
+        js_csv=report(
+            "results/tables/convergence_js.csv", caption="../report/convergence_js.rst", category="Datasets"
+        ),
+        fig4="results/figdata/fig4_js_vs_drops.csv",
+        fig5="results/figdata/fig5_js_hist.npz",
+        fig9="results/figdata/fig9_example_pmfs.npz",
+        dkw="results/figdata/convergence_dkw.npz",
     params:
         settings=settings_json("labels", "datasets"),
     log:
@@ -99,6 +104,74 @@ rule datasets_convergence:
     conda:
         "../envs/feeder.yaml"
     shell:
-        "feeder datasets figures --dataset {input.dataset} --settings '{params.settings}'"
-        " --fig4 {output.fig4} --fig5 {output.fig5} --fig9 {output.fig9} --dkw-fig {output.dkw_fig}"
-        " --dkw-csv {output.dkw_csv} --js-csv {output.js_csv} > {log} 2>&1"
+        "feeder datasets convergence --dataset {input.dataset} --settings '{params.settings}'"
+        " --dkw-csv {output.dkw_csv} --js-csv {output.js_csv} --fig4-data {output.fig4}"
+        " --fig5-data {output.fig5} --fig9-data {output.fig9} --dkw-data {output.dkw} > {log} 2>&1"
+
+
+rule draw_fig4_js_vs_drops:
+    """Fig. 4 drawn from its data file."""
+    input:
+        figure_code("fig4_js_vs_drops"),
+        data="results/figdata/fig4_js_vs_drops.csv",
+    output:
+        report("results/figures/fig4_js_vs_drops.png", caption="../report/fig4_js_vs_drops.rst", category="Datasets"),
+    log:
+        "logs/figures/fig4_js_vs_drops.log",
+    benchmark:
+        "benchmarks/figures/fig4_js_vs_drops.tsv"
+    conda:
+        "../envs/feeder.yaml"
+    shell:
+        "feeder figure fig4_js_vs_drops --data {input.data} --out {output} > {log} 2>&1"
+
+
+rule draw_fig5_js_hist:
+    """Fig. 5 drawn from its data file."""
+    input:
+        figure_code("fig5_js_hist"),
+        data="results/figdata/fig5_js_hist.npz",
+    output:
+        report("results/figures/fig5_js_hist.png", caption="../report/fig5_js_hist.rst", category="Datasets"),
+    log:
+        "logs/figures/fig5_js_hist.log",
+    benchmark:
+        "benchmarks/figures/fig5_js_hist.tsv"
+    conda:
+        "../envs/feeder.yaml"
+    shell:
+        "feeder figure fig5_js_hist --data {input.data} --out {output} > {log} 2>&1"
+
+
+rule draw_fig9_example_pmfs:
+    """Fig. 9 drawn from its data file."""
+    input:
+        figure_code("fig9_example_pmfs"),
+        data="results/figdata/fig9_example_pmfs.npz",
+    output:
+        report("results/figures/fig9_example_pmfs.png", caption="../report/fig9_example_pmfs.rst", category="Datasets"),
+    log:
+        "logs/figures/fig9_example_pmfs.log",
+    benchmark:
+        "benchmarks/figures/fig9_example_pmfs.tsv"
+    conda:
+        "../envs/feeder.yaml"
+    shell:
+        "feeder figure fig9_example_pmfs --data {input.data} --out {output} > {log} 2>&1"
+
+
+rule draw_convergence_dkw:
+    """The DKW convergence view drawn from its data file."""
+    input:
+        figure_code("convergence_dkw"),
+        data="results/figdata/convergence_dkw.npz",
+    output:
+        report("results/figures/convergence_dkw.png", caption="../report/convergence_dkw.rst", category="Datasets"),
+    log:
+        "logs/figures/convergence_dkw.log",
+    benchmark:
+        "benchmarks/figures/convergence_dkw.tsv"
+    conda:
+        "../envs/feeder.yaml"
+    shell:
+        "feeder figure convergence_dkw --data {input.data} --out {output} > {log} 2>&1"

@@ -2,7 +2,9 @@
 # Supplementary Fig. S1 coefficient study. Parts are read from config["parts"]["dir"] only (the
 # library is generated and committed by `feeder parts generate`; a user may drop in their own
 # <id>.stl). A part's features come from its <id>.xyz face cloud when there is one, otherwise from
-# its STL's top face. Uses PARTS and pkg() from common.smk; defines rules only.
+# its STL's top face. Uses PARTS, pkg() and figure_code() from common.smk. Figures are drawn by
+# their own jobs (feeder figure ...) from data files, so a style edit redraws only that figure.
+from feeder.features import DFT
 
 
 rule part_features:
@@ -27,9 +29,9 @@ rule part_features:
         "feeder features {input.src} --out {output} > {log} 2>&1"
 
 
-rule parts_fig6:
-    """Fig. 6 (panel b): outlines and their reconstructions from the kept DFT coefficients, for the
-    parts listed in parts.fig6 that are in use (else the first eight parts)."""
+rule parts_fig6_data:
+    """Fig. 6 (panel b) data: outlines and their reconstructions from the kept DFT coefficients, for
+    the parts listed in parts.fig6 that are in use (else the first eight parts)."""
     input:
         pkg("features", "geometry", "parts"),
         src=lambda w: [
@@ -39,19 +41,19 @@ rule parts_fig6:
             for p in ([q for q in config["parts"]["fig6"] if q in PARTS] or PARTS[:8])
         ],
     output:
-        "results/figures/fig6_dft_reconstruction.png",
+        "results/figdata/fig6_dft_reconstruction.npz",
     log:
-        "logs/features/fig6.log",
+        "logs/features/fig6_data.log",
     benchmark:
-        "benchmarks/features/fig6.tsv"
+        "benchmarks/features/fig6_data.tsv"
     conda:
         "../envs/feeder.yaml"
     shell:
-        "feeder parts fig6 {input.src} --out {output} > {log} 2>&1"
+        "feeder parts fig6-data {input.src} --out {output} > {log} 2>&1"
 
 
 rule parts_s1:
-    """Supplementary Fig. S1: mean reconstruction MSE over every part in use vs the number of
+    """Supplementary Fig. S1 table: reconstruction MSE over every part in use vs the number of
     largest-magnitude coefficients kept (1 .. parts.s1_max_coefficients)."""
     input:
         pkg("features", "geometry", "parts"),
@@ -62,8 +64,7 @@ rule parts_s1:
             for p in PARTS
         ],
     output:
-        table="results/tables/s1_dft_mse.csv",
-        figure="results/figures/s1_dft_mse.png",
+        report("results/tables/s1_dft_mse.csv", caption="../report/s1_dft_mse_table.rst", category="Parts"),
     params:
         max_coefficients=config["parts"]["s1_max_coefficients"],
     log:
@@ -73,5 +74,44 @@ rule parts_s1:
     conda:
         "../envs/feeder.yaml"
     shell:
-        "feeder parts s1 {input.src} --table {output.table} --figure {output.figure}"
-        " --max-coefficients {params.max_coefficients} > {log} 2>&1"
+        "feeder parts s1 {input.src} --table {output} --max-coefficients {params.max_coefficients} > {log} 2>&1"
+
+
+rule draw_fig6_dft_reconstruction:
+    """Fig. 6 (panel b) drawn from its data file."""
+    input:
+        figure_code("fig6_dft_reconstruction"),
+        data="results/figdata/fig6_dft_reconstruction.npz",
+    output:
+        report(
+            "results/figures/fig6_dft_reconstruction.png",
+            caption="../report/fig6_dft_reconstruction.rst",
+            category="Parts",
+        ),
+    log:
+        "logs/figures/fig6_dft_reconstruction.log",
+    benchmark:
+        "benchmarks/figures/fig6_dft_reconstruction.tsv"
+    conda:
+        "../envs/feeder.yaml"
+    shell:
+        "feeder figure fig6_dft_reconstruction --data {input.data} --out {output} > {log} 2>&1"
+
+
+rule draw_s1_dft_mse:
+    """Supplementary Fig. S1 drawn from the S1 table; the feature count is marked."""
+    input:
+        figure_code("s1_dft_mse"),
+        data="results/tables/s1_dft_mse.csv",
+    output:
+        report("results/figures/s1_dft_mse.png", caption="../report/s1_dft_mse.rst", category="Parts"),
+    params:
+        chosen=DFT.coefficients,
+    log:
+        "logs/figures/s1_dft_mse.log",
+    benchmark:
+        "benchmarks/figures/s1_dft_mse.tsv"
+    conda:
+        "../envs/feeder.yaml"
+    shell:
+        "feeder figure s1_dft_mse --data {input.data} --chosen {params.chosen} --out {output} > {log} 2>&1"

@@ -1,6 +1,7 @@
 # The VAE (paper §3.4.2, Table 9), the partial-iteration study P2 (Fig. 14, p2_levels) and the
-# delta-to-full correction sweep P4 (Table 10, Fig. S11). Uses DATASET (datasets.smk) and pkg
-# (common.smk). Model settings: config/vae.yaml and config/delta.yaml (Hydra); the workflow's
+# delta-to-full correction sweep P4 (Table 10, Fig. S11). Uses DATASET (datasets.smk), pkg and
+# figure_code (common.smk). Figs. 14 and S11 are drawn by their own jobs from p2_levels.csv and
+# table10.csv. Model settings: config/vae.yaml and config/delta.yaml (Hydra); the workflow's
 # `vae:` and `delta:` sections choose the levels and add Hydra overrides (smoke shrinks epochs).
 #
 # Every training job gets the resolved Hydra config as a param, so editing a setting reruns
@@ -58,8 +59,8 @@ rule vae_table9:
         dataset=DATASET,
         model="results/vae/main.pt",
     output:
-        csv="results/tables/table9.csv",
-        md="results/tables/table9.md",
+        csv=report("results/tables/table9.csv", caption="../report/table9.rst", category="VAE and delta"),
+        md=report("results/tables/table9.md", caption="../report/table9.rst", category="VAE and delta"),
     log:
         "logs/vae/table9.log",
     benchmark:
@@ -93,14 +94,13 @@ rule vae_p2_level:
 
 
 rule vae_p2_gather:
-    """P2 table of every level and Fig. 14 (within-level vs cross-convergence R²)."""
+    """P2 table of every level (within-level vs cross-convergence R², the data of Fig. 14)."""
     input:
         VAE_CODE,
         levels=expand("results/vae/p2/level_{level}.json", level=P2_LEVELS),
     output:
-        csv="results/tables/p2_levels.csv",
-        md="results/tables/p2_levels.md",
-        fig="results/figures/fig14_cross_convergence.png",
+        csv=report("results/tables/p2_levels.csv", caption="../report/p2_levels.rst", category="VAE and delta"),
+        md=report("results/tables/p2_levels.md", caption="../report/p2_levels.rst", category="VAE and delta"),
     log:
         "logs/vae/p2_gather.log",
     benchmark:
@@ -108,7 +108,7 @@ rule vae_p2_gather:
     conda:
         "../envs/feeder.yaml"
     shell:
-        "feeder vae p2-gather --table {output.csv} --figure {output.fig} {input.levels} > {log} 2>&1"
+        "feeder vae p2-gather --table {output.csv} {input.levels} > {log} 2>&1"
 
 
 rule delta_sweep_level:
@@ -134,14 +134,14 @@ rule delta_sweep_level:
 
 
 rule delta_table:
-    """Table 10 (every swept level in the CSV, the paper's representative rows in the .md) and Fig. S11."""
+    """Table 10 (every swept level in the CSV, the paper's representative rows in the .md; the CSV
+    is the data of Fig. S11)."""
     input:
         DELTA_CODE,
         levels=expand("results/delta/level_{level}.json", level=DELTA_LEVELS),
     output:
-        csv="results/tables/table10.csv",
-        md="results/tables/table10.md",
-        fig="results/figures/s11_delta_sweep.png",
+        csv=report("results/tables/table10.csv", caption="../report/table10.rst", category="VAE and delta"),
+        md=report("results/tables/table10.md", caption="../report/table10.rst", category="VAE and delta"),
     params:
         hydra=DELTA_HYDRA["resolved"],
         overrides=" ".join(f"--override {shlex.quote(o)}" for o in DELTA_OVERRIDES),
@@ -152,5 +152,43 @@ rule delta_table:
     conda:
         "../envs/feeder.yaml"
     shell:
-        "feeder delta table --table {output.csv} --figure {output.fig} {params.overrides}"
+        "feeder delta table --table {output.csv} {params.overrides}"
         " {input.levels} > {log} 2>&1"
+
+
+rule draw_fig14_cross_convergence:
+    """Fig. 14 drawn from the P2 table."""
+    input:
+        figure_code("fig14_cross_convergence"),
+        data="results/tables/p2_levels.csv",
+    output:
+        report(
+            "results/figures/fig14_cross_convergence.png",
+            caption="../report/fig14_cross_convergence.rst",
+            category="VAE and delta",
+        ),
+    log:
+        "logs/figures/fig14_cross_convergence.log",
+    benchmark:
+        "benchmarks/figures/fig14_cross_convergence.tsv"
+    conda:
+        "../envs/feeder.yaml"
+    shell:
+        "feeder figure fig14_cross_convergence --data {input.data} --out {output} > {log} 2>&1"
+
+
+rule draw_s11_delta_sweep:
+    """Supplementary Fig. S11 drawn from Table 10."""
+    input:
+        figure_code("s11_delta_sweep"),
+        data="results/tables/table10.csv",
+    output:
+        report("results/figures/s11_delta_sweep.png", caption="../report/s11_delta_sweep.rst", category="VAE and delta"),
+    log:
+        "logs/figures/s11_delta_sweep.log",
+    benchmark:
+        "benchmarks/figures/s11_delta_sweep.tsv"
+    conda:
+        "../envs/feeder.yaml"
+    shell:
+        "feeder figure s11_delta_sweep --data {input.data} --out {output} > {log} 2>&1"

@@ -1,0 +1,211 @@
+"""feeder.figures: every figure drawn from a tiny synthetic data file, the dispatcher, the data
+readers' one-line errors, and the workflow property the split exists for (a figure module is an
+input of its own drawing job only)."""
+
+from __future__ import annotations
+
+import ast
+import re
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from feeder import figures
+from feeder.cli import main as cli
+from feeder.errors import FeederError
+from feeder.figures import style
+
+ROOT = Path(__file__).resolve().parents[1]
+LEVELS = np.array([10, 50, 100])
+
+
+def _fig6(path):
+    t = np.linspace(0, 2 * np.pi, 100, endpoint=False)
+    outline = np.stack([0.5 * np.cos(t) + 0.25j * np.sin(t), 0.4 * np.cos(t) + 0.4j * np.sin(t)])
+    np.savez(path, name=np.array(["ellipse", "circle"]), outline=outline, reconstruction=outline * 0.98,
+             mse=np.array([1.5e-2, 2.0e-3]), coefficients=np.int64(15))
+
+
+def _s1(path):
+    n = np.arange(1, 21)
+    mse = 10.0 / n**2
+    pd.DataFrame({"n_coefficients": n, "mean_mse": mse, "std_mse": mse / 3, "q25_mse": mse / 2,
+                  "median_mse": mse * 0.9, "q75_mse": mse * 1.5, "max_mse": mse * 3, "n_parts": 5}).to_csv(path, index=False)
+
+
+def _fig4(path):
+    pd.DataFrame({"level_pct": LEVELS, "n_drops": LEVELS * 10, "mean_js": [0.2, 0.05, 0.0],
+                  "sd_js": [0.05, 0.01, 0.0], "configurations": 7}).to_csv(path, index=False)
+
+
+def _fig5(path):
+    rng = np.random.default_rng(0)
+    np.savez(path, js=rng.gamma(2.0, 0.01, size=50), noise_floor=np.float64(0.03),
+             noise_quantile=np.float64(0.95), n_drops=np.int64(500), n_drops_full=np.int64(1000))
+
+
+def _fig9(path):
+    yaw = (np.arange(36) + 0.5) * 10.0
+    pmf = np.stack([np.exp(-((yaw - c) / 20.0) ** 2) for c in (90.0, 180.0, 270.0)])
+    np.savez(path, part=np.array(["a", "b", "c"]), config_id=np.array(["straight30_none"] * 3),
+             label=np.array(["1 peak", "most concentrated", "most spread"]), pmf=pmf / pmf.sum(axis=1, keepdims=True),
+             yaw_deg=yaw)
+
+
+def _dkw(path):
+    n = LEVELS * 10
+    eps = np.sqrt(np.log(2 / 0.05) / (2 * n))
+    np.savez(path, level_pct=LEVELS, n_drops=n, q10_sup=np.array([0.02, 0.01, 0.0]),
+             median_sup=np.array([0.05, 0.02, 0.0]), q90_sup=np.array([0.1, 0.04, 0.0]), dkw_epsilon=eps,
+             fraction_inside_band=np.array([0.9, 0.97, 1.0]), alpha=np.float64(0.05), n_drops_full=np.int64(1000))
+
+
+def _p2(path):
+    pd.DataFrame({"level_pct": LEVELS, "within_r2_mean": [0.8, 0.9, 0.95], "within_r2_sd": [0.1, 0.05, 0.02],
+                  "cross_r2_mean": [0.6, 0.85, 0.95], "cross_r2_sd": [0.2, 0.1, 0.02],
+                  "partial_baseline_r2_mean": [0.3, 0.8, 1.0]}).to_csv(path, index=False)
+
+
+def _table10(path):
+    frame = {"level_pct": LEVELS, "cost_saved_pct": 100.0 - LEVELS}
+    for mode in ("part", "config"):
+        frame.update({f"{mode}_r2_mean": [0.7, 0.9, 0.99], f"{mode}_r2_sd": [0.2, 0.05, 0.01],
+                      f"{mode}_baseline_mean": [0.2, 0.8, 1.0], f"{mode}_baseline_sd": [0.3, 0.1, 0.0]})
+    pd.DataFrame(frame).to_csv(path, index=False)
+
+
+def _cost(path):
+    pd.DataFrame({"stage": ["simulate", "train", "figures", "TOTAL"], "jobs": [30, 2, 9, 41],
+                  "wall_s": [120.0, 40.0, 9.0, 169.0], "cpu_s": [110.0, 70.0, 8.0, 188.0],
+                  "max_rss_mb": [300.0, 900.0, 120.0, 900.0]}).to_csv(path, index=False)
+
+
+# figure -> (data file name, writer, extra CLI options)
+CASES = {
+    "fig6_dft_reconstruction": ("fig6.npz", _fig6, []),
+    "s1_dft_mse": ("s1.csv", _s1, ["--chosen", "15"]),
+    "fig4_js_vs_drops": ("fig4.csv", _fig4, []),
+    "fig5_js_hist": ("fig5.npz", _fig5, []),
+    "fig9_example_pmfs": ("fig9.npz", _fig9, []),
+    "convergence_dkw": ("dkw.npz", _dkw, []),
+    "fig14_cross_convergence": ("p2.csv", _p2, []),
+    "s11_delta_sweep": ("table10.csv", _table10, []),
+    "cost_by_stage": ("cost.csv", _cost, []),
+}
+
+
+def test_every_figure_module_has_a_case():
+    assert figures.figure_names() == sorted(CASES)
+
+
+@pytest.mark.parametrize("name", sorted(CASES))
+def test_draws_from_a_tiny_data_file(name, tmp_path):
+    data_name, writer, extra = CASES[name]
+    data = tmp_path / data_name
+    writer(data)
+    out = tmp_path / "out" / f"{name}.png"
+    assert cli(["figure", name, "--data", str(data), "--out", str(out), *extra]) == 0
+    assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and out.stat().st_size > 5_000
+    assert not list(out.parent.glob("*.tmp")), "a temporary file was left behind"
+
+
+@pytest.mark.parametrize("name", sorted(CASES))
+def test_missing_data_is_one_line_error_and_writes_nothing(name, tmp_path, capsys):
+    out = tmp_path / f"{name}.png"
+    _, _, extra = CASES[name]
+    assert cli(["figure", name, "--data", str(tmp_path / "missing.csv"), "--out", str(out), *extra]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("feeder figure: error: figure data") and "missing" in err and "\n" not in err
+    assert not out.exists()
+
+
+def test_wrong_columns_and_keys_are_named(tmp_path):
+    csv = tmp_path / "fig4.csv"
+    pd.DataFrame({"n_drops": [1], "mean_js": [0.1]}).to_csv(csv, index=False)
+    with pytest.raises(FeederError, match="lacks the column\\(s\\) sd_js, configurations"):
+        style.read_csv(csv, ("n_drops", "mean_js", "sd_js", "configurations"))
+    npz = tmp_path / "fig5.npz"
+    np.savez(npz, js=np.zeros(3))
+    with pytest.raises(FeederError, match="lacks the array\\(s\\) noise_floor"):
+        style.read_npz(npz, ("js", "noise_floor"))
+    empty = tmp_path / "empty.csv"
+    empty.write_text("n_drops,mean_js\n")
+    with pytest.raises(FeederError, match="has no rows"):
+        style.read_csv(empty, ("n_drops",))
+
+
+def test_unknown_figure_is_refused(capsys):
+    assert cli(["figure", "fig99_nothing"]) == 2
+    assert "unknown figure 'fig99_nothing'" in capsys.readouterr().err
+    assert cli(["figure", "style"]) == 2  # the shared style is not a figure
+    assert cli(["figure"]) == 0 and "fig4_js_vs_drops" in capsys.readouterr().out
+
+
+def test_style_is_applied(tmp_path):
+    fig, ax = style.subplots()
+    import matplotlib
+
+    assert all(matplotlib.rcParams[k] == v for k, v in style.RC.items())
+    style.save(fig, tmp_path / "x.png")
+    assert (tmp_path / "x.png").is_file()
+
+
+@pytest.mark.parametrize("name", sorted(CASES))
+def test_figure_modules_import_no_stage_module(name):
+    """A figure module reads data; importing a stage module would make its drawing job depend
+    on that module's source (and a compute edit would have to rerun the figure)."""
+    tree = ast.parse((ROOT / "src/feeder/figures" / f"{name}.py").read_text())
+    imported = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.ImportFrom) and node.module:
+            imported.add(node.module)
+        elif isinstance(node, ast.Import):
+            imported.update(a.name for a in node.names)
+    feeder_modules = {m for m in imported if m == "feeder" or m.startswith("feeder.")}
+    assert feeder_modules <= {"feeder.figures", "feeder.figures.style", "feeder.errors", "feeder.io"}, feeder_modules
+
+
+def test_compute_rules_do_not_read_figure_modules_and_each_figure_has_its_rule():
+    """In the rules files: src/feeder/figures/ appears only through figure_code(), only in
+    draw_<name> rules, and each figure's rule names exactly its own module."""
+    seen = set()
+    for smk in sorted((ROOT / "workflow/rules").glob("*.smk")):
+        text = smk.read_text()
+        assert "feeder/figures" not in text or smk.name == "common.smk", smk.name
+        for rule, body in re.findall(r"^rule (\w+):\n((?:[ \t]+.*\n|\n)*)", text, flags=re.M):
+            codes = re.findall(r'figure_code\("(\w+)"\)', body)
+            if rule.startswith("draw_"):
+                assert codes == [rule.removeprefix("draw_")], rule
+                seen.add(codes[0])
+            else:
+                assert not codes, f"{rule} reads drawing code"
+    assert seen >= set(CASES), set(CASES) - seen
+
+
+@pytest.mark.slow
+def test_style_edit_reruns_only_that_figure(tmp_path):
+    """Build the two parts-stage figures in a scratch copy of the workflow, then edit drawing code
+    and read the dry run's job list: a figure module edit redraws that figure only, a style.py
+    edit redraws both, a compute module edit recomputes and redraws."""
+    from workflow_helpers import planned_rules, scratch_copy, snakemake
+
+    work = scratch_copy(tmp_path / "w")
+    smoke = ("--configfile", "config/smoke.yaml")
+    targets = ("results/figures/s1_dft_mse.png", "results/figures/fig6_dft_reconstruction.png")
+    built = snakemake(work, *targets, *smoke)
+    assert built.returncode == 0, built.stderr[-3000:]
+    assert planned_rules(work, *targets, *smoke) == set()
+
+    def edit(relpath):
+        path = work / relpath
+        path.write_text(path.read_text() + "\n# style tweak\n")
+
+    edit("src/feeder/figures/s1_dft_mse.py")
+    assert planned_rules(work, *targets, *smoke) == {"draw_s1_dft_mse"}
+    edit("src/feeder/figures/style.py")
+    assert planned_rules(work, *targets, *smoke) == {"draw_s1_dft_mse", "draw_fig6_dft_reconstruction"}
+    edit("src/feeder/features.py")
+    assert planned_rules(work, *targets, *smoke) == {"parts_s1", "parts_fig6_data", "draw_s1_dft_mse",
+                                                      "draw_fig6_dft_reconstruction"}
