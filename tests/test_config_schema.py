@@ -7,6 +7,7 @@ import pytest
 import yaml
 from snakemake.exceptions import WorkflowError
 from snakemake.utils import validate
+from workflow_helpers import merged_config
 
 ROOT = Path(__file__).resolve().parents[1]
 SCHEMA = str(ROOT / "workflow" / "schemas" / "config.schema.yaml")
@@ -17,16 +18,7 @@ def _load(name):
 
 
 def _merged_smoke():
-    """smoke.yaml overlays config.yaml the way Snakemake merges --configfile."""
-    def merge(base, over):
-        for key, value in over.items():
-            if isinstance(value, dict) and isinstance(base.get(key), dict):
-                merge(base[key], value)
-            else:
-                base[key] = value
-        return base
-
-    return merge(_load("config.yaml"), _load("smoke.yaml"))
+    return merged_config(ROOT, "config/smoke.yaml")
 
 
 @pytest.mark.parametrize("config", [_load("config.yaml"), _merged_smoke()], ids=["default", "smoke"])

@@ -13,7 +13,7 @@ import pandas as pd
 import pytest
 import yaml
 
-from workflow_helpers import ROOT, SNAKEMAKE, planned_jobs, planned_rules, scratch_copy, snakemake
+from workflow_helpers import ROOT, SNAKEMAKE, merged_config, planned_jobs, planned_rules, scratch_copy, snakemake
 
 pytestmark = pytest.mark.slow
 SMOKE = ("--configfile", "config/smoke.yaml")
@@ -81,3 +81,69 @@ def test_crash_midway_then_restart_gives_identical_outputs(smoke_run, tmp_path):
     with np.load(smoke_run / "results/datasets/dataset.npz") as a, np.load(work / "results/datasets/dataset.npz") as b:
         for key in ("pmf", "part_raw", "feeder_raw"):
             np.testing.assert_array_equal(a[key], b[key])
+
+
+# --- partial reruns: what a dry run plans after one edit in the finished smoke workspace ---------
+
+ALWAYS = {"cost_by_stage", "draw_cost_by_stage", "all"}  # the cost table re-sums every benchmark
+
+
+@pytest.fixture
+def edit(smoke_run):
+    """Edit a file of the finished smoke workspace for one test, then put it back byte for byte."""
+    saved: dict[Path, tuple[bytes, int]] = {}
+
+    def apply(relpath: str, old: str, new: str) -> None:
+        path = smoke_run / relpath
+        text = path.read_text()
+        assert old in text, f"{old!r} not in {relpath}"
+        saved.setdefault(path, (path.read_bytes(), path.stat().st_mtime_ns))
+        path.write_text(text.replace(old, new, 1))
+
+    yield apply
+    for path, (data, mtime) in saved.items():
+        path.write_bytes(data)
+        os.utime(path, ns=(mtime, mtime))
+
+
+def _sim_outputs(config: dict) -> set[str]:
+    from feeder.datasets import configurations
+    from feeder.parts import list_parts
+
+    parts = list_parts(str(ROOT / config["parts"]["dir"]), config["parts"]["include"])
+    table = configurations(config, parts)
+    return {f"results/sim/{p}/{c}.npz" for p, c in zip(table["part"], table["config_id"])}
+
+
+def test_editing_one_fence_angle_reruns_only_the_simulations_that_use_it(smoke_run, tmp_path):
+    before = merged_config(smoke_run, "config/smoke.yaml")
+    angles = before["fences"]["straight_angles"]
+    used = {a for p in _sim_outputs(before) for a in angles if f"straight{a:g}" in p}
+    old = sorted(used)[0]
+    new = old + 1 if old + 1 not in angles else old - 1
+    override = tmp_path / "edited.yaml"
+    override.write_text(yaml.safe_dump({"fences": {"straight_angles": [new if a == old else a for a in angles]}}))
+    after = merged_config(smoke_run, "config/smoke.yaml", str(override))
+
+    jobs = planned_jobs(smoke_run, *SMOKE, str(override))
+    planned_sims = {out for rule, out in jobs if rule == "simulate"}
+    assert planned_sims == _sim_outputs(after) - _sim_outputs(before)
+    assert planned_sims and all(f"straight{new:g}" in out for out in planned_sims)
+    rules = {rule for rule, _ in jobs}
+    assert not rules & {"part_features", "scene_table", "bench_sim", "parts_s1"}
+    assert {"datasets_build", "train_model", "evaluate_models"} <= rules  # and what depends on them
+
+
+def test_editing_one_model_config_reruns_only_that_model(smoke_run, edit):
+    edit("config/model/m3.yaml", "lr: 0.0004", "lr: 0.0005")
+    jobs = planned_jobs(smoke_run, *SMOKE)
+    trained = {out for rule, out in jobs if rule == "train_model"}
+    assert trained == {"results/models/m3/model.pt"}
+    rules = {rule for rule, _ in jobs}
+    assert rules <= {"train_model", "evaluate_models", "groupkfold_model", "prediction_figures"} | ALWAYS
+    assert "evaluate_models" in rules
+
+
+def test_editing_one_figure_style_reruns_only_that_figure(smoke_run, edit):
+    edit("src/feeder/figures/fig14_cross_convergence.py", "capsize=3", "capsize=5")
+    assert planned_rules(smoke_run, *SMOKE) == {"draw_fig14_cross_convergence"} | ALWAYS

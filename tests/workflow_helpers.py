@@ -52,3 +52,21 @@ def planned_jobs(work: Path, *args: str) -> list[tuple[str, str]]:
 
 def planned_rules(work: Path, *args: str) -> set[str]:
     return {rule for rule, _ in planned_jobs(work, *args)}
+
+
+def merged_config(root: Path, *files: str) -> dict:
+    """config/config.yaml overlaid by ``files`` the way Snakemake merges ``--configfile``."""
+    import yaml
+
+    def merge(base: dict, over: dict) -> dict:
+        for key, value in over.items():
+            if isinstance(value, dict) and isinstance(base.get(key), dict):
+                merge(base[key], value)
+            else:
+                base[key] = value
+        return base
+
+    merged: dict = {}
+    for name in ("config/config.yaml", *files):
+        merge(merged, yaml.safe_load((root / name).read_text()))
+    return merged
