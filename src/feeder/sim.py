@@ -621,11 +621,12 @@ def run_drops(geom, loc1: Fence, loc2: Fence, yaws0: np.ndarray, scene: dict, pr
                                     and abs((x - pw[0]) * nrm[0] + (y - pw[1]) * nrm[1]) <= model.radius + fht + pad):
                                 match = k
                                 break
-                    # steady: same fence, yaw unchanged since the last check
+                    # steady: the same fence throughout, yaw within slide_yaw of the run's first check
                     dyaw = abs((yaw - ln.w_prev[0] + 180.0) % 360.0 - 180.0)
-                    steady = match >= 0 and match == ln.slide_f and dyaw < slide_yaw
-                    ln.slide = ln.slide + 1 if steady else 0
-                    ln.slide_f, ln.w_prev = match, (yaw, 0.0)
+                    if match >= 0 and match == ln.slide_f and dyaw < slide_yaw:
+                        ln.slide += 1
+                    else:  # (re)start a run here
+                        ln.slide, ln.slide_f, ln.w_prev = (1 if match >= 0 else 0), match, (yaw, 0.0)
                     if ln.slide >= slide_checks:
                         pw, d, nrm, flen, fht = straight[match]
                         yb = quat_yaw(q)
