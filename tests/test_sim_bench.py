@@ -74,3 +74,13 @@ def test_bench_cli_tiny_panel(tmp_path):
     assert set(df["setting"]) == {"faithful", "fast"} and png.stat().st_size > 0
     agg = df[(df["config"] == "mean") & (df["drops"] == 4)].set_index("setting")
     assert agg.loc["fast", "speedup_vs_reference"] > 1.0
+
+
+def test_bootstrap_floor_of_an_all_jammed_configuration_is_nan():
+    """A fence that jams every part leaves no distribution: the floor is NaN, the bench goes on."""
+    import math
+
+    from feeder.bench import bootstrap_js_floor
+
+    jammed = np.full(10, np.nan)
+    assert math.isnan(bootstrap_js_floor(jammed, jammed, 5, 360, 1.0, 20, 0.95, seed=0))

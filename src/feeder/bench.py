@@ -64,7 +64,8 @@ def bootstrap_js_floor(sample_a, sample_b, n: int, bins: int, sigma: float, resa
 
     The ok yaws of two runs of the same process (e.g. two seeds) are pooled; pairs of samples of
     ``n`` drawn with replacement from the pool give the JS divergence expected from sampling alone;
-    the ``quantile`` of ``resamples`` such values is returned. Unlike a single two-seed value it
+    the ``quantile`` of ``resamples`` such values is returned (NaN when neither run has an ok drop,
+    e.g. a fence that jams every part: the configuration then has no distribution to compare). Unlike a single two-seed value it
     also covers near-discrete outcomes (sub-degree peaks), where two seeds differ by peak weights
     only while any change of the numerics reshuffles drops within a peak.
     """
@@ -73,7 +74,7 @@ def bootstrap_js_floor(sample_a, sample_b, n: int, bins: int, sigma: float, resa
     pool = np.concatenate([np.asarray(sample_a, float), np.asarray(sample_b, float)])
     pool = pool[np.isfinite(pool)]
     if pool.size == 0:
-        raise FeederError("bootstrap_js_floor: no ok drop in either sample")
+        return float("nan")
     rng = np.random.default_rng(seed)
     idx_a = rng.integers(0, pool.size, size=(resamples, n))
     idx_b = rng.integers(0, pool.size, size=(resamples, n))
