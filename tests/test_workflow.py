@@ -38,7 +38,7 @@ def test_smoke_workflow_builds_every_table_and_figure(smoke_run):
         assert np.isfinite(frame[["r2_mean", "w1_mean", "mse_mean"]].to_numpy()).all()
         assert (frame.loc["m3", "train_s"] > 0) and (frame["w1_mean"] >= 0).all()
     cost = pd.read_csv(tables / "cost_by_stage.csv").set_index("stage")
-    assert {"simulate", "train", "TOTAL"} <= set(cost.index)
+    assert {"simulate", "models", "TOTAL"} <= set(cost.index)
     assert cost.loc["TOTAL", "jobs"] == cost.drop("TOTAL")["jobs"].sum()
     for png in (smoke_run / "results" / "figures").glob("*.png"):
         assert png.stat().st_size > 1000, png

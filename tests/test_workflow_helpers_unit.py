@@ -24,3 +24,14 @@ def test_interpreter_dir_goes_first_on_path():
     put_interpreter_on_path(env)
     put_interpreter_on_path(env)  # idempotent
     assert env["PATH"].split(os.pathsep) == [os.path.dirname(sys.executable), "/usr/bin", "/bin"]
+
+
+def test_hydra_settings_come_from_the_run_directory_when_it_has_them(tmp_path):
+    from pathlib import Path
+
+    from feeder.workflow import hydra_config_dir
+
+    assert Path(hydra_config_dir(tmp_path)).joinpath("train.yaml").is_file()  # falls back to the repo
+    (tmp_path / "config").mkdir()
+    (tmp_path / "config" / "train.yaml").write_text("seed: 0\n")
+    assert hydra_config_dir(tmp_path) == str((tmp_path / "config").resolve())

@@ -33,8 +33,9 @@ from pathlib import Path
 import numpy as np
 
 from feeder.errors import FeederError
+from feeder.workflow import hydra_config_dir
 
-CONFIG_DIR = Path(__file__).resolve().parents[2] / "config"
+CONFIG_DIR = hydra_config_dir()  # ./config of the run directory, else the repository's
 CONFIG_NAME = "train"
 DATASET_KEYS = ("part", "config_id", "split", "group_fold", "part_raw", "feeder_raw", "pmf", "cdf")
 

@@ -60,9 +60,10 @@ import numpy as np
 
 from feeder import io
 from feeder.errors import FeederError
+from feeder.workflow import hydra_config_dir
 from feeder.labels import r2_cdf
 
-CONFIG_DIR = Path(__file__).resolve().parents[2] / "config"
+CONFIG_DIR = hydra_config_dir()  # ./config of the run directory, else the repository's
 DATASET_KEYS = ("part", "config_id", "split", "group_fold", "part_raw", "feeder_raw", "pmf", "cdf",
                 "pmf_levels", "levels_pct")
 P2_COLUMNS = ["level_pct", "n_train", "n_val", "n_holdout", "within_r2_mean", "within_r2_sd",

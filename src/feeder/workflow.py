@@ -36,3 +36,15 @@ def put_interpreter_on_path(environ=os.environ) -> None:
     parts = environ.get("PATH", "").split(os.pathsep)
     if parts[:1] != [here]:
         environ["PATH"] = os.pathsep.join([here, *[p for p in parts if p]])
+
+
+def hydra_config_dir(cwd: str | os.PathLike | None = None) -> str:
+    """Where the Hydra model settings live: ``config/`` of the directory the study runs in (the
+    workflow's working directory, like ``config/config.yaml``), else the repository's own ``config/``
+    next to the package. Parse-time params and the jobs both read this one place."""
+    from pathlib import Path
+
+    local = Path(cwd or os.getcwd()) / "config"
+    if (local / "train.yaml").is_file():
+        return str(local.resolve())
+    return str(Path(__file__).resolve().parents[2] / "config")

@@ -1,9 +1,12 @@
 # Shared helpers for every rules file: config validation, the part and configuration lists,
 # and the package modules each stage runs (declared as inputs so a code change reruns the stage;
 # Snakemake does not track imported Python modules by itself).
+import json
+
 from snakemake.utils import validate
 
 from feeder.datasets import configurations
+from feeder.fences import parse_config_id
 from feeder.parts import list_parts
 from feeder.workflow import module_files, put_interpreter_on_path, select_settings
 
@@ -36,3 +39,18 @@ def figure_code(name):
     if not exists(files[-1]):
         raise ValueError(f"figure_code: no drawing module {files[-1]}")
     return files
+
+
+def sim_settings():
+    """Scene + the one preset the workflow uses: an edit to either reruns the simulations."""
+    name = config["sim"]["preset"]
+    return json.dumps(
+        {"scene": config["scene"], "presets": {name: config["sim"]["presets"][name]}},
+        sort_keys=True,
+        separators=(",", ":"),
+    )
+
+
+def fence_location(index):
+    """Command-line form (straight:30) of Location 1 (index 0) or 2 (index 1) of a job's fence id."""
+    return lambda wildcards: parse_config_id(wildcards.fence)[index].spec

@@ -4,25 +4,7 @@
 #   results/sim/{part}/{fence}.npz                  (docs/data.md)
 #   results/tables/table1.csv                       (every physical parameter of the scene)
 #   results/tables/sim_accuracy_vs_time.csv, results/figures/sim_accuracy_vs_time.png
-import json
-
-from feeder.fences import parse_config_id
-
 SIM_MODULES = ("sim", "scene", "fences", "geometry")
-
-
-def _sim_settings():
-    """Scene + the one preset the workflow uses: an edit to either reruns the simulations."""
-    name = config["sim"]["preset"]
-    return json.dumps(
-        {"scene": config["scene"], "presets": {name: config["sim"]["presets"][name]}},
-        sort_keys=True,
-        separators=(",", ":"),
-    )
-
-
-def _loc(index):
-    return lambda wildcards: parse_config_id(wildcards.fence)[index].spec
 
 
 rule simulate:
@@ -36,12 +18,12 @@ rule simulate:
         part=r"[A-Za-z0-9-]+",
         fence=r"[a-z0-9.]+_[a-z0-9.]+",
     params:
-        settings=_sim_settings(),
+        settings=sim_settings(),
         preset=config["sim"]["preset"],
         drops=config["sim"]["drops"],
         seed=config["sim"]["base_seed"],
-        loc1=_loc(0),
-        loc2=_loc(1),
+        loc1=fence_location(0),
+        loc2=fence_location(1),
     log:
         "logs/simulate/{part}/{fence}.log",
     benchmark:
