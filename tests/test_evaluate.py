@@ -107,11 +107,24 @@ def test_groupkfold_trains_one_model_per_fold(trained, tmp_path):
         assert np.isfinite(sub.r2_mean).all()
 
 
-def test_figures_written(trained, tmp_path):
+def test_figure_data_and_figures(trained, tmp_path):
+    from feeder.cli import main as cli
+    from feeder.labels import r2_cdf
+
     root, ds, dirs = trained
-    E.write_figures(ds, dirs[0], tmp_path / "f12.png", tmp_path / "f13.png")
-    for name in ("f12.png", "f13.png"):
-        assert (tmp_path / name).read_bytes()[:4] == b"\x89PNG"
+    f12, f13 = tmp_path / "f12.npz", tmp_path / "f13.npz"
+    assert E.main(["figure-data", "--dataset", str(ds), "--model", str(dirs[0]), "--fig12-data", str(f12),
+                   "--fig13-data", str(f13)]) == 0
+    for data_file, split in ((f12, "Test"), (f13, "Parts")):
+        with np.load(data_file) as z:
+            assert str(z["split"]) == split and z["cdf_true"].shape == z["cdf_pred"].shape
+            assert 1 <= len(z["part"]) <= len(E.FIGURE_QUANTILES)
+            assert len(set(zip(z["part"], z["config_id"]))) == len(z["part"])  # distinct rows
+            np.testing.assert_allclose(z["r2"], r2_cdf(z["cdf_true"], z["cdf_pred"]))
+        png = tmp_path / f"{data_file.stem}.png"
+        name = "fig12_test_predictions" if split == "Test" else "fig13_parts_predictions"
+        assert cli(["figure", name, "--data", str(data_file), "--out", str(png)]) == 0
+        assert png.read_bytes()[:4] == b"\x89PNG"
 
 
 def test_grid_table(trained, tmp_path):

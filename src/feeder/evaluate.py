@@ -19,7 +19,7 @@ Subcommands::
 
     feeder evaluate tables --dataset D --models results/models/m1 ... --out-dir results/tables
     feeder evaluate groupkfold --dataset D --out results/tables/groupkfold_m3.csv model=m3 [overrides]
-    feeder evaluate figures --dataset D --model results/models/m3 --fig12 F12.png --fig13 F13.png
+    feeder evaluate figure-data --dataset D --model results/models/m3 --fig12-data F12.npz --fig13-data F13.npz
     feeder evaluate grid --dir results/models/grid/m3 --out results/tables/grid_m3.csv
 """
 
@@ -264,7 +264,7 @@ def groupkfold(data: dict, cfg, progress: bool | None = None) -> pd.DataFrame:
 
 
 # ----------------------------------------------------------------------------------------------
-# Figures 12-13
+# Figures 12-13: the data (drawn by feeder.figures.fig12_test_predictions / fig13_parts_predictions)
 # ----------------------------------------------------------------------------------------------
 def representative_rows(r2: np.ndarray, quantiles=FIGURE_QUANTILES) -> list[int]:
     """Indices of the rows whose R² sits at the given quantiles (distinct rows when possible)."""
@@ -278,32 +278,9 @@ def representative_rows(r2: np.ndarray, quantiles=FIGURE_QUANTILES) -> list[int]
     return picks
 
 
-def prediction_figure(data: dict, cdf_pred: np.ndarray, rows: list[int], title: str):
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    from feeder.labels import r2_cdf
-
-    fig, axes = plt.subplots(1, len(rows), figsize=(3.6 * len(rows), 3.2), squeeze=False, sharey=True)
-    angles = np.arange(data["cdf"].shape[1]) * (360.0 / data["cdf"].shape[1])
-    for ax, i in zip(axes[0], rows):
-        r2 = float(r2_cdf(data["cdf"][i], cdf_pred[i]))
-        ax.plot(angles, data["cdf"][i], color="black", lw=1.5, label="simulation")
-        ax.plot(angles, cdf_pred[i], color="tab:red", lw=1.2, ls="--", label="prediction")
-        ax.set_title(f"{data['part'][i]} | {data['config_id'][i]}\nR² = {r2:.3f}", fontsize=8)
-        ax.set_xlabel("yaw [deg]")
-        ax.set_xlim(0, 360)
-    axes[0][0].set_ylabel("CDF")
-    axes[0][0].legend(fontsize=7, loc="lower right")
-    fig.suptitle(title, fontsize=10)
-    fig.tight_layout()
-    return fig
-
-
-def write_figures(dataset, model_dir, fig12, fig13) -> None:
-    from feeder.io import save_figure
+def prediction_data(dataset, model_dir) -> dict[str, dict[str, np.ndarray]]:
+    """For the Test and Parts splits: the representative rows' true and predicted CDFs, their R²
+    and labels, as the arrays feeder.figures._cdf_predictions reads."""
     from feeder.labels import r2_cdf
     from feeder.models import TrainedModel
     from feeder.train import load_dataset
@@ -312,13 +289,21 @@ def write_figures(dataset, model_dir, fig12, fig13) -> None:
     model = TrainedModel.load(model_dir)
     _, cdf = model.predict(data["part_raw"], data["feeder_raw"])
     r2 = r2_cdf(data["cdf"], cdf)
-    for split, path, label in (("test", fig12, "Test"), ("parts", fig13, "Parts")):
+    bins = data["cdf"].shape[1]
+    out = {}
+    for split, label in (("test", "Test"), ("parts", "Parts")):
         idx = np.flatnonzero(data["split"] == split)
         if idx.size == 0:
             raise FeederError(f"{dataset}: no {split} rows to plot")
         rows = [int(idx[j]) for j in representative_rows(r2[idx])]
-        fig = prediction_figure(data, cdf, rows, f"{model.spec.name} on {label}: representative CDF predictions")
-        save_figure(path, fig)
+        out[split] = {"part": np.asarray(data["part"])[rows].astype(str),
+                      "config_id": np.asarray(data["config_id"])[rows].astype(str),
+                      "yaw_deg": np.arange(bins) * (360.0 / bins),
+                      "cdf_true": np.asarray(data["cdf"][rows], dtype=np.float64),
+                      "cdf_pred": np.asarray(cdf[rows], dtype=np.float64),
+                      "r2": np.asarray(r2[rows], dtype=np.float64),
+                      "model": np.array(str(model.spec.name)), "split": np.array(label)}
+    return out
 
 
 # ----------------------------------------------------------------------------------------------
@@ -357,11 +342,11 @@ def main(argv: list[str]) -> int:
     p.add_argument("--out", type=Path, required=True, help="CSV (a .md twin is written beside it)")
     p.add_argument("overrides", nargs="*", help="Hydra overrides, e.g. model=m3 trainer.max_epochs=50")
 
-    p = sub.add_parser("figures", help="Figs. 12 (Test) and 13 (Parts): four representative CDFs each")
+    p = sub.add_parser("figure-data", help="data of Figs. 12 (Test) and 13 (Parts): four representative CDFs each")
     p.add_argument("--dataset", type=Path, required=True)
     p.add_argument("--model", type=Path, required=True)
-    p.add_argument("--fig12", type=Path, required=True)
-    p.add_argument("--fig13", type=Path, required=True)
+    p.add_argument("--fig12-data", type=Path, required=True, help="Test rows (.npz)")
+    p.add_argument("--fig13-data", type=Path, required=True, help="Parts rows (.npz)")
 
     p = sub.add_parser("grid", help="collect a grid-search multirun into one CSV")
     p.add_argument("--dir", type=Path, required=True, help="results/models/grid/<model>")
@@ -383,8 +368,12 @@ def main(argv: list[str]) -> int:
                                    "configurations, and over the per-part means.")
         summary = df[df.group == "over parts"][["model", "r2_mean", "r2_sd", "w1_mean"]]
         print(summary.to_string(index=False), file=sys.stderr)
-    elif args.cmd == "figures":
-        write_figures(args.dataset, args.model, args.fig12, args.fig13)
+    elif args.cmd == "figure-data":
+        from feeder.io import write_npz
+
+        data = prediction_data(args.dataset, args.model)
+        write_npz(args.fig12_data, **data["test"])
+        write_npz(args.fig13_data, **data["parts"])
     elif args.cmd == "grid":
         from feeder.io import write_csv
 

@@ -32,12 +32,14 @@ def settings_json(*keys):
     return select_settings(config, *keys)
 
 
-def figure_code(name):
+def figure_code(name, *shared):
     """Source files that draw one figure (inputs of its drawing job only): the module
-    src/feeder/figures/<name>.py, the shared style, the package's __init__ and the core."""
-    files = pkg() + [f"src/feeder/figures/{m}.py" for m in ("__init__", "style", name)]
-    if not exists(files[-1]):
-        raise ValueError(f"figure_code: no drawing module {files[-1]}")
+    src/feeder/figures/<name>.py, any shared drawing modules it imports (e.g. _cdf_predictions),
+    the shared style, the package's __init__ and the core."""
+    files = pkg() + [f"src/feeder/figures/{m}.py" for m in ("__init__", "style", *shared, name)]
+    missing = [f for f in files if not exists(f)]
+    if missing:
+        raise ValueError(f"figure_code: no drawing module {', '.join(missing)}")
     return files
 
 

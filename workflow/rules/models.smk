@@ -1,6 +1,7 @@
 # Regression models of paper Table 2 (Hydra configs in config/model/), Tables 5-8 with baselines
-# and breakdowns, the leave-parts-out GroupKFold table and Figs. 12-13. Uses DATASET (datasets.smk)
-# and pkg (common.smk).
+# and breakdowns, the leave-parts-out GroupKFold table and Figs. 12-13 (one job writes their data
+# to results/figdata/, one drawing job per figure). Uses DATASET (datasets.smk), pkg and
+# figure_code (common.smk).
 #
 # Each model's resolved Hydra config is a param of its training job, so editing one
 # config/model/mK.yaml reruns only model K (and the tables that read it).
@@ -57,12 +58,19 @@ rule evaluate_models:
         dataset=DATASET,
         models=expand("results/models/{model}/model.pt", model=MODELS),
     output:
-        t5="results/tables/table5.csv",
-        t6="results/tables/table6.csv",
-        t7="results/tables/table7.csv",
-        t8="results/tables/table8.csv",
-        md=expand("results/tables/table{n}.md", n=[5, 6, 7, 8]),
-        breakdowns=expand("results/tables/breakdown_{split}.{ext}", split=["fences", "parts"], ext=["csv", "md"]),
+        t5=report("results/tables/table5.csv", caption="../report/table5.rst", category="Models"),
+        t6=report("results/tables/table6.csv", caption="../report/table6.rst", category="Models"),
+        t7=report("results/tables/table7.csv", caption="../report/table7.rst", category="Models"),
+        t8=report("results/tables/table8.csv", caption="../report/table8.rst", category="Models"),
+        md=[
+            report(f"results/tables/table{n}.md", caption=f"../report/table{n}.rst", category="Models")
+            for n in (5, 6, 7, 8)
+        ],
+        breakdowns=[
+            report(f"results/tables/breakdown_{split}.{ext}", caption=f"../report/breakdown_{split}.rst", category="Models")
+            for split in ("fences", "parts")
+            for ext in ("csv", "md")
+        ],
     log:
         "logs/models/evaluate.log",
     benchmark:
@@ -80,8 +88,8 @@ rule groupkfold_model:
         EVAL_CODE,
         dataset=DATASET,
     output:
-        csv="results/tables/groupkfold_{model}.csv",
-        md="results/tables/groupkfold_{model}.md",
+        csv=report("results/tables/groupkfold_{model}.csv", caption="../report/groupkfold.rst", category="Models"),
+        md=report("results/tables/groupkfold_{model}.md", caption="../report/groupkfold.rst", category="Models"),
     params:
         hydra=lambda w: HYDRA_SETTINGS[w.model],
         overrides=HYDRA_ARGS,
@@ -96,21 +104,63 @@ rule groupkfold_model:
         " model={wildcards.model} {params.overrides} > {log} 2>&1"
 
 
-rule prediction_figures:
-    """Figs. 12 (Test) and 13 (Parts): four representative CDF predictions of Model 3 each."""
+rule prediction_figure_data:
+    """Data of Figs. 12 (Test) and 13 (Parts): four representative CDF predictions of Model 3 each."""
     input:
         EVAL_CODE,
         dataset=DATASET,
         model=f"results/models/{REFERENCE_MODEL}/model.pt",
     output:
-        fig12="results/figures/fig12_test_predictions.png",
-        fig13="results/figures/fig13_parts_predictions.png",
+        fig12="results/figdata/fig12_test_predictions.npz",
+        fig13="results/figdata/fig13_parts_predictions.npz",
     log:
-        "logs/models/prediction_figures.log",
+        "logs/models/prediction_figure_data.log",
     benchmark:
-        "benchmarks/models/prediction_figures.tsv"
+        "benchmarks/models/prediction_figure_data.tsv"
     conda:
         "../envs/feeder.yaml"
     shell:
-        "feeder evaluate figures --dataset {input.dataset} --model $(dirname {input.model})"
-        " --fig12 {output.fig12} --fig13 {output.fig13} > {log} 2>&1"
+        "feeder evaluate figure-data --dataset {input.dataset} --model $(dirname {input.model})"
+        " --fig12-data {output.fig12} --fig13-data {output.fig13} > {log} 2>&1"
+
+
+rule draw_fig12_test_predictions:
+    """Fig. 12 drawn from its data file."""
+    input:
+        figure_code("fig12_test_predictions", "_cdf_predictions"),
+        data="results/figdata/fig12_test_predictions.npz",
+    output:
+        report(
+            "results/figures/fig12_test_predictions.png",
+            caption="../report/fig12_test_predictions.rst",
+            category="Models",
+        ),
+    log:
+        "logs/figures/fig12_test_predictions.log",
+    benchmark:
+        "benchmarks/figures/fig12_test_predictions.tsv"
+    conda:
+        "../envs/feeder.yaml"
+    shell:
+        "feeder figure fig12_test_predictions --data {input.data} --out {output} > {log} 2>&1"
+
+
+rule draw_fig13_parts_predictions:
+    """Fig. 13 drawn from its data file."""
+    input:
+        figure_code("fig13_parts_predictions", "_cdf_predictions"),
+        data="results/figdata/fig13_parts_predictions.npz",
+    output:
+        report(
+            "results/figures/fig13_parts_predictions.png",
+            caption="../report/fig13_parts_predictions.rst",
+            category="Models",
+        ),
+    log:
+        "logs/figures/fig13_parts_predictions.log",
+    benchmark:
+        "benchmarks/figures/fig13_parts_predictions.tsv"
+    conda:
+        "../envs/feeder.yaml"
+    shell:
+        "feeder figure fig13_parts_predictions --data {input.data} --out {output} > {log} 2>&1"

@@ -18,6 +18,10 @@ module (= PNG name)            figure                                    data fi
 ``fig9_example_pmfs``          Fig. 9: example PMFs of different shapes  ``results/figdata/fig9_example_pmfs.npz``
 ``convergence_dkw``            ECDF distance vs drops with the DKW band  ``results/figdata/convergence_dkw.npz``
                                                                          (all four: ``feeder datasets convergence``)
+``fig12_test_predictions``     Fig. 12: predicted vs simulated CDFs,     ``results/figdata/fig12_test_predictions.npz``
+                               four Test rows
+``fig13_parts_predictions``    Fig. 13: the same for four Parts rows     ``results/figdata/fig13_parts_predictions.npz``
+                                                                         (both: ``feeder evaluate figure-data``)
 ``fig14_cross_convergence``    Fig. 14: P2 within vs cross convergence   ``results/tables/p2_levels.csv``
                                                                          (``feeder vae p2-gather``)
 ``s11_delta_sweep``            Fig. S11: delta-to-full sweep             ``results/tables/table10.csv``
@@ -26,8 +30,10 @@ module (= PNG name)            figure                                    data fi
                                                                          (``feeder cost``)
 =============================  ========================================  =============================================
 
-Figure modules import only :mod:`feeder.figures.style` and the core (``feeder.io``,
-``feeder.errors``), never a stage module.
+Figure modules import only :mod:`feeder.figures.style`, the core (``feeder.io``,
+``feeder.errors``) and shared drawing modules of this package (names starting with ``_``, e.g.
+``_cdf_predictions`` for Figs. 12 and 13, listed as extra inputs of the figures that use them),
+never a stage module.
 """
 
 from __future__ import annotations
