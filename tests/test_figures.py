@@ -85,6 +85,16 @@ def _predictions(path):
              split=np.array("Test"))
 
 
+def _bench(path):
+    rows = []
+    for setting, ms, js, w1 in (("faithful", 40.0, 0.02, 1.0), ("fast", 4.0, 0.03, 1.5), ("coarse", 1.0, 0.2, 9.0)):
+        for drops in (10, 50):
+            rows.append({"setting": setting, "drops": drops, "config": "mean", "ms_per_drop": ms, "js": js * 50 / drops,
+                         "js_floor": 0.025, "w1_deg": w1, "w1_floor_deg": 1.2, "within_floor": js <= 0.025})
+            rows.append({**rows[-1], "config": "rect|straight:45|none"})
+    pd.DataFrame(rows).to_csv(path, index=False)
+
+
 def _cost(path):
     pd.DataFrame({"stage": ["simulate", "train", "figures", "TOTAL"], "jobs": [30, 2, 9, 41],
                   "wall_s": [120.0, 40.0, 9.0, 169.0], "cpu_s": [110.0, 70.0, 8.0, 188.0],
@@ -104,6 +114,7 @@ CASES = {
     "fig14_cross_convergence": ("p2.csv", _p2, []),
     "s11_delta_sweep": ("table10.csv", _table10, []),
     "cost_by_stage": ("cost.csv", _cost, []),
+    "sim_accuracy_vs_time": ("bench.csv", _bench, ["--reference", "faithful"]),
 }
 
 

@@ -12,8 +12,9 @@ are swept by using the first k drops (``sim.bench.drop_levels``) of every run.
 Distances per configuration (PMFs and CDFs as in :mod:`feeder.labels`, ok drops only): JS
 divergence (bits), W1 on the CDF (degrees) and CDF R² (reference as truth); CPU milliseconds per
 drop from the worker's process time. Writes a CSV (one row per setting × drop level × configuration
-plus ``config = mean`` aggregate rows with the noise floor and the speed-up over the reference)
-and a Pareto plot (mean JS and W1 against CPU ms per drop, log axes, floor as a band).
+plus ``config = mean`` aggregate rows with the noise floor and the speed-up over the reference).
+The Pareto plot (mean JS and W1 against CPU ms per drop, log axes, floor as a band) is drawn from
+that CSV by ``feeder figure sim_accuracy_vs_time`` (:mod:`feeder.figures.sim_accuracy_vs_time`).
 """
 
 from __future__ import annotations
@@ -190,62 +191,11 @@ def summarize(results, settings, panel, seeds, ref_name, drops, bench, labels_cf
     return out[first]
 
 
-def pareto_figure(df, ref_name):
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    agg = df[df["config"] == "mean"]
-    full = agg[agg["drops"] == agg["drops"].max()]
-    fig, axes = plt.subplots(1, 3, figsize=(17, 4.8))
-    for ax, col, floor, label in [(axes[0], "js", "js_floor", "JS divergence to reference (bits)"),
-                                  (axes[1], "w1_deg", "w1_floor_deg", "W1 on the CDF to reference (deg)")]:
-        fl = full[floor].mean()
-        ax.axhspan(0, fl, color="0.85", label=f"two-seed noise floor ({fl:.3g})")
-        for _, r in full.iterrows():
-            mk = "*" if r["setting"] == ref_name else "o"
-            ax.scatter(r["ms_per_drop"], r[col], marker=mk, s=60 if mk == "*" else 30,
-                       color="C3" if not r["within_floor"] else "C0", zorder=3)
-            ax.annotate(r["setting"], (r["ms_per_drop"], r[col]), fontsize=7, xytext=(3, 3),
-                        textcoords="offset points")
-        # Pareto front: no other setting both cheaper and closer
-        best, front = np.inf, []
-        for _, r in full.sort_values("ms_per_drop").iterrows():
-            if r[col] < best:
-                best = r[col]
-                front.append((r["ms_per_drop"], r[col]))
-        if front:
-            fx, fy = zip(*front)
-            ax.step(fx, fy, where="post", color="C2", lw=1, label="Pareto front")
-        ax.set_xscale("log")
-        ax.set_xlabel("CPU ms per drop (log)")
-        ax.set_ylabel(label)
-        ax.legend(fontsize=7)
-    # drops per configuration: the distance of the fast preset and of the floor against k
-    ax = axes[2]
-    for name, style in [("fast", "o-"), (ref_name, "s--")]:
-        sub = agg[agg["setting"] == name].sort_values("drops")
-        if len(sub):
-            ax.plot(sub["drops"], sub["js"], style, label=f"{name} vs reference" if name != ref_name
-                    else "noise floor (reference, second seed)")
-    ax.set_xlabel("drops per configuration")
-    ax.set_ylabel("JS divergence to reference (bits)")
-    ax.legend(fontsize=7)
-    fig.suptitle(f"Simulation accuracy against time ({int(full['drops'].max())} drops per configuration, "
-                 f"{df[df['config'] != 'mean']['config'].nunique()} configurations; blue = within floor)")
-    fig.tight_layout()
-    return fig
-
-
 def main(argv: list[str]) -> int:
     parser = argparse.ArgumentParser(prog="feeder bench-sim", description=__doc__.splitlines()[0])
     parser.add_argument("--out-csv", required=True)
-    parser.add_argument("--out-png", required=True)
     parser.add_argument("--settings", default=None,
                         help="JSON {scene, sim, labels} config sections; default config/config.yaml")
-    parser.add_argument("--replot", action="store_true",
-                        help="only redraw --out-png from an existing --out-csv (no simulation)")
     args = parser.parse_args(argv)
     if args.settings is not None:
         try:
@@ -264,20 +214,10 @@ def main(argv: list[str]) -> int:
         presets, bench = sim_cfg["presets"], sim_cfg["bench"]
     except (KeyError, TypeError) as err:
         raise FeederError(f"settings lack section {err}") from None
-    from feeder.io import save_figure, write_csv
+    from feeder.io import write_csv
 
-    if args.replot:
-        import pandas as pd
-
-        if not os.path.isfile(args.out_csv):
-            raise FeederError(f"--replot: {args.out_csv} not found")
-        save_figure(args.out_png, pareto_figure(pd.read_csv(args.out_csv), bench["reference"]))
-        return 0
     df = run_bench(scene, presets, labels_cfg, bench, progress=sys.stderr.isatty())
-
-    fig = pareto_figure(df, bench["reference"])
     write_csv(args.out_csv, df)
-    save_figure(args.out_png, fig)
     agg = df[(df["config"] == "mean") & (df["drops"] == df["drops"].max())]
     for _, r in agg.iterrows():
         print(f"{r['setting']:>16}: {r['ms_per_drop']:8.1f} ms/drop  x{r['speedup_vs_reference']:6.1f}  "

@@ -3,7 +3,8 @@
 # sim_path-style paths from common.smk. Outputs:
 #   results/sim/{part}/{fence}.npz                  (docs/data.md)
 #   results/tables/table1.csv                       (every physical parameter of the scene)
-#   results/tables/sim_accuracy_vs_time.csv, results/figures/sim_accuracy_vs_time.png
+#   results/tables/sim_accuracy_vs_time.csv, results/figures/sim_accuracy_vs_time.png (the figure
+#   is drawn from the table by its own job, feeder figure sim_accuracy_vs_time; uses figure_code)
 SIM_MODULES = ("sim", "scene", "fences", "geometry")
 
 
@@ -41,7 +42,7 @@ rule scene_table:
     input:
         pkg("scene"),
     output:
-        "results/tables/table1.csv",
+        report("results/tables/table1.csv", caption="../report/table1.rst", category="Simulation"),
     params:
         settings=settings_json("scene", "sim"),
     log:
@@ -59,8 +60,7 @@ rule bench_sim:
     input:
         pkg("bench", "sim_shapes", "labels", *SIM_MODULES),
     output:
-        csv="results/tables/sim_accuracy_vs_time.csv",
-        png="results/figures/sim_accuracy_vs_time.png",
+        report("results/tables/sim_accuracy_vs_time.csv", caption="../report/sim_accuracy_vs_time_table.rst", category="Simulation"),
     params:
         settings=settings_json("scene", "sim", "labels"),
     threads: config["sim"]["bench"]["workers"]
@@ -71,5 +71,27 @@ rule bench_sim:
     conda:
         "../envs/feeder.yaml"
     shell:
-        "feeder bench-sim --settings '{params.settings}' --out-csv {output.csv} --out-png {output.png}"
-        " > {log} 2>&1"
+        "feeder bench-sim --settings '{params.settings}' --out-csv {output} > {log} 2>&1"
+
+
+rule draw_sim_accuracy_vs_time:
+    """The accuracy-against-time figure drawn from the benchmark table."""
+    input:
+        figure_code("sim_accuracy_vs_time"),
+        data="results/tables/sim_accuracy_vs_time.csv",
+    output:
+        report(
+            "results/figures/sim_accuracy_vs_time.png",
+            caption="../report/sim_accuracy_vs_time.rst",
+            category="Simulation",
+        ),
+    params:
+        reference=config["sim"]["bench"]["reference"],
+    log:
+        "logs/figures/sim_accuracy_vs_time.log",
+    benchmark:
+        "benchmarks/figures/sim_accuracy_vs_time.tsv"
+    conda:
+        "../envs/feeder.yaml"
+    shell:
+        "feeder figure sim_accuracy_vs_time --data {input.data} --reference {params.reference} --out {output} > {log} 2>&1"

@@ -26,6 +26,8 @@ module (= PNG name)            figure                                    data fi
                                                                          (``feeder vae p2-gather``)
 ``s11_delta_sweep``            Fig. S11: delta-to-full sweep             ``results/tables/table10.csv``
                                                                          (``feeder delta table``)
+``sim_accuracy_vs_time``       simulation settings: accuracy vs CPU time ``results/tables/sim_accuracy_vs_time.csv``
+                                                                         (``feeder bench-sim``)
 ``cost_by_stage``              wall/CPU seconds per workflow stage       ``results/tables/cost_by_stage.csv``
                                                                          (``feeder cost``)
 =============================  ========================================  =============================================
