@@ -140,7 +140,8 @@ def test_editing_one_model_config_reruns_only_that_model(smoke_run, edit):
     trained = {out for rule, out in jobs if rule == "train_model"}
     assert trained == {"results/models/m3/model.pt"}
     rules = {rule for rule, _ in jobs}
-    assert rules <= {"train_model", "evaluate_models", "groupkfold_model", "prediction_figures"} | ALWAYS
+    assert rules <= {"train_model", "evaluate_models", "groupkfold_model", "prediction_figure_data",
+                     "draw_fig12_test_predictions", "draw_fig13_parts_predictions"} | ALWAYS
     assert "evaluate_models" in rules
 
 

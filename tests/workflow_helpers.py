@@ -11,7 +11,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 SNAKEMAKE = str(Path(sys.executable).parent / "snakemake")
 # What a workflow run reads from the repository (src/ only as rule inputs: the package is installed).
-COPIED = ["Snakefile", "workflow", "config", "parts", "src"]
+COPIED = ["Snakefile", "workflow", "profiles", "config", "parts", "src"]
 
 
 def scratch_copy(dest: Path) -> Path:
