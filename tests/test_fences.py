@@ -29,3 +29,4 @@ def test_bad_tokens():
     for bad in ["straight", "none30", "curved95", "x_y_z"]:
         with pytest.raises(FeederError):
             parse_config_id(bad) if "_" in bad else parse_token(bad)
+

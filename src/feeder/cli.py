@@ -26,7 +26,6 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "predict": ("feeder.predict", "predict the orientation PMF of a part and fences"),
     "vae": ("feeder.vae", "VAE training and the partial-iteration study"),
     "delta": ("feeder.delta", "delta-to-full correction sweep"),
-    "report": ("feeder.report", "paper tables and figures"),
     "cost": ("feeder.cost", "gather workflow benchmarks into cost_by_stage"),
     "figure": ("feeder.figures", "draw one figure from its data file"),
 }
