@@ -1,5 +1,3 @@
-import pytest
-
 from feeder.cli import main
 
 
