@@ -89,6 +89,46 @@ def test_straight_fence_geometry_hand_values():
     assert bm[0] == pytest.approx(-cx) and bm[1] == pytest.approx(cy)
 
 
+def test_crossing_fences_are_trimmed_to_the_least_gap():
+    """Upstream 15° (1.16 m to the centre line) and downstream 30° cross without trimming: a V that
+    traps every part. The upstream fence keeps its wall end and loses length until the gap holds;
+    pairs that never come close are untouched."""
+    gap = SCENE["fences"]["min_gap"]
+    up_full = sc.fence_geometry(SCENE, "loc2", Fence("straight", 15.0))
+    down = sc.fence_geometry(SCENE, "loc1", Fence("straight", 30.0))
+    assert up_full.footprint().intersects(down.footprint())  # the untrimmed pair crosses
+    up, down2 = sc.scene_fences(SCENE, Fence("straight", 30.0), Fence("straight", 15.0))
+    assert down2.boxes == down.boxes
+    dist = up.footprint().distance(down.footprint())
+    assert gap <= dist < gap + 1e-3  # trimmed just enough (bisection tolerance)
+    cx, cy, hl, _, yaw = up.boxes[0]
+    fx, fy, fhl, _, fyaw = up_full.boxes[0]
+    assert yaw == fyaw and hl < fhl
+    wall_end = np.array([cx, cy]) - hl * np.array([math.cos(yaw), math.sin(yaw)])
+    assert wall_end == pytest.approx(np.array([fx, fy]) - fhl * np.array([math.cos(fyaw), math.sin(fyaw)]))
+    # far apart: unchanged; every pair of the grid keeps the gap
+    up45, _ = sc.scene_fences(SCENE, Fence("straight", 30.0), Fence("straight", 45.0))
+    assert up45.boxes == sc.fence_geometry(SCENE, "loc2", Fence("straight", 45.0)).boxes
+    grid = [Fence("straight", a) for a in CFG["fences"]["straight_angles"]] + \
+        [Fence("curved", a) for a in CFG["fences"]["curved_angles"]]
+    for f1 in grid:
+        for f2 in grid:
+            fences = sc.scene_fences(SCENE, f1, f2)
+            if len(fences) == 2:
+                assert fences[0].footprint().distance(fences[1].footprint()) >= gap - 1e-9
+
+
+def test_trimmed_curved_fence_loses_tip_boxes():
+    scene = copy.deepcopy(SCENE)
+    scene["fences"]["min_gap"] = 0.6  # forces trimming of a curved upstream fence
+    up_full = sc.fence_geometry(scene, "loc2", Fence("curved", 30.0))
+    down = sc.fence_geometry(scene, "loc1", Fence("straight", 30.0))
+    trimmed = sc.trim_to_gap(up_full, down, 0.6)
+    assert 0 < len(trimmed.boxes) < len(up_full.boxes)
+    assert trimmed.boxes == up_full.boxes[:len(trimmed.boxes)]  # from the tip: the slot end stays
+    assert trimmed.footprint().distance(down.footprint()) >= 0.6
+
+
 @pytest.mark.parametrize("theta", [0.0, 30.0, 90.0])
 def test_curved_fence_centre_and_outer_face(theta):
     pts, centre = sc.curved_polyline(theta, 1, 0.24, 1.0, 0.2, 90.0, 16)

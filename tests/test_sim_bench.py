@@ -89,3 +89,13 @@ def test_bootstrap_floor_of_an_all_jammed_configuration_is_nan():
 
     jammed = np.full(10, np.nan)
     assert math.isnan(bootstrap_js_floor(jammed, jammed, 5, 360, 1.0, 20, 0.95, seed=0))
+
+
+def test_merge_scene_replaces_nested_values_only():
+    scene = {"belt": {"speed": 0.1, "start_y": 0.0}, "gravity": 9.81}
+    out = bench.merge_scene(scene, {"belt": {"start_y": -0.5}})
+    assert out == {"belt": {"speed": 0.1, "start_y": -0.5}, "gravity": 9.81}
+    assert scene["belt"]["start_y"] == 0.0  # the input is untouched
+    assert bench.merge_scene(scene, None) == scene
+    with pytest.raises(Exception, match="unknown scene key"):
+        bench.merge_scene(scene, {"belt": {"colour": "red"}})

@@ -85,11 +85,26 @@ def bootstrap_js_floor(sample_a, sample_b, n: int, bins: int, sigma: float, resa
 
 
 def resolve_setting(presets: dict, setting: dict) -> dict:
+    """A sweep entry as a preset: its base preset with the entry's overrides (``scene`` excluded)."""
     base = setting.get("base", "fast")
     if base not in presets:
         raise FeederError(f"bench setting {setting.get('name')!r}: unknown base preset {base!r}")
     out = dict(presets[base])
-    out.update({k: v for k, v in setting.items() if k not in ("name", "base")})
+    out.update({k: v for k, v in setting.items() if k not in ("name", "base", "scene")})
+    return out
+
+
+def merge_scene(scene: dict, change: dict | None) -> dict:
+    """``scene`` with the nested values of ``change`` replaced (a sweep entry's ``scene`` key).
+
+    Used for physically irrelevant changes of the reference (e.g. the part starting further
+    upstream on the belt): how far the reference moves under them is its own numerical floor.
+    """
+    out = dict(scene)
+    for key, value in (change or {}).items():
+        if key not in out:
+            raise FeederError(f"bench scene change: unknown scene key {key!r}")
+        out[key] = merge_scene(out[key], value) if isinstance(value, dict) else value
     return out
 
 
@@ -104,15 +119,17 @@ def run_bench(scene, presets, labels_cfg, bench, progress=False):
         raise FeederError(f"sim.bench.reference {ref_name!r} is not a preset")
     thickness = float(bench["thickness"])
     settings = {ref_name: dict(presets[ref_name])}
+    scenes = {ref_name: scene}
     for s in bench["sweep"]:
         settings[s["name"]] = resolve_setting(presets, s)
+        scenes[s["name"]] = merge_scene(scene, s.get("scene"))
     jobs = []
     for name, preset in settings.items():
         p = dict(preset, drops=drops)
         run_seeds = seeds if name == ref_name else [seeds[1]]
         for seed in run_seeds:
             for i, entry in enumerate(panel):
-                jobs.append((name, p, seed, i, entry, scene, thickness))
+                jobs.append((name, p, seed, i, entry, scenes[name], thickness))
     # most expensive first (small internal steps, full path) so the pool stays busy
     jobs.sort(key=lambda j: -(j[1]["substeps"] / j[1]["time_step"]) * (3.0 if j[1]["full_path"] else 1.0))
     results = {}
@@ -130,7 +147,10 @@ def run_bench(scene, presets, labels_cfg, bench, progress=False):
                 bar.update(1)
     if bar is not None:
         bar.close()
-    return summarize(results, settings, panel, seeds, ref_name, drops, bench, labels_cfg)
+    out = summarize(results, settings, panel, seeds, ref_name, drops, bench, labels_cfg)
+    changes = {s["name"]: json.dumps(s["scene"], sort_keys=True) for s in bench["sweep"] if s.get("scene")}
+    out.insert(out.columns.get_loc("merge_tolerance") + 1, "scene_change", out["setting"].map(changes).fillna(""))
+    return out
 
 
 def summarize(results, settings, panel, seeds, ref_name, drops, bench, labels_cfg):

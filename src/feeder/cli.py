@@ -18,6 +18,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "features": ("feeder.features", "print the 45 DFT shape features of a part (.xyz or .stl)"),
     "simulate": ("feeder.sim", "simulate drops of one part through one fence configuration"),
     "bench-sim": ("feeder.bench", "accuracy-vs-time sweep of simulation settings"),
+    "bench-jams": ("feeder.jams", "ok and jam rates of every fence angle of the grid"),
     "scene-table": ("feeder.scene", "Table 1: every physical parameter of the simulated scene"),
     "labels": ("feeder.labels", "PMF/CDF labels from simulation outputs"),
     "datasets": ("feeder.datasets", "configuration list, splits and the merged dataset"),

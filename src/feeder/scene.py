@@ -198,10 +198,56 @@ def fence_geometry(scene: dict, location: str, fence: Fence) -> FenceGeom | None
     return FenceGeom(location, fence, side, boxes)
 
 
+def trim_to_gap(up: FenceGeom, down: FenceGeom, gap: float, tol: float = 1e-4) -> FenceGeom:
+    """``up`` shortened from its free tip until its footprint is at least ``gap`` from ``down``.
+
+    Two fences from opposite sides that both reach past the centre line can cross (e.g. a long
+    upstream fence at 15° and a downstream one at 30°): their V is a trap that jams every part
+    entering it, which no feeder would be built with. A straight fence keeps its wall end and
+    loses length (bisection to ``tol``); a curved fence loses whole boxes from its tip.
+    """
+    target = down.footprint()
+    if up.footprint().distance(target) >= gap:
+        return up
+
+    def with_boxes(boxes):
+        return FenceGeom(up.location, up.fence, up.side, tuple(boxes))
+
+    if up.fence.type == "curved":
+        boxes = list(up.boxes)
+        while boxes and with_boxes(boxes).footprint().distance(target) < gap:
+            boxes.pop()
+        return with_boxes(boxes)
+    cx, cy, hl, ht, yaw = up.boxes[0]
+    d = np.array([math.cos(yaw), math.sin(yaw)])
+    wall_end = np.array([cx, cy]) - hl * d
+
+    def box_of(length):
+        mid = wall_end + 0.5 * length * d
+        return (float(mid[0]), float(mid[1]), 0.5 * length, ht, yaw)
+
+    lo, hi = 0.0, 2.0 * hl
+    while hi - lo > tol:
+        mid = 0.5 * (lo + hi)
+        if with_boxes([box_of(mid)]).footprint().distance(target) >= gap:
+            lo = mid
+        else:
+            hi = mid
+    return with_boxes([box_of(lo)] if lo > 0 else [])
+
+
 def scene_fences(scene: dict, loc1: Fence, loc2: Fence) -> list[FenceGeom]:
-    """Built fences, upstream first (Location 2 then Location 1)."""
-    out = [fence_geometry(scene, "loc2", loc2), fence_geometry(scene, "loc1", loc1)]
-    return [f for f in out if f is not None]
+    """Built fences, upstream first (Location 2 then Location 1).
+
+    The upstream fence is trimmed (:func:`trim_to_gap`) to keep ``fences.min_gap`` from the
+    downstream one, so that two fences never form a closed V.
+    """
+    up, down = fence_geometry(scene, "loc2", loc2), fence_geometry(scene, "loc1", loc1)
+    if up is not None and down is not None:
+        up = trim_to_gap(up, down, float(scene["fences"]["min_gap"]))
+        if not up.boxes:
+            up = None
+    return [f for f in (up, down) if f is not None]
 
 
 def lane_reach_y(footprint, x_lo: float, x_hi: float, y_from: float = -math.inf) -> float | None:
@@ -250,6 +296,7 @@ def table1_rows(scene: dict, presets: dict) -> list[tuple[str, str, str]]:
          "m; cuboid from the wall at angle theta to the travel direction, 0 < theta < 90"),
         ("Curved fence", f"r = {cv['radius']:g}, span {cv['span_deg']:g} deg, {cv['segments']} boxes, slot {cv['slot'].upper()}",
          "arc centre x = x0 - r sin(theta), y = y0 + r cos(theta); 0 <= theta <= 90"),
+        ("Least gap between the fences", f"{fc['min_gap']:g}", "m; the upstream fence's tip is cut back to keep it (crossing fences trap parts)"),
         ("Jam", f"travel < {scene['status']['jam_travel']:g} m in {scene['status']['jam_window_s']:g} s", "drop status 'jammed'"),
         ("At rest", f"|v - v_belt| < {scene['status']['rest_speed']:g} m/s and |w_z| < {scene['status']['rest_omega_deg_s']:g} deg/s for {scene['status']['rest_window_s']:g} s", "final yaw recorded once at rest past the last fence"),
         ("Flipped / fell off", f"tilt > {scene['status']['flip_tilt_deg']:g} deg / z < {scene['status']['fall_z']:g} m", "drop status"),
