@@ -22,3 +22,13 @@ def test_npz_and_json_round_trip(tmp_path):
         assert data["s"].tolist() == ["ok", "jammed"]
     io.write_json(tmp_path / "b.json", {"b": 1, "a": [1, 2]})
     assert (tmp_path / "b.json").read_text().startswith('{\n  "a"')
+
+
+def test_parse_settings_requires_an_object_with_the_named_sections():
+    from feeder.errors import FeederError
+    from feeder.io import parse_settings
+
+    assert parse_settings('{"sim": {"drops": 3}, "labels": {}}', "sim") == {"sim": {"drops": 3}, "labels": {}}
+    for text, needle in (("{", "not valid JSON"), ("[1, 2]", "JSON object"), ('{"sim": {}}', "labels")):
+        with pytest.raises(FeederError, match=needle):
+            parse_settings(text, "sim", "labels")

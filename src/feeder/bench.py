@@ -218,10 +218,9 @@ def main(argv: list[str]) -> int:
                         help="JSON {scene, sim, labels} config sections; default config/config.yaml")
     args = parser.parse_args(argv)
     if args.settings is not None:
-        try:
-            cfg = json.loads(args.settings)
-        except json.JSONDecodeError as err:
-            raise FeederError(f"--settings is not valid JSON: {err.msg}") from None
+        from feeder.io import parse_settings
+
+        cfg = parse_settings(args.settings)
     else:
         import yaml
 

@@ -628,22 +628,6 @@ def convergence_data(ds: dict, settings: dict) -> dict:
 # ----------------------------------------------------------------------------------------------
 # CLI
 # ----------------------------------------------------------------------------------------------
-def _settings(text: str) -> dict:
-    try:
-        obj = json.loads(text)
-    except json.JSONDecodeError as err:
-        raise FeederError(f"--settings is not JSON ({err})") from None
-    if not isinstance(obj, dict):
-        raise FeederError("--settings must be a JSON object of config sections")
-    return obj
-
-
-def _need(settings: dict, *sections: str) -> None:
-    missing = [s for s in sections if s not in settings]
-    if missing:
-        raise FeederError(f"--settings lacks the config section(s): {', '.join(missing)}")
-
-
 def _read_configs(path) -> pd.DataFrame:
     path = Path(path)
     if not path.is_file():
@@ -681,15 +665,13 @@ def main(argv: list[str]) -> int:
     logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s", stream=sys.stderr)
 
     if args.cmd == "configurations":
-        settings = _settings(args.settings)
-        _need(settings, "fences", "datasets")
+        settings = fio.parse_settings(args.settings, "fences", "datasets")
         parts = [p for p in args.parts.split(",") if p]
         df = configurations(settings, parts)
         fio.write_csv(args.out, df)
         print(df.groupby("split").size().to_string(), file=sys.stderr)
     elif args.cmd == "build":
-        settings = _settings(args.settings)
-        _need(settings, "sim", "labels", "datasets")
+        settings = fio.parse_settings(args.settings, "sim", "labels", "datasets")
         ds = build_dataset(_read_configs(args.configurations), args.features_dir, args.sim_dir, settings)
         fio.write_npz(args.out, **ds)
         log.info("%d configurations, %d excluded -> %s", len(ds["part"]), ds["excluded_part"].size, args.out)
@@ -698,8 +680,7 @@ def main(argv: list[str]) -> int:
         fio.write_csv(args.out_csv, t)
         fio.write_text(args.out_md, "Table 4. Dataset summary\n\n" + _markdown(t))
     elif args.cmd == "convergence":
-        settings = _settings(args.settings)
-        _need(settings, "labels", "datasets")
+        settings = fio.parse_settings(args.settings, "labels", "datasets")
         out = convergence_data(load_dataset(args.dataset), settings)
         fio.write_csv(args.fig4_data, out["fig4"])
         fio.write_npz(args.fig5_data, **out["fig5"])

@@ -48,7 +48,7 @@ from feeder import io
 from feeder.errors import FeederError
 from feeder.labels import cdf as cdf_of, js_divergence, r2_cdf, w1
 from feeder.vae import (_read_json, compose_config, config_digest, level_index, load_dataset, scaled_features,
-                        split_mask, summarize, validation_split)
+                        seeded_run, split_mask, summarize)
 
 MODES = ("part", "config")
 LOG_FLOOR = 1e-12
@@ -169,10 +169,7 @@ def fit_delta(cfg, x: np.ndarray, pmf_k: np.ndarray, pmf_full: np.ndarray, seed:
     except ValueError as err:
         raise FeederError(f"config/delta.yaml loss: {err}") from None
     tcfg = cfg.train
-    tr, va = validation_split(x.shape[0], float(tcfg.val_fraction), seed)
-    torch.set_num_threads(int(tcfg.threads))
-    torch.manual_seed(seed)
-    gen = torch.Generator().manual_seed(seed)
+    tr, va, gen = seeded_run(tcfg, x.shape[0], seed)
     net = build_delta(cfg.model, x.shape[1], pmf_k.shape[1])
     f32 = lambda a: torch.as_tensor(np.asarray(a), dtype=torch.float32)  # noqa: E731
     X, P, T = f32(x), f32(pmf_k), f32(pmf_full)

@@ -64,3 +64,20 @@ def save_figure(path: str | os.PathLike, fig) -> None:
     fig.savefig(buf, format=path.suffix.lstrip(".") or "png", dpi=150, bbox_inches="tight")
     plt.close(fig)
     write_bytes(path, buf.getvalue())
+
+
+def parse_settings(text: str, *sections: str) -> dict:
+    """The ``--settings`` JSON of a command (config sections, as the workflow passes them), with
+    the named top-level sections required; a one-line :class:`FeederError` otherwise."""
+    from feeder.errors import FeederError
+
+    try:
+        obj = json.loads(text)
+    except json.JSONDecodeError as err:
+        raise FeederError(f"--settings is not valid JSON: {err.msg}") from None
+    if not isinstance(obj, dict):
+        raise FeederError("--settings must be a JSON object of config sections")
+    missing = [s for s in sections if s not in obj]
+    if missing:
+        raise FeederError(f"--settings lacks the config section(s): {', '.join(missing)}")
+    return obj

@@ -15,7 +15,6 @@ Writes one row per (fence, location, part) plus ``part = mean`` rows.
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from multiprocessing import get_context
 
@@ -67,12 +66,12 @@ def main(argv: list[str]) -> int:
     parser.add_argument("--settings", required=True, help="JSON {scene, sim, fences, parts} config sections")
     parser.add_argument("--out-csv", required=True)
     args = parser.parse_args(argv)
+    from feeder.io import parse_settings
+
+    cfg = parse_settings(args.settings, "scene", "sim", "fences", "parts")
     try:
-        cfg = json.loads(args.settings)
         scene, sim_cfg, fences_cfg = cfg["scene"], cfg["sim"], cfg["fences"]
         survey, parts_dir = sim_cfg["jam_survey"], cfg["parts"]["dir"]
-    except json.JSONDecodeError as err:
-        raise FeederError(f"--settings is not valid JSON: {err.msg}") from None
     except (KeyError, TypeError) as err:
         raise FeederError(f"--settings lacks {err}") from None
     from feeder.sim import get_preset

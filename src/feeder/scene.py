@@ -27,7 +27,6 @@ physical parameter of the scene and of the simulation presets) from the config.
 from __future__ import annotations
 
 import argparse
-import json
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -50,12 +49,9 @@ def load_settings(settings_json: str | None = None, config_path: str | Path = CO
     ...}}``: the config sections as they are).
     """
     if settings_json is not None:
-        try:
-            data = json.loads(settings_json)
-        except json.JSONDecodeError as err:
-            raise FeederError(f"--settings is not valid JSON: {err.msg}") from None
-        if not isinstance(data, dict):
-            raise FeederError("--settings must be a JSON object with 'scene' and 'presets'")
+        from feeder.io import parse_settings
+
+        data = parse_settings(settings_json)
     else:
         import yaml
 

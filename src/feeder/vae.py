@@ -306,6 +306,18 @@ def validation_split(n: int, fraction: float, seed: int) -> tuple[np.ndarray, np
     return np.sort(perm[n_val:]), np.sort(perm[:n_val])
 
 
+def seeded_run(tcfg, n: int, seed: int):
+    """What makes one training run reproducible: the seeded (train, validation) row split, torch's
+    thread count and seed, and the generator that orders its batches. Shared by the VAE and the
+    delta model."""
+    import torch
+
+    tr, va = validation_split(n, float(tcfg.val_fraction), seed)
+    torch.set_num_threads(int(tcfg.threads))
+    torch.manual_seed(seed)
+    return tr, va, torch.Generator().manual_seed(seed)
+
+
 def fit_vae(cfg, x: np.ndarray, cdf: np.ndarray, seed: int | None = None) -> VaeFit:
     """Train one VAE on rows ``x`` (N, 53) scaled features and ``cdf`` (N, bins)."""
     import torch
@@ -319,10 +331,7 @@ def fit_vae(cfg, x: np.ndarray, cdf: np.ndarray, seed: int | None = None) -> Vae
     if not (np.isfinite(x).all() and np.isfinite(cdf).all()):
         raise FeederError("fit_vae: non-finite features or CDFs")
     tcfg = cfg.train
-    tr, va = validation_split(x.shape[0], float(tcfg.val_fraction), seed)
-    torch.set_num_threads(int(tcfg.threads))
-    torch.manual_seed(seed)
-    gen = torch.Generator().manual_seed(seed)
+    tr, va, gen = seeded_run(tcfg, x.shape[0], seed)
     net = build_vae(cfg.model, x.shape[1], cdf.shape[1])
     xt, ft = torch.as_tensor(x, dtype=torch.float32), torch.as_tensor(cdf, dtype=torch.float32)
     x_tr, f_tr, x_va, f_va = xt[tr], ft[tr], xt[va], ft[va]
