@@ -16,8 +16,8 @@ CFG = yaml.safe_load((ROOT / "config" / "config.yaml").read_text())
 
 
 def test_survey_jobs_cover_every_angle_at_both_locations():
-    fences = {"straight_angles": [15, 45], "curved_angles": [0]}
-    jobs = jams.survey_jobs(fences, ["a", "b"])
+    angles = {"straight_angles": [15, 45], "curved_angles": [0]}
+    jobs = jams.survey_jobs(angles, ["a", "b"])
     assert len(jobs) == 3 * 2 * 2
     assert ("straight:15", "none", "a") in jobs and ("none", "curved:0", "b") in jobs
     assert all((l1 == "none") != (l2 == "none") for l1, l2, _ in jobs)  # exactly one fence
@@ -38,9 +38,9 @@ def test_summarize_means_over_parts():
 
 @pytest.mark.slow
 def test_cli_tiny_survey(tmp_path):
-    cfg = {k: CFG[k] for k in ("scene", "sim", "fences", "parts")}
-    cfg["sim"] = dict(CFG["sim"], jam_survey={"parts": ["rect-a2"], "drops": 2, "preset": "coarse", "workers": 1})
-    cfg["fences"] = dict(CFG["fences"], straight_angles=[45], curved_angles=[90])
+    cfg = {k: CFG[k] for k in ("scene", "sim", "parts")}
+    cfg["sim"] = dict(CFG["sim"], jam_survey={"parts": ["rect-a2"], "drops": 2, "preset": "coarse", "workers": 1,
+                                              "straight_angles": [45], "curved_angles": [90]})
     out = tmp_path / "jams.csv"
     r = subprocess.run([sys.executable, "-m", "feeder", "bench-jams", "--settings", json.dumps(cfg),
                         "--out-csv", str(out)], cwd=ROOT, capture_output=True, text=True)

@@ -4,8 +4,9 @@ A fence holds a part for ever where its surface faces the belt's motion too squa
 needs tan β > μ, β the angle between the belt velocity and the fence normal; pybullet's part-fence
 μ is 0.8 × 0.5 = 0.4, so β > 21.8°). Every curved fence has such a zone around its most
 upstream point; whether a part reaches it depends on the angle and the part. The survey runs every
-fence type × angle of ``fences`` alone at each location over a few library parts
-(``sim.jam_survey``) and reports the share of drops that end ``ok`` and ``jammed``, so the grid can
+fence type × angle of its own lists (``sim.jam_survey``: the whole allowed range, so it shows why
+the grid in ``fences`` leaves some angles out) alone at each location over a few library parts
+and reports the share of drops that end ``ok`` and ``jammed``, so the grid can
 leave out angles that jam most drops (configurations with too few ok drops are excluded from the
 datasets anyway, see ``labels.on_bad``: they cost simulation time and give no label).
 
@@ -24,12 +25,13 @@ import pandas as pd
 from feeder.errors import FeederError
 
 
-def survey_jobs(fences_cfg: dict, parts: list[str]) -> list[tuple[str, str, str]]:
-    """``(loc1, loc2, part)`` for every single fence of the grid at each location and every part."""
+def survey_jobs(angles: dict, parts: list[str]) -> list[tuple[str, str, str]]:
+    """``(loc1, loc2, part)`` for every single fence (``angles``: ``straight_angles`` and
+    ``curved_angles`` lists) at each location and every part."""
     jobs = []
     for kind in ("straight", "curved"):
-        for angle in fences_cfg[f"{kind}_angles"]:
-            spec = f"{kind}:{angle:g}"
+        for angle in angles[f"{kind}_angles"]:
+            spec = f"{kind}:{float(angle):g}"
             for loc1, loc2 in ((spec, "none"), ("none", spec)):
                 jobs.extend((loc1, loc2, p) for p in parts)
     return jobs
@@ -63,14 +65,14 @@ def summarize(rows: list[tuple[str, str, str, dict]]) -> pd.DataFrame:
 
 def main(argv: list[str]) -> int:
     parser = argparse.ArgumentParser(prog="feeder bench-jams", description=__doc__.splitlines()[0])
-    parser.add_argument("--settings", required=True, help="JSON {scene, sim, fences, parts} config sections")
+    parser.add_argument("--settings", required=True, help="JSON {scene, sim, parts} config sections")
     parser.add_argument("--out-csv", required=True)
     args = parser.parse_args(argv)
     from feeder.io import parse_settings
 
-    cfg = parse_settings(args.settings, "scene", "sim", "fences", "parts")
+    cfg = parse_settings(args.settings, "scene", "sim", "parts")
     try:
-        scene, sim_cfg, fences_cfg = cfg["scene"], cfg["sim"], cfg["fences"]
+        scene, sim_cfg = cfg["scene"], cfg["sim"]
         survey, parts_dir = sim_cfg["jam_survey"], cfg["parts"]["dir"]
     except (KeyError, TypeError) as err:
         raise FeederError(f"--settings lacks {err}") from None
@@ -81,7 +83,7 @@ def main(argv: list[str]) -> int:
     if drops < 1:
         raise FeederError(f"sim.jam_survey.drops must be positive, got {drops}")
     jobs = [(l1, l2, p, parts_dir, drops, int(sim_cfg["base_seed"]), scene, preset, survey["preset"])
-            for l1, l2, p in survey_jobs(fences_cfg, list(survey["parts"]))]
+            for l1, l2, p in survey_jobs(survey, list(survey["parts"]))]
     bar = None
     if sys.stderr.isatty():
         from tqdm import tqdm

@@ -17,6 +17,11 @@ Fences (all sizes in the config, none in code):
   of the paper, mirrored for the left side), i.e. a fixed arc rotated about ``P0`` by θ. The arc
   leaves ``P0`` inward and spans ``span_deg``; it is built from ``segments`` boxes along the arc.
 
+With both locations in use, the upstream fence is cut back from its tip until it keeps
+``fences.min_gap`` from the downstream one (:func:`trim_to_gap`): a shallow upstream fence and a
+downstream one that both reach past the centre line would otherwise cross, and the closed V they
+form traps every part that enters it.
+
 A fence is a list of boxes ``(cx, cy, half_length, half_thickness, yaw)``; its footprint is a
 shapely polygon used to decide what a part's lane can reach.
 

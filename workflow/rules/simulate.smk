@@ -3,7 +3,7 @@
 # sim_path-style paths from common.smk. Outputs:
 #   results/sim/{part}/{fence}.npz                  (docs/data.md)
 #   results/tables/table1.csv                       (every physical parameter of the scene)
-#   results/tables/jam_rates.csv                    (ok and jam rates of every fence angle of the grid)
+#   results/tables/jam_rates.csv                    (ok and jam rates of each fence angle: why the grid leaves some out)
 #   results/tables/sim_accuracy_vs_time.csv, results/figures/sim_accuracy_vs_time.png (the figure
 #   is drawn from the table by its own job, feeder figure sim_accuracy_vs_time; uses figure_code)
 SIM_MODULES = ("sim", "scene", "fences", "geometry")
@@ -99,14 +99,14 @@ rule draw_sim_accuracy_vs_time:
 
 
 rule bench_jams:
-    """Ok and jam rates of every fence angle of the grid, alone at each location (feeder bench-jams)."""
+    """Ok and jam rates of each fence angle of the survey, alone at each location (feeder bench-jams)."""
     input:
         pkg("jams", *SIM_MODULES),
         parts=expand("{dir}/{part}.stl", dir=config["parts"]["dir"], part=config["sim"]["jam_survey"]["parts"]),
     output:
         report("results/tables/jam_rates.csv", caption="../report/jam_rates.rst", category="Simulation"),
     params:
-        settings=settings_json("scene", "sim", "fences", "parts"),
+        settings=settings_json("scene", "sim", "parts"),
     threads: config["sim"]["jam_survey"]["workers"]
     log:
         "logs/bench_jams/bench_jams.log",
