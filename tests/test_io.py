@@ -32,3 +32,14 @@ def test_parse_settings_requires_an_object_with_the_named_sections():
     for text, needle in (("{", "not valid JSON"), ("[1, 2]", "JSON object"), ('{"sim": {}}', "labels")):
         with pytest.raises(FeederError, match=needle):
             parse_settings(text, "sim", "labels")
+
+
+def test_results_get_the_usual_file_mode_not_a_private_one(tmp_path):
+    import os
+
+    old = os.umask(0o022)
+    try:
+        io.write_text(tmp_path / "r.txt", "x")
+    finally:
+        os.umask(old)
+    assert (tmp_path / "r.txt").stat().st_mode & 0o777 == 0o644
