@@ -101,6 +101,13 @@ def _cost(path):
                   "max_rss_mb": [300.0, 900.0, 120.0, 900.0]}).to_csv(path, index=False)
 
 
+def _jams(path):
+    rows = [{"fence": f, "angle_deg": a, "location": loc, "part": p, "ok_rate": r}
+            for f, a, r in (("straight", 30.0, 1.0), ("straight", 65.0, 0.4), ("curved", 60.0, 0.2))
+            for loc in ("loc1", "loc2") for p in ("a", "b", "mean")]
+    pd.DataFrame(rows).to_csv(path, index=False)
+
+
 # figure -> (data file name, writer, extra CLI options)
 CASES = {
     "fig6_dft_reconstruction": ("fig6.npz", _fig6, []),
@@ -115,6 +122,7 @@ CASES = {
     "s11_delta_sweep": ("table10.csv", _table10, []),
     "cost_by_stage": ("cost.csv", _cost, []),
     "sim_accuracy_vs_time": ("bench.csv", _bench, ["--reference", "faithful"]),
+    "jam_rates": ("jams.csv", _jams, []),
 }
 
 

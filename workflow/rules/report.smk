@@ -12,6 +12,7 @@ SIM_TARGETS = [
     f"{TABLES}/table1.csv",
     f"{TABLES}/sim_accuracy_vs_time.csv",
     f"{TABLES}/jam_rates.csv",
+    f"{FIGURES}/jam_rates.png",
     f"{FIGURES}/sim_accuracy_vs_time.png",
 ]
 # Every table and figure of the study (each stage's rules file lists its own).

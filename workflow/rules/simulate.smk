@@ -116,3 +116,20 @@ rule bench_jams:
         "../envs/feeder.yaml"
     shell:
         "feeder bench-jams --settings '{params.settings}' --out-csv {output} > {log} 2>&1"
+
+
+rule draw_jam_rates:
+    """The jam-survey figure drawn from its table."""
+    input:
+        figure_code("jam_rates"),
+        data="results/tables/jam_rates.csv",
+    output:
+        report("results/figures/jam_rates.png", caption="../report/jam_rates_figure.rst", category="Simulation"),
+    log:
+        "logs/figures/jam_rates.log",
+    benchmark:
+        "benchmarks/figures/jam_rates.tsv"
+    conda:
+        "../envs/feeder.yaml"
+    shell:
+        "feeder figure jam_rates --data {input.data} --out {output} > {log} 2>&1"
