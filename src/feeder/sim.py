@@ -37,11 +37,11 @@ or more move the distributions beyond the noise floor (small parts, fences near 
 limit), so ``fast`` keeps the paper's 0.5 ms steps and saves time only by stepping the fence
 region; several collision-filtered lanes per world did not lower the cost per drop. The reference
 is stable under a physically irrelevant change (the part starting 0.5 m further upstream: JS 0.084
-against the two-seed floor 0.083). ``fast`` is outside the floor on concave parts (C, star, T)
-because it starts the part just before its first contact: the same star run starting 0.3 m
-upstream (3 s of riding) lands within the floor (JS 0.045 against a bootstrap floor of 0.061) at
-twice ``fast``'s cost, although the belt contact itself settles within 25 ms; the cause is not
-isolated yet.
+against the two-seed floor 0.083). ``fast`` is outside the floor on concave parts (C, star, T).
+For the star it is the start just before the first contact: starting 0.3 m upstream brings it
+within the floor (JS 0.045 against a bootstrap floor of 0.061) at twice ``fast``'s cost, although
+the belt contact itself settles within 25 ms. The C (moved ahead to its second fence) and the T (a
+long 15° slide) stay outside with that start; their cause is not isolated yet.
 
 Bullet combines friction coefficients by multiplication: part-belt 0.8 x 1.0, part-fence
 0.8 x 0.5 = 0.4 (a straight fence holds parts for θ > atan(1/0.4) = 68.2°).
