@@ -27,7 +27,7 @@ def small_config(**datasets_overrides):
             "reserved_combos": ["straight_curved", "curved_straight"],
             "seed": 0,
         },
-        "labels": {"bins": 360, "sigma_bins": 1.0, "levels_pct": [10, 50, 100], "on_bad": "error"},
+        "labels": {"bins": 360, "sigma_bins": 1.0, "levels_pct": [10, 50, 100], "on_bad": "error", "frame": "part"},
         "datasets": {
             "test_fraction": 0.15, "split_seed": 42, "group_folds": 3, "holdout_parts": [], "n_holdout": 1,
             "parts_per_part": 4, "fences_parts": 2, "fences_samples": 3,
@@ -346,3 +346,41 @@ def test_bad_feature_file_is_an_error(tmp_path):
     (tmp_path / "features" / f"{df.part[0]}.json").write_text('{"k": [1, 2]}')
     with pytest.raises(FeederError, match=f"{df.part[0]}.json"):
         run_build(tmp_path, csv, cfg)
+
+
+def test_principal_frame_labels_follow_the_feature_frame(tmp_path):
+    cfg = small_config()
+    df, csv = make_world(tmp_path, cfg)
+    assert run_build(tmp_path, csv, cfg, out="part.npz") == 0
+    frames = {p: 37.0 * (i + 1) for i, p in enumerate(PARTS)}  # whole bins: binning shifted yaws = a roll
+    for p, deg in frames.items():
+        path = tmp_path / "features" / f"{p}.json"
+        path.write_text(json.dumps({**json.loads(path.read_text()), "frame_deg": deg}))
+    cfg["labels"]["frame"] = "principal"
+    assert run_build(tmp_path, csv, cfg, out="principal.npz") == 0
+    a, b = D.load_dataset(tmp_path / "part.npz"), D.load_dataset(tmp_path / "principal.npz")
+    assert str(a["label_frame"]) == "part" and str(b["label_frame"]) == "principal"
+    np.testing.assert_array_equal(a["frame_deg"], 0.0)
+    np.testing.assert_array_equal(b["frame_deg"], [frames[p] for p in b["part"]])
+    for i in range(len(df)):
+        shift = frames[b["part"][i]]
+        np.testing.assert_allclose(b["pmf"][i], L.shift_pmf(a["pmf"][i], shift), atol=1e-12)
+        np.testing.assert_allclose(b["pmf_levels"][i], L.shift_pmf(a["pmf_levels"][i], shift), atol=1e-12)
+        ok = np.isfinite(a["final_yaw_deg"][i])
+        np.testing.assert_allclose(b["final_yaw_deg"][i][ok], L.normalize_yaw(a["final_yaw_deg"][i][ok] + shift))
+    np.testing.assert_array_equal(a["part_raw"], b["part_raw"])  # inputs do not change
+
+
+def test_principal_frame_without_frame_deg_is_an_error_naming_the_file(tmp_path, capsys):
+    cfg = small_config()
+    _, csv = make_world(tmp_path, cfg)  # feature files without frame_deg
+    cfg["labels"]["frame"] = "principal"
+    assert cli(["datasets", "build", "--configurations", str(csv), "--features-dir", str(tmp_path / "features"),
+                "--sim-dir", str(tmp_path / "sim"), "--out", str(tmp_path / "d.npz"),
+                "--settings", json.dumps({k: cfg[k] for k in ("sim", "labels", "datasets")})]) != 0
+    err = capsys.readouterr().err
+    assert "frame_deg" in err and ".json" in err and not (tmp_path / "d.npz").exists()
+    cfg["labels"]["frame"] = "sideways"
+    with pytest.raises(FeederError, match="labels.frame"):
+        D.build_dataset(pd.read_csv(csv), tmp_path / "features", tmp_path / "sim",
+                        {k: cfg[k] for k in ("sim", "labels", "datasets")})

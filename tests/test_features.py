@@ -17,6 +17,7 @@ from feeder.features import (
     frequencies,
     outline_samples,
     planar_points,
+    frame_deg,
     principal_align,
     read_xyz,
     reconstruct,
@@ -155,7 +156,8 @@ def test_constant_axis_other_than_z_is_dropped(tmp_path):
 def test_cli_prints_the_45_values(capsys):
     assert cli(["features", str(PARTS / "star5-a.xyz")]) == 0
     f = json.loads(capsys.readouterr().out)
-    assert sorted(f) == ["k", "magnitude", "phase"]
+    assert sorted(f) == ["frame_deg", "k", "magnitude", "phase"]
+    assert 0.0 <= f["frame_deg"] < 360.0
     assert len(f["k"]) == len(f["magnitude"]) == len(f["phase"]) == 15
     assert all(isinstance(k, int) and -50 <= k <= 49 for k in f["k"])
     assert f["magnitude"] == sorted(f["magnitude"], reverse=True)
@@ -288,3 +290,31 @@ def test_figure_data_rejects_a_bad_count(tmp_path):
     assert cli(["parts", "s1", str(PARTS / "rect-a2.xyz"), "--table", str(tmp_path / "s1.csv"),
                 "--max-coefficients", "101"]) == 2
     assert not out.exists() and not (tmp_path / "s1.csv").exists()
+
+# ---------------------------------------------------------------- the feature frame in the part frame
+@pytest.mark.parametrize("part", ["lshape-a", "tri-right", "keyhole-a", "rect-a2"])
+def test_frame_deg_turns_with_the_part(part, tmp_path):
+    """A face turned by ψ in its own file has its feature frame turned by ψ too (mod 360), and the
+    aligned points equal the input rotated by -frame_deg (so the labels can follow the features)."""
+    pts = read_xyz(PARTS / f"{part}.xyz")[:, :2]
+    base = frame_deg(pts)
+    c = pts - pts.mean(axis=0)
+    np.testing.assert_allclose(principal_align(pts), c @ _rot(-base).T, atol=1e-9)
+    for psi in (30.0, 137.0, 250.0):
+        turned = frame_deg(pts @ _rot(psi).T)
+        assert (turned - base - psi + 180.0) % 360.0 - 180.0 == pytest.approx(0.0, abs=1e-6)
+    # through files: the xyz and the STL of the same part agree on the axis; its direction may
+    # flip where the skewness along it is sampling noise (a shape symmetric about the second
+    # axis). Consistent either way: each file's features and frame come from the same points.
+    got = features_of_file(PARTS / f"{part}.xyz")["frame_deg"]
+    assert got == pytest.approx(base, abs=1e-9)
+    stl = features_of_file(PARTS / f"{part}.stl")["frame_deg"]
+    assert (stl - got + 90.0) % 180.0 - 90.0 == pytest.approx(0.0, abs=1.0)
+
+
+def test_frame_deg_is_none_for_a_face_outside_the_xy_plane(tmp_path):
+    pts = read_xyz(PARTS / "tshape-a.xyz")
+    path = tmp_path / "yz.xyz"
+    path.write_text("".join(f"7.5,{x},{y}\n" for x, y, _ in pts))
+    assert features_of_file(path)["frame_deg"] is None
+    assert features_of_file(PARTS / "tshape-a.xyz")["frame_deg"] is not None

@@ -166,3 +166,36 @@ def test_labels_cli_summarises_a_sim_file(tmp_path, capsys):
     assert L.main(["pmf", str(path), "--bins", "360", "--sigma", "1"]) == 0
     out = json.loads(capsys.readouterr().out)
     assert out["drops"] == 4 and out["ok"] == 3 and out["mode_deg"] == 10.5
+
+
+# ---------------------------------------------------------------- shifting a PMF between frames
+def test_shift_pmf_hand_values():
+    p = np.zeros(360)
+    p[0] = 1.0
+    np.testing.assert_array_equal(L.shift_pmf(p, 1.0), np.roll(p, 1))  # whole bins: a roll
+    np.testing.assert_array_equal(L.shift_pmf(p, 360.0), p)
+    np.testing.assert_array_equal(L.shift_pmf(p, -1.0), np.roll(p, -1))  # wraps 0 -> 359
+    half = L.shift_pmf(p, 0.5)  # half a bin: split between bins 0 and 1
+    assert half[0] == pytest.approx(0.5) and half[1] == pytest.approx(0.5) and half.sum() == pytest.approx(1.0)
+    back = L.shift_pmf(p, -0.5)  # wrap-around at 0/360: bins 359 and 0
+    assert back[359] == pytest.approx(0.5) and back[0] == pytest.approx(0.5)
+    q = L.shift_pmf(p, 90.25)
+    assert q[90] == pytest.approx(0.75) and q[91] == pytest.approx(0.25)
+
+
+def test_shift_pmf_matches_shifting_the_yaws_and_conserves_mass():
+    rng = np.random.default_rng(3)
+    yaws = rng.uniform(0, 360, 500)
+    p = L.pmf_from_yaws(yaws, 360, 1.0)
+    for delta in (17.0, -123.0, 359.0, 720.0):
+        np.testing.assert_allclose(L.shift_pmf(p, delta), L.pmf_from_yaws(L.normalize_yaw(yaws + delta), 360, 1.0),
+                                   atol=1e-12)
+    batch = rng.dirichlet(np.ones(360), size=4)
+    for delta in (0.3, 200.7, -45.9):
+        out = L.shift_pmf(batch, delta)
+        np.testing.assert_allclose(out.sum(axis=1), 1.0)
+        assert (out >= 0).all()
+        np.testing.assert_allclose(L.shift_pmf(out, -delta).sum(axis=1), 1.0)
+    np.testing.assert_array_equal(L.shift_pmf(np.zeros(360), 12.5), np.zeros(360))  # zeros stay zeros
+    with pytest.raises(FeederError):
+        L.shift_pmf(p, float("nan"))

@@ -79,3 +79,26 @@ def test_predict_from_stl(model_dir, tmp_path):
     assert P.main(["--model", str(model_dir / "m3"), "--part", str(stl), "--loc1", "straight:30",
                    "--loc2", "none", "--out", str(out)]) == 0
     assert pd.read_csv(out).pmf.sum() == pytest.approx(1.0)
+
+
+def test_principal_frame_model_answers_in_the_part_frame(model_dir, tmp_path):
+    """A model trained on feature-frame labels: its PMF is moved back by the part's frame_deg."""
+    from feeder import labels as L
+    from feeder.models import TrainedModel
+
+    m = TrainedModel.load(model_dir / "m3")
+    assert m.label_frame == "part"  # make_dataset carries no label_frame: the part frame
+    m.label_frame = "principal"
+    m.save(tmp_path / "mp")
+    assert TrainedModel.load(tmp_path / "mp").label_frame == "principal"
+    feats = json.loads((model_dir / "p0.json").read_text())
+    (tmp_path / "p0f.json").write_text(json.dumps({**feats, "frame_deg": 30.0}))
+    base = ["--model", str(tmp_path / "mp"), "--loc1", "straight:30", "--loc2", "none"]
+    assert P.main(base + ["--features", str(tmp_path / "p0f.json"), "--out", str(tmp_path / "a.csv")]) == 0
+    assert P.main(["--model", str(model_dir / "m3"), "--loc1", "straight:30", "--loc2", "none",
+                   "--features", str(model_dir / "p0.json"), "--out", str(tmp_path / "b.csv")]) == 0
+    got, same_net = pd.read_csv(tmp_path / "a.csv"), pd.read_csv(tmp_path / "b.csv")
+    np.testing.assert_allclose(got.pmf, L.shift_pmf(same_net.pmf.to_numpy(), -30.0), atol=1e-12)
+    np.testing.assert_allclose(got.cdf, np.cumsum(got.pmf), atol=1e-12)
+    with pytest.raises(FeederError, match="frame_deg"):  # features without the frame
+        P.main(base + ["--features", str(model_dir / "p0.json")])

@@ -255,6 +255,31 @@ def load_features(path) -> np.ndarray:
     return np.stack([k, mag, ph], axis=1).ravel()
 
 
+def load_frame_deg(path) -> float:
+    """``frame_deg`` of a features JSON: where the part's feature frame lies in its own frame."""
+    path = Path(path)
+    try:
+        value = json.loads(path.read_text()).get("frame_deg")
+    except FileNotFoundError:
+        raise FeederError(f"feature file {path} is missing") from None
+    except (json.JSONDecodeError, AttributeError) as err:
+        raise FeederError(f"feature file {path} is not a features JSON ({err})") from None
+    if value is None or not isinstance(value, (int, float)) or not math.isfinite(value):
+        raise FeederError(
+            f"feature file {path} has no frame_deg (its face cloud does not lie in the part's x-y plane, "
+            "or the file predates it: rerun `feeder features`); labels.frame: principal needs it")
+    return float(value)
+
+
+def label_yaws(yaws, frame: str, frame_deg: float) -> np.ndarray:
+    """Final yaws (part frame, NaN kept) in the label frame ``part`` or ``principal``."""
+    if frame == "part":
+        return np.asarray(yaws, dtype=np.float64)
+    if frame == "principal":
+        return L.normalize_yaw(np.asarray(yaws, dtype=np.float64) + frame_deg)
+    raise FeederError(f"labels.frame must be 'principal' or 'part', got {frame!r}")
+
+
 def feeder_vector(loc1: Fence, loc2: Fence) -> np.ndarray:
     """Raw 8-vector: per location one-hot none/straight/curved then the angle in degrees."""
     out = np.zeros(N_FEEDER)
@@ -335,11 +360,14 @@ def build_dataset(configs: pd.DataFrame, features_dir, sim_dir, settings: dict) 
     sigma = float(settings["labels"]["sigma_bins"])
     levels = np.asarray(settings["labels"]["levels_pct"], dtype=np.int64)
     on_bad = settings["labels"]["on_bad"]
+    frame = settings["labels"]["frame"]
     min_ok = int(settings["sim"]["min_ok_drops"])
     n_folds = int(settings["datasets"]["group_folds"])
     features_dir, sim_dir = Path(features_dir), Path(sim_dir)
 
+    label_yaws(np.zeros(0), frame, 0.0)  # an unknown frame fails before any file is read
     feats: dict[str, np.ndarray] = {}
+    frames: dict[str, float] = {}  # frame_deg per part (0 in the part frame)
     kept, excluded, recs = [], [], []
     for row in _progress(configs.itertuples(index=False), len(configs), "dataset"):
         path = sim_dir / row.part / f"{row.config_id}.npz"
@@ -356,6 +384,8 @@ def build_dataset(configs: pd.DataFrame, features_dir, sim_dir, settings: dict) 
             continue
         if row.part not in feats:
             feats[row.part] = load_features(features_dir / f"{row.part}.json")
+            frames[row.part] = load_frame_deg(features_dir / f"{row.part}.json") if frame == "principal" else 0.0
+        rec.yaws = label_yaws(rec.yaws, frame, frames[row.part])
         kept.append(row)
         recs.append(rec)
     if not kept:
@@ -397,6 +427,8 @@ def build_dataset(configs: pd.DataFrame, features_dir, sim_dir, settings: dict) 
         "n_ok_levels": n_ok_levels,
         "n_drops": drops,
         "final_yaw_deg": yaw_mat,
+        "frame_deg": np.array([frames[p] for p in parts]),
+        "label_frame": np.array(frame),
         "excluded_part": ex[:, 0],
         "excluded_config_id": ex[:, 1],
         "excluded_dataset": ex[:, 2],

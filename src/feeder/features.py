@@ -133,8 +133,7 @@ def planar_points(points: np.ndarray, source: str, settings: DFTSettings = DFT) 
     if len(distinct) < 3:
         raise FeederError(f"{source}: fewer than 3 distinct points ({len(distinct)})")
     spread = np.ptp(pts, axis=0)
-    order = np.argsort(spread, kind="stable")
-    flat, mid, big = order
+    flat, big = _flat_axis(pts), int(np.argmax(spread))
     if spread[flat] > settings.planar_rel_tol * spread[big]:
         raise FeederError(
             f"{source}: points are not planar with one constant coordinate (spreads x/y/z = "
@@ -149,8 +148,18 @@ def planar_points(points: np.ndarray, source: str, settings: DFTSettings = DFT) 
     return xy
 
 
+def _flat_axis(pts: np.ndarray) -> int:
+    """Index of the coordinate with the least spread (the dropped one of a planar cloud)."""
+    return int(np.argsort(np.ptp(np.asarray(pts, dtype=np.float64), axis=0), kind="stable")[0])
+
+
 def load_points(path: str | os.PathLike, settings: DFTSettings = DFT) -> np.ndarray:
     """The 2D face point set of an ``.xyz`` or ``.stl`` file."""
+    return load_face(path, settings)[0]
+
+
+def load_face(path: str | os.PathLike, settings: DFTSettings = DFT) -> tuple[np.ndarray, bool]:
+    """(2D face points, whether they are the part's x-y coordinates) of an ``.xyz`` or ``.stl``."""
     path = Path(path)
     suffix = path.suffix.lower()
     if suffix == ".stl":
@@ -161,9 +170,11 @@ def load_points(path: str | os.PathLike, settings: DFTSettings = DFT) -> np.ndar
             outline = clean_outline(outline)
         except FeederError as err:
             raise FeederError(f"{path}: {err}") from err
-        return face_cloud(outline, settings.stl_cloud_points)
+        return face_cloud(outline, settings.stl_cloud_points), True
     if suffix == ".xyz":
-        return planar_points(read_xyz(path), str(path), settings)
+        pts = read_xyz(path)
+        xy = planar_points(pts, str(path), settings)
+        return xy, _flat_axis(pts) == 2
     raise FeederError(f"{path}: unknown file type {suffix!r} (expected .xyz or .stl)")
 
 
@@ -172,6 +183,14 @@ def load_points(path: str | os.PathLike, settings: DFTSettings = DFT) -> np.ndar
 # --------------------------------------------------------------------------------------------
 def principal_align(xy: np.ndarray, settings: DFTSettings = DFT) -> np.ndarray:
     """Centre and rotate onto the principal axes (largest variance along x); see module doc."""
+    c = xy - xy.mean(axis=0)
+    e1 = principal_axis(xy, settings)
+    e2 = np.array([-e1[1], e1[0]])
+    return np.column_stack([c @ e1, c @ e2])
+
+
+def principal_axis(xy: np.ndarray, settings: DFTSettings = DFT) -> np.ndarray:
+    """Unit first axis of the feature frame (step 2 of the module doc) in the points' frame."""
     c = xy - xy.mean(axis=0)
     cov = c.T @ c / len(c)
     evals, evecs = np.linalg.eigh(cov)  # ascending
@@ -187,8 +206,18 @@ def principal_align(xy: np.ndarray, settings: DFTSettings = DFT) -> np.ndarray:
     else:
         if e1[int(np.argmax(np.abs(e1)))] < 0:
             e1 = -e1
-    e2 = np.array([-e1[1], e1[0]])
-    return np.column_stack([c @ e1, c @ e2])
+    return e1
+
+
+def frame_deg(xy: np.ndarray, settings: DFTSettings = DFT) -> float:
+    """Angle (degrees, [0, 360)) of the feature frame's x axis in the points' x-y frame.
+
+    A part whose own frame is at yaw ψ has its feature frame at ψ + frame_deg: the labels'
+    ``principal`` frame (:mod:`feeder.labels`) measures yaws there, so the same shape gives the
+    same label whatever frame its CAD file was drawn in.
+    """
+    e1 = principal_axis(xy, settings)
+    return float(math.degrees(math.atan2(e1[1], e1[0])) % 360.0)
 
 
 def _tie_axis(c: np.ndarray) -> np.ndarray:
@@ -316,9 +345,14 @@ def reconstruction_mse(z: np.ndarray, count: int) -> float:
 
 
 def features_of_file(path: str | os.PathLike, settings: DFTSettings = DFT) -> dict[str, list]:
+    """The DFT features of a part file plus ``frame_deg`` (:func:`frame_deg`; None when an
+    ``.xyz`` face does not lie in the x-y plane, the plane of the part's yaw)."""
     path = Path(path)
-    z = outline_samples(load_points(path, settings), str(path), settings)
-    return dft_features(z, settings.coefficients)
+    xy, in_xy_plane = load_face(path, settings)
+    z = outline_samples(xy, str(path), settings)
+    out = dft_features(z, settings.coefficients)
+    out["frame_deg"] = frame_deg(xy, settings) if in_xy_plane else None
+    return out
 
 
 def as_vector(features: dict[str, list]) -> np.ndarray:

@@ -12,6 +12,10 @@ Everything here is a pure numpy function. Conventions (docs/data.md):
 * Metrics compare distributions row by row along the last axis and broadcast over leading axes:
   JS divergence in bits, W1 = Σ|ΔCDF|·w in degrees, KS = max|ΔCDF|, MSE = mean squared difference,
   and R² = 1 − SS_res / SS_tot of one CDF against its truth (see :func:`r2_cdf` for SS_tot = 0).
+* Label frame (``labels.frame``): ``part`` measures the yaw of the part's own (CAD) frame, as the
+  simulation records it; ``principal`` measures the yaw of its feature frame (the frame the DFT
+  features are computed in, at ``frame_deg`` in the part's frame, :func:`feeder.features.frame_deg`),
+  i.e. ``θ + frame_deg``. :func:`shift_pmf` moves a PMF between the two.
 * Partial levels use the first ``k %`` of *all* drops (``floor(drops · k / 100)`` drops in drop
   order), and only the ok drops among them enter the PMF (see :func:`partial_pmfs`).
 
@@ -111,6 +115,27 @@ def pmf_from_yaws(yaws, bins: int, sigma: float) -> np.ndarray:
 def cdf(pmf) -> np.ndarray:
     """Cumulative sum of the PMF from 0° along the last axis."""
     return np.cumsum(np.asarray(pmf, dtype=np.float64), axis=-1)
+
+
+def shift_pmf(pmf, delta_deg: float) -> np.ndarray:
+    """The PMF of ``yaw + delta_deg`` given the PMF of ``yaw`` (circular, along the last axis).
+
+    Whole-bin shifts are exact rolls; a fractional part ``f`` of a bin splits each bin's mass
+    linearly between its two destination bins (``1 − f`` and ``f``), so mass is conserved.
+    """
+    p = np.asarray(pmf, dtype=np.float64)
+    bins = p.shape[-1]
+    if not math.isfinite(delta_deg):
+        raise FeederError(f"shift_pmf: shift must be finite, got {delta_deg!r}")
+    steps = (float(delta_deg) % FULL_TURN_DEG) * bins / FULL_TURN_DEG
+    whole = int(math.floor(steps))
+    frac = steps - whole
+    if whole >= bins:  # steps rounded up to a full turn
+        whole, frac = 0, 0.0
+    out = np.roll(p, whole, axis=-1)
+    if frac > 0.0:
+        out = (1.0 - frac) * out + frac * np.roll(out, 1, axis=-1)
+    return out
 
 
 def level_drop_counts(drops: int, levels_pct) -> np.ndarray:

@@ -340,10 +340,11 @@ SCALER_FILE = "scaler.json"  # feeder.datasets.Scaler.to_dict()
 class TrainedModel:
     """A fitted network with its input scaler: raw features in, valid distributions out."""
 
-    def __init__(self, net: RegressionModel, scaler):
+    def __init__(self, net: RegressionModel, scaler, label_frame: str = "part"):
         self.net = net.eval()
         self.spec = net.spec
         self.scaler = scaler
+        self.label_frame = label_frame  # labels.frame of the training data (feeder.labels)
 
     def raw(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Raw (pmf, cdf) network outputs for scaled inputs ``x`` (N, 53), float64."""
@@ -370,7 +371,7 @@ class TrainedModel:
         out_dir = Path(out_dir)
         buf = _io.BytesIO()
         torch.save({"spec": self.spec.to_dict(), "n_out": int(self.net.body.head.out_features),
-                    "state_dict": self.net.state_dict()}, buf)
+                    "label_frame": self.label_frame, "state_dict": self.net.state_dict()}, buf)
         write_json(out_dir / SCALER_FILE, self.scaler.to_dict())
         write_bytes(out_dir / WEIGHTS_FILE, buf.getvalue())
 
@@ -397,4 +398,4 @@ class TrainedModel:
         from feeder.datasets import Scaler
 
         scaler = Scaler.from_dict(json.loads(scaler_path.read_text()))
-        return cls(net, scaler)
+        return cls(net, scaler, str(blob.get("label_frame", "part")))  # older models: the part frame

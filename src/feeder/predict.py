@@ -8,7 +8,8 @@ The part's 45 DFT features come from its ``.stl``/``.xyz`` (:func:`feeder.featur
 or from a precomputed ``--features results/features/<id>.json``; the fences are parsed by
 :func:`feeder.fences.parse_location`. The output CSV has one row per bin: ``angle_deg`` (the
 bin's lower edge in degrees), ``pmf`` (probability of the bin) and ``cdf`` (cumulative from 0°),
-post-processed exactly as in evaluation. Without ``--out`` the CSV goes to stdout. The time spent
+post-processed exactly as in evaluation, for the yaw of the part file's own frame (a model trained
+on ``principal``-frame labels is shifted back by the part's ``frame_deg``). Without ``--out`` the CSV goes to stdout. The time spent
 on features and on the network is printed to stderr in milliseconds.
 """
 
@@ -25,28 +26,45 @@ import pandas as pd
 from feeder.errors import FeederError
 
 
-def part_vector(part: Path | None, features: Path | None) -> np.ndarray:
-    """The 45 raw DFT values of a part, from its geometry file or a features JSON."""
+def part_vector(part: Path | None, features: Path | None) -> tuple[np.ndarray, float | None]:
+    """(the 45 raw DFT values, ``frame_deg`` or None) of a part, from its geometry file or a features JSON."""
     if (part is None) == (features is None):
         raise FeederError("give exactly one of --part or --features")
     if features is not None:
-        from feeder.datasets import load_features
+        from feeder.datasets import load_features, load_frame_deg
 
-        return load_features(features)
+        try:
+            frame = load_frame_deg(features)
+        except FeederError:
+            frame = None
+        return load_features(features), frame
     if not part.is_file():
         raise FeederError(f"part file {part} is missing")
     from feeder.features import as_vector, features_of_file
 
-    return as_vector(features_of_file(part))
+    feats = features_of_file(part)
+    return as_vector(feats), feats["frame_deg"]
 
 
-def predict_frame(model, part_raw: np.ndarray, loc1: str, loc2: str) -> pd.DataFrame:
-    """The 360-bin prediction of ``model`` (a TrainedModel) as a DataFrame."""
+def predict_frame(model, part_raw: np.ndarray, loc1: str, loc2: str,
+                  frame_deg: float | None = None) -> pd.DataFrame:
+    """The 360-bin prediction of ``model`` (a TrainedModel) as a DataFrame, in the part's own frame.
+
+    A model trained on ``principal``-frame labels predicts the yaw of the part's feature frame;
+    it is moved back by ``frame_deg`` (:func:`feeder.labels.shift_pmf`), which it then needs.
+    """
+    from feeder import labels as L
     from feeder.datasets import feeder_vector
     from feeder.fences import parse_location
 
     feeder_raw = feeder_vector(parse_location(loc1), parse_location(loc2))
     pmf, cdf = model.predict(part_raw[None, :], feeder_raw[None, :])
+    if model.label_frame == "principal":
+        if frame_deg is None:
+            raise FeederError("this model predicts in the parts' feature frame and needs the part's frame_deg: "
+                              "give --part, or a features JSON written by `feeder features`")
+        pmf = L.shift_pmf(pmf, -float(frame_deg))
+        cdf = L.cdf(pmf)
     bins = pmf.shape[1]
     return pd.DataFrame({"angle_deg": np.arange(bins) * (360.0 / bins), "pmf": pmf[0], "cdf": cdf[0]})
 
@@ -88,9 +106,9 @@ def main(argv: list[str]) -> int:
     parse_location(args.loc1), parse_location(args.loc2)  # bad fences fail before any work
     model = TrainedModel.load(args.model)
     t0 = time.perf_counter()
-    part_raw = part_vector(args.part, args.features)
+    part_raw, frame_deg = part_vector(args.part, args.features)
     t1 = time.perf_counter()
-    frame = predict_frame(model, part_raw, args.loc1, args.loc2)
+    frame = predict_frame(model, part_raw, args.loc1, args.loc2, frame_deg)
     t2 = time.perf_counter()
     if args.out is not None:
         from feeder.io import write_csv

@@ -214,7 +214,7 @@ def fit(cfg, data: dict[str, np.ndarray], train_mask: np.ndarray, seed: int | No
             break
     net.load_state_dict(best_state)
     return Fitted(
-        model=TrainedModel(net, scaler), history=history, best_epoch=best_epoch, best_val_loss=best_val,
+        model=TrainedModel(net, scaler, str(data.get("label_frame", "part"))), history=history, best_epoch=best_epoch, best_val_loss=best_val,
         train_s=time.perf_counter() - t0, n_fit=int(fit_rows.size), n_val=int(val_rows.size),
         pca_components=None if pca is None else pca.n_components,
         pca_requested=None if pca is None else pca.requested,
