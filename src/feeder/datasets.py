@@ -271,13 +271,16 @@ def load_frame_deg(path) -> float:
     return float(value)
 
 
+def check_label_frame(frame: str) -> str:
+    if frame not in L.LABEL_FRAMES:
+        raise FeederError(f"labels.frame must be one of {', '.join(L.LABEL_FRAMES)}, got {frame!r}")
+    return frame
+
+
 def label_yaws(yaws, frame: str, frame_deg: float) -> np.ndarray:
     """Final yaws (part frame, NaN kept) in the label frame ``part`` or ``principal``."""
-    if frame == "part":
-        return np.asarray(yaws, dtype=np.float64)
-    if frame == "principal":
-        return L.normalize_yaw(np.asarray(yaws, dtype=np.float64) + frame_deg)
-    raise FeederError(f"labels.frame must be 'principal' or 'part', got {frame!r}")
+    yaws = np.asarray(yaws, dtype=np.float64)
+    return yaws if check_label_frame(frame) == "part" else L.normalize_yaw(yaws + frame_deg)
 
 
 def feeder_vector(loc1: Fence, loc2: Fence) -> np.ndarray:
@@ -360,12 +363,11 @@ def build_dataset(configs: pd.DataFrame, features_dir, sim_dir, settings: dict) 
     sigma = float(settings["labels"]["sigma_bins"])
     levels = np.asarray(settings["labels"]["levels_pct"], dtype=np.int64)
     on_bad = settings["labels"]["on_bad"]
-    frame = settings["labels"]["frame"]
+    frame = check_label_frame(settings["labels"]["frame"])  # before any file is read
     min_ok = int(settings["sim"]["min_ok_drops"])
     n_folds = int(settings["datasets"]["group_folds"])
     features_dir, sim_dir = Path(features_dir), Path(sim_dir)
 
-    label_yaws(np.zeros(0), frame, 0.0)  # an unknown frame fails before any file is read
     feats: dict[str, np.ndarray] = {}
     frames: dict[str, float] = {}  # frame_deg per part (0 in the part frame)
     kept, excluded, recs = [], [], []

@@ -35,6 +35,7 @@ import numpy as np
 from feeder.errors import FeederError
 
 FULL_TURN_DEG = 360.0
+LABEL_FRAMES = ("principal", "part")  # labels.frame: the feature frame or the part file's own frame
 
 
 # ----------------------------------------------------------------------------------------------

@@ -9,8 +9,9 @@ or from a precomputed ``--features results/features/<id>.json``; the fences are 
 :func:`feeder.fences.parse_location`. The output CSV has one row per bin: ``angle_deg`` (the
 bin's lower edge in degrees), ``pmf`` (probability of the bin) and ``cdf`` (cumulative from 0°),
 post-processed exactly as in evaluation, for the yaw of the part file's own frame (a model trained
-on ``principal``-frame labels is shifted back by the part's ``frame_deg``). Without ``--out`` the CSV goes to stdout. The time spent
-on features and on the network is printed to stderr in milliseconds.
+on ``principal``-frame labels is shifted back by the part's ``frame_deg``). Without ``--out`` the
+CSV goes to stdout. The time spent on features and on the network is printed to stderr in
+milliseconds.
 """
 
 from __future__ import annotations
