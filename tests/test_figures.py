@@ -108,6 +108,13 @@ def _jams(path):
     pd.DataFrame(rows).to_csv(path, index=False)
 
 
+def _yaws(path):
+    rows = [{"design": d, "drops": n, "config": c, "js": 0.5 / n ** e, "w1_deg": 30.0 / n ** e,
+             "random_drops_same_w1": n ** (2 * e), "reference_drops": 1000}
+            for d, e in (("random", 0.5), ("golden", 0.8)) for n in (25, 50, 100) for c in ("a|straight:30|none", "mean")]
+    pd.DataFrame(rows).to_csv(path, index=False)
+
+
 # figure -> (data file name, writer, extra CLI options)
 CASES = {
     "fig6_dft_reconstruction": ("fig6.npz", _fig6, []),
@@ -123,6 +130,7 @@ CASES = {
     "cost_by_stage": ("cost.csv", _cost, []),
     "sim_accuracy_vs_time": ("bench.csv", _bench, ["--reference", "faithful"]),
     "jam_rates": ("jams.csv", _jams, []),
+    "yaw_sampling": ("yaws.csv", _yaws, []),
 }
 
 

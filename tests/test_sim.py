@@ -69,6 +69,27 @@ def test_seeds_stable_and_distinct():
     assert np.array_equal(sim.initial_yaws(s, 100), y[:100])  # drop order: a prefix is a prefix
 
 
+def test_golden_yaws_spread_every_prefix_evenly():
+    s = sim.drop_seed("rect", "straight30_none", 0)
+    g = sim.initial_yaws(s, 1000, "golden")
+    assert np.array_equal(g, sim.initial_yaws(s, 1000, "golden")) and g.min() >= 0 and g.max() < 360
+    assert np.array_equal(sim.initial_yaws(s, 50, "golden"), g[:50])
+    assert not np.array_equal(g[:10], sim.initial_yaws(s, 10))  # another design than random
+    # consecutive drops 360/phi apart (mod 360)
+    assert np.allclose(np.mod(np.diff(g), 360.0), 360.0 * (math.sqrt(5) - 1) / 2)
+    r = sim.initial_yaws(s, 1000)
+    for n in (10, 37, 100, 1000):
+        ys = np.sort(g[:n])
+        gaps = np.diff(np.r_[ys, ys[0] + 360.0])
+        # three-gap theorem: at most three distinct gaps, the largest under 2.7 x the mean
+        assert len(np.unique(np.round(gaps, 6))) <= 3 and gaps.max() < 2.7 * 360.0 / n
+        # every prefix is closer to uniform (KS distance) than independent draws of the same size
+        ks = lambda y: np.max(np.abs(np.sort(y) / 360.0 - (np.arange(n) + 0.5) / n))  # noqa: E731
+        assert ks(g[:n]) < ks(r[:n]) and ks(g[:n]) < 2.0 / n
+    with pytest.raises(FeederError, match="yaw sampling"):
+        sim.initial_yaws(s, 5, "sobol")
+
+
 def test_straight_fence_geometry_hand_values():
     (box,) = sc.fence_geometry(SCENE, "loc1", Fence("straight", 30.0)).boxes
     cx, cy, hl, ht, yaw = box

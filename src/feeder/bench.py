@@ -211,16 +211,12 @@ def summarize(results, settings, panel, seeds, ref_name, drops, bench, labels_cf
     return out[first]
 
 
-def main(argv: list[str]) -> int:
-    parser = argparse.ArgumentParser(prog="feeder bench-sim", description=__doc__.splitlines()[0])
-    parser.add_argument("--out-csv", required=True)
-    parser.add_argument("--settings", default=None,
-                        help="JSON {scene, sim, labels} config sections; default config/config.yaml")
-    args = parser.parse_args(argv)
-    if args.settings is not None:
+def load_bench_settings(settings: str | None) -> tuple[dict, dict, dict]:
+    """(scene, sim, labels) sections from a ``--settings`` JSON string, else config/config.yaml."""
+    if settings is not None:
         from feeder.io import parse_settings
 
-        cfg = parse_settings(args.settings)
+        cfg = parse_settings(settings)
     else:
         import yaml
 
@@ -229,10 +225,22 @@ def main(argv: list[str]) -> int:
         with open("config/config.yaml") as fh:
             cfg = yaml.safe_load(fh)
     try:
-        scene, sim_cfg, labels_cfg = cfg["scene"], cfg["sim"], cfg["labels"]
-        presets, bench = sim_cfg["presets"], sim_cfg["bench"]
+        return cfg["scene"], cfg["sim"], cfg["labels"]
     except (KeyError, TypeError) as err:
         raise FeederError(f"settings lack section {err}") from None
+
+
+def main(argv: list[str]) -> int:
+    parser = argparse.ArgumentParser(prog="feeder bench-sim", description=__doc__.splitlines()[0])
+    parser.add_argument("--out-csv", required=True)
+    parser.add_argument("--settings", default=None,
+                        help="JSON {scene, sim, labels} config sections; default config/config.yaml")
+    args = parser.parse_args(argv)
+    scene, sim_cfg, labels_cfg = load_bench_settings(args.settings)
+    try:
+        presets, bench = sim_cfg["presets"], sim_cfg["bench"]
+    except (KeyError, TypeError) as err:
+        raise FeederError(f"settings lack section sim.{err.args[0]}") from None
     from feeder.io import write_csv
 
     df = run_bench(scene, presets, labels_cfg, bench, progress=sys.stderr.isatty())

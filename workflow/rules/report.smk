@@ -14,6 +14,8 @@ SIM_TARGETS = [
     f"{TABLES}/jam_rates.csv",
     f"{FIGURES}/jam_rates.png",
     f"{FIGURES}/sim_accuracy_vs_time.png",
+    f"{TABLES}/yaw_sampling.csv",
+    f"{FIGURES}/yaw_sampling.png",
 ]
 # Every table and figure of the study (each stage's rules file lists its own).
 PAPER_TARGETS = PARTS_TARGETS + SIM_TARGETS + DATASETS_TARGETS + MODELS_TARGETS + VAE_TARGETS

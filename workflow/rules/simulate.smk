@@ -6,6 +6,7 @@
 #   results/tables/jam_rates.csv                    (ok and jam rates of each fence angle: why the grid leaves some out)
 #   results/tables/sim_accuracy_vs_time.csv, results/figures/sim_accuracy_vs_time.png (the figure
 #   is drawn from the table by its own job, feeder figure sim_accuracy_vs_time; uses figure_code)
+#   results/tables/yaw_sampling.csv, results/figures/yaw_sampling.png (drops needed per yaw design)
 SIM_MODULES = ("sim", "scene", "fences", "geometry")
 
 
@@ -24,6 +25,7 @@ rule simulate:
         preset=config["sim"]["preset"],
         drops=config["sim"]["drops"],
         seed=config["sim"]["base_seed"],
+        yaw_sampling=config["sim"]["yaw_sampling"],
         loc1=fence_location(0),
         loc2=fence_location(1),
     log:
@@ -34,7 +36,7 @@ rule simulate:
         "../envs/feeder.yaml"
     shell:
         "feeder simulate --part {input.part} --loc1 {params.loc1} --loc2 {params.loc2}"
-        " --drops {params.drops} --seed {params.seed} --preset {params.preset}"
+        " --drops {params.drops} --seed {params.seed} --yaw-sampling {params.yaw_sampling} --preset {params.preset}"
         " --settings '{params.settings}' --out {output} > {log} 2>&1"
 
 
@@ -133,3 +135,39 @@ rule draw_jam_rates:
         "../envs/feeder.yaml"
     shell:
         "feeder figure jam_rates --data {input.data} --out {output} > {log} 2>&1"
+
+
+rule bench_yaws:
+    """Distance to a large independent reference against drops, per initial-yaw design (feeder bench-yaws)."""
+    input:
+        pkg("bench_yaws", "bench", "sim_shapes", "labels", *SIM_MODULES),
+    output:
+        report("results/tables/yaw_sampling.csv", caption="../report/yaw_sampling_table.rst", category="Simulation"),
+    params:
+        settings=settings_json("scene", "sim", "labels"),
+    threads: config["sim"]["yaw_bench"]["workers"]
+    log:
+        "logs/bench_yaws/bench_yaws.log",
+    benchmark:
+        "benchmarks/bench_yaws/bench_yaws.tsv"
+    conda:
+        "../envs/feeder.yaml"
+    shell:
+        "feeder bench-yaws --settings '{params.settings}' --out-csv {output} > {log} 2>&1"
+
+
+rule draw_yaw_sampling:
+    """The drops-needed figure drawn from its table."""
+    input:
+        figure_code("yaw_sampling"),
+        data="results/tables/yaw_sampling.csv",
+    output:
+        report("results/figures/yaw_sampling.png", caption="../report/yaw_sampling.rst", category="Simulation"),
+    log:
+        "logs/figures/yaw_sampling.log",
+    benchmark:
+        "benchmarks/figures/yaw_sampling.tsv"
+    conda:
+        "../envs/feeder.yaml"
+    shell:
+        "feeder figure yaw_sampling --data {input.data} --out {output} > {log} 2>&1"

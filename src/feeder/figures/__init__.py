@@ -28,6 +28,8 @@ module (= PNG name)            figure                                    data fi
                                                                          (``feeder delta table``)
 ``sim_accuracy_vs_time``       simulation settings: accuracy vs CPU time ``results/tables/sim_accuracy_vs_time.csv``
                                                                          (``feeder bench-sim``)
+``yaw_sampling``               sampling error vs drops per yaw design    ``results/tables/yaw_sampling.csv``
+                                                                         (``feeder bench-yaws``)
 ``cost_by_stage``              wall/CPU seconds per workflow stage       ``results/tables/cost_by_stage.csv``
                                                                          (``feeder cost``)
 =============================  ========================================  =============================================
