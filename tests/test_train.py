@@ -117,13 +117,13 @@ def test_every_model_composes_with_paper_settings():
         assert cfg.trainer.patience == 20 and cfg.trainer.val_fraction == 0.1
     assert T.compose_config(["model=m1"]).model.components == 170
     assert T.compose_config(["model=m5"]).model.components == 85
-    assert dict(T.compose_config(["model=m3"]).model.loss) == {"cdf_mse": 1.0, "pmf_kl": 1.0, "cdf_ks": 1.0}
+    assert dict(T.compose_config(["model=m3"]).model.loss) == {"cdf_mse": 1.0, "pmf_kl_fwd": 1.0, "cdf_ks": 1.0}
     assert dict(T.compose_config(["model=m6"]).model.loss) == {"cdf_mse": 1.0}
 
 
 def test_resolved_config_yaml_changes_only_with_the_model():
     a = T.resolved_config_yaml("m3")
-    assert "pmf_kl" in a and "paths" not in a
+    assert "pmf_kl_fwd" in a and "paths" not in a
     assert T.resolved_config_yaml("m3") == a
     assert T.resolved_config_yaml("m4") != a
     assert "max_epochs: 7" in T.resolved_config_yaml("m3", ["trainer.max_epochs=7"])
