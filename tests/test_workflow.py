@@ -134,6 +134,18 @@ def test_editing_one_fence_angle_reruns_only_the_simulations_that_use_it(smoke_r
     assert {"datasets_build", "train_model", "evaluate_models"} <= rules  # and what depends on them
 
 
+def test_switching_the_yaw_design_reruns_every_simulation_and_no_benchmark(smoke_run, tmp_path):
+    """The benchmarks take only the settings they read: sim.yaw_sampling is not one of them."""
+    before = merged_config(smoke_run, "config/smoke.yaml")
+    override = tmp_path / "golden.yaml"
+    override.write_text(yaml.safe_dump({"sim": {"yaw_sampling": "golden"}}))
+    jobs = planned_jobs(smoke_run, *SMOKE, str(override))
+    assert {out for rule, out in jobs if rule == "simulate"} == _sim_outputs(before)
+    rules = {rule for rule, _ in jobs}
+    assert not rules & {"bench_sim", "bench_yaws", "bench_jams", "scene_table", "part_features"}
+    assert {"datasets_build", "train_model"} <= rules
+
+
 def test_editing_one_model_config_reruns_only_that_model(smoke_run, edit):
     edit("config/model/m3.yaml", "lr: 0.0004", "lr: 0.0005")
     jobs = planned_jobs(smoke_run, *SMOKE)

@@ -47,7 +47,7 @@ rule scene_table:
     output:
         report("results/tables/table1.csv", caption="../report/table1.rst", category="Simulation"),
     params:
-        settings=settings_json("scene", "sim"),
+        settings=settings_json("scene", "sim.presets"),
     log:
         "logs/scene_table/table1.log",
     benchmark:
@@ -65,7 +65,7 @@ rule bench_sim:
     output:
         report("results/tables/sim_accuracy_vs_time.csv", caption="../report/sim_accuracy_vs_time_table.rst", category="Simulation"),
     params:
-        settings=settings_json("scene", "sim", "labels"),
+        settings=settings_json("scene", "sim.presets", "sim.bench", "labels"),
     threads: config["sim"]["bench"]["workers"]
     log:
         "logs/bench_sim/bench_sim.log",
@@ -108,7 +108,7 @@ rule bench_jams:
     output:
         report("results/tables/jam_rates.csv", caption="../report/jam_rates.rst", category="Simulation"),
     params:
-        settings=settings_json("scene", "sim", "parts"),
+        settings=settings_json("scene", "sim.presets", "sim.jam_survey", "sim.base_seed", "parts.dir"),
     threads: config["sim"]["jam_survey"]["workers"]
     log:
         "logs/bench_jams/bench_jams.log",
@@ -144,7 +144,7 @@ rule bench_yaws:
     output:
         report("results/tables/yaw_sampling.csv", caption="../report/yaw_sampling_table.rst", category="Simulation"),
     params:
-        settings=settings_json("scene", "sim", "labels"),
+        settings=settings_json("scene", "sim.presets", "sim.bench", "sim.yaw_bench", "labels"),
     threads: config["sim"]["yaw_bench"]["workers"]
     log:
         "logs/bench_yaws/bench_yaws.log",
