@@ -211,8 +211,15 @@ def summarize(results, settings, panel, seeds, ref_name, drops, bench, labels_cf
     return out[first]
 
 
-def load_bench_settings(settings: str | None) -> tuple[dict, dict, dict]:
-    """(scene, sim, labels) sections from a ``--settings`` JSON string, else config/config.yaml."""
+def bench_cli(prog: str, doc: str, argv: list[str]) -> tuple[str, dict, dict, dict]:
+    """The command line shared by the benchmarks (``--out-csv``, ``--settings``) → (out CSV path,
+    scene, sim, labels): the sections from the ``--settings`` JSON string, else config/config.yaml."""
+    parser = argparse.ArgumentParser(prog=prog, description=doc.splitlines()[0])
+    parser.add_argument("--out-csv", required=True)
+    parser.add_argument("--settings", default=None,
+                        help="JSON {scene, sim, labels} config sections; default config/config.yaml")
+    args = parser.parse_args(argv)
+    settings = args.settings
     if settings is not None:
         from feeder.io import parse_settings
 
@@ -225,18 +232,13 @@ def load_bench_settings(settings: str | None) -> tuple[dict, dict, dict]:
         with open("config/config.yaml") as fh:
             cfg = yaml.safe_load(fh)
     try:
-        return cfg["scene"], cfg["sim"], cfg["labels"]
+        return args.out_csv, cfg["scene"], cfg["sim"], cfg["labels"]
     except (KeyError, TypeError) as err:
         raise FeederError(f"settings lack section {err}") from None
 
 
 def main(argv: list[str]) -> int:
-    parser = argparse.ArgumentParser(prog="feeder bench-sim", description=__doc__.splitlines()[0])
-    parser.add_argument("--out-csv", required=True)
-    parser.add_argument("--settings", default=None,
-                        help="JSON {scene, sim, labels} config sections; default config/config.yaml")
-    args = parser.parse_args(argv)
-    scene, sim_cfg, labels_cfg = load_bench_settings(args.settings)
+    out_csv, scene, sim_cfg, labels_cfg = bench_cli("feeder bench-sim", __doc__, argv)
     try:
         presets, bench = sim_cfg["presets"], sim_cfg["bench"]
     except (KeyError, TypeError) as err:
@@ -244,7 +246,7 @@ def main(argv: list[str]) -> int:
     from feeder.io import write_csv
 
     df = run_bench(scene, presets, labels_cfg, bench, progress=sys.stderr.isatty())
-    write_csv(args.out_csv, df)
+    write_csv(out_csv, df)
     agg = df[(df["config"] == "mean") & (df["drops"] == df["drops"].max())]
     for _, r in agg.iterrows():
         print(f"{r['setting']:>16}: {r['ms_per_drop']:8.1f} ms/drop  x{r['speedup_vs_reference']:6.1f}  "

@@ -18,7 +18,6 @@ The figure (``feeder figure yaw_sampling``) draws the mean distances against dro
 
 from __future__ import annotations
 
-import argparse
 import math
 import sys
 import time
@@ -94,8 +93,8 @@ def summarize(results, ref, panel, levels, labels_cfg):
     return out
 
 
-def run_bench(scene, presets, labels_cfg, sim_cfg, progress=False):
-    yb, panel_cfg = sim_cfg["yaw_bench"], sim_cfg["bench"]
+def run_bench(scene, sim_cfg, labels_cfg, progress=False):
+    presets, yb, panel_cfg = sim_cfg["presets"], sim_cfg["yaw_bench"], sim_cfg["bench"]
     panel = [tuple(e) for e in panel_cfg["panel"]]
     if yb["preset"] not in presets:
         raise FeederError(f"sim.yaw_bench.preset {yb['preset']!r} is not a preset")
@@ -133,19 +132,14 @@ def run_bench(scene, presets, labels_cfg, sim_cfg, progress=False):
 
 
 def main(argv: list[str]) -> int:
-    parser = argparse.ArgumentParser(prog="feeder bench-yaws", description=__doc__.splitlines()[0])
-    parser.add_argument("--out-csv", required=True)
-    parser.add_argument("--settings", default=None,
-                        help="JSON {scene, sim, labels} config sections; default config/config.yaml")
-    args = parser.parse_args(argv)
-    from feeder.bench import load_bench_settings
+    from feeder.bench import bench_cli
     from feeder.io import write_csv
 
-    scene, sim_cfg, labels_cfg = load_bench_settings(args.settings)
+    out_csv, scene, sim_cfg, labels_cfg = bench_cli("feeder bench-yaws", __doc__, argv)
     if "yaw_bench" not in sim_cfg:
         raise FeederError("settings lack section sim.yaw_bench")
-    df = run_bench(scene, sim_cfg["presets"], labels_cfg, sim_cfg, progress=sys.stderr.isatty())
-    write_csv(args.out_csv, df)
+    df = run_bench(scene, sim_cfg, labels_cfg, progress=sys.stderr.isatty())
+    write_csv(out_csv, df)
     for _, r in df[df["config"] == "mean"].iterrows():
         print(f"{r['design']:>7} {int(r['drops']):5d} drops: JS {r['js']:.4f}  W1 {r['w1_deg']:6.2f} deg  "
               f"R2 {r['r2_cdf']:.3f}  = {r['random_drops_same_w1']:.0f} random drops", file=sys.stderr)
