@@ -24,6 +24,8 @@ def smoke_run(tmp_path_factory) -> Path:
     work = scratch_copy(tmp_path_factory.mktemp("smoke"))
     proc = snakemake(work, *SMOKE)
     assert proc.returncode == 0, proc.stderr[-4000:]
+    # the onstart hook ran: no per-job re-scheduling timers in a local run (feeder.workflow)
+    assert "job rate limiter switched off" in proc.stderr
     return work
 
 

@@ -35,3 +35,31 @@ def test_hydra_settings_come_from_the_run_directory_when_it_has_them(tmp_path):
     (tmp_path / "config").mkdir()
     (tmp_path / "config" / "train.yaml").write_text("seed: 0\n")
     assert hydra_config_dir(tmp_path) == str((tmp_path / "config").resolve())
+
+
+class _Scheduler:
+    def __init__(self, limiter):
+        self.job_rate_limiter = limiter
+
+
+class _Workflow:
+    def __init__(self, local, limiter=object(), scheduler=True):
+        self.local_exec = local
+        if scheduler:
+            self.scheduler = _Scheduler(limiter)
+
+
+def test_job_rate_limit_is_dropped_only_for_local_runs():
+    from feeder.workflow import drop_local_job_rate_limit
+
+    said = []
+    local = _Workflow(local=True)
+    assert drop_local_job_rate_limit(local, log=said.append) is True
+    assert local.scheduler.job_rate_limiter is None and len(said) == 1
+    assert drop_local_job_rate_limit(local, log=said.append) is False  # already off: no second message
+    remote = _Workflow(local=False)
+    limiter = remote.scheduler.job_rate_limiter
+    assert drop_local_job_rate_limit(remote, log=said.append) is False
+    assert remote.scheduler.job_rate_limiter is limiter  # cluster runs keep the limit
+    assert drop_local_job_rate_limit(_Workflow(local=True, scheduler=False), log=said.append) is False
+    assert len(said) == 1

@@ -48,3 +48,24 @@ def hydra_config_dir(cwd: str | os.PathLike | None = None) -> str:
     if (local / "train.yaml").is_file():
         return str(local.resolve())
     return str(Path(__file__).resolve().parents[2] / "config")
+
+
+def drop_local_job_rate_limit(workflow, log=print) -> bool:
+    """Switch off Snakemake's job-submission rate limiter for a local run (call from ``onstart``).
+
+    The limiter (``--max-jobs-per-timespan``, default 100/1s, always on from the command line)
+    exists to spare cluster schedulers. In Snakemake 9 every scheduling round it triggers arms a
+    ``threading.Timer`` that triggers another round, so each finished job leaves a perpetual
+    once-a-timespan re-scheduling behind it (snakemake/snakemake#3744). With ~1,250 simulation
+    jobs that cost the snakemake process itself a growing share of a core (measured 0.8 CPU-s per
+    job early in the paper-scale run, more later). Locally nothing needs the limit; remote
+    executors keep it. Returns whether the limiter was removed.
+    """
+    scheduler = getattr(workflow, "scheduler", None)
+    if scheduler is None or not getattr(workflow, "local_exec", False):
+        return False
+    if getattr(scheduler, "job_rate_limiter", None) is None:
+        return False
+    scheduler.job_rate_limiter = None
+    log("feeder: local run, Snakemake's job rate limiter switched off (snakemake#3744)")
+    return True

@@ -8,7 +8,7 @@ from snakemake.utils import validate
 from feeder.datasets import configurations
 from feeder.fences import parse_config_id
 from feeder.parts import list_parts
-from feeder.workflow import module_files, put_interpreter_on_path, select_settings
+from feeder.workflow import drop_local_job_rate_limit, module_files, put_interpreter_on_path, select_settings
 
 
 validate(config, schema="../schemas/config.schema.yaml")
