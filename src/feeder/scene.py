@@ -265,6 +265,28 @@ def lane_reach_y(footprint, x_lo: float, x_hi: float, y_from: float = -math.inf)
 # --------------------------------------------------------------------------------------------
 # Table 1
 # --------------------------------------------------------------------------------------------
+def belt_contact(belt: dict) -> tuple[float, float] | None:
+    """(stiffness N/m, damping N s/m) per contact point of a compliant belt, or None for a rigid one."""
+    k, d = belt.get("contact_stiffness"), belt.get("contact_damping")
+    if k is None and d is None:
+        return None
+    if k is None or d is None or float(k) <= 0 or float(d) < 0:
+        raise FeederError("scene.belt: contact_stiffness (> 0) and contact_damping (>= 0) go together; "
+                          f"both null = rigid contact (got {k!r} and {d!r})")
+    return float(k), float(d)
+
+
+def belt_contact_row(belt: dict) -> tuple[str, str, str]:
+    """Table 1 row of the belt-part contact model: rigid, or a spring-damper per contact point."""
+    contact = belt_contact(belt)
+    if contact is None:
+        return ("Belt contact", "rigid", "hard constraint; how a flat part's weight splits over its contact points is left to the solver")
+    k, d = contact
+    return ("Belt contact stiffness / damping", f"{k:g} / {d:g}",
+            "N/m and N s/m per contact point (Bullet contactStiffness/contactDamping): a compliant belt, "
+            "so a flat part's weight splits over its contact points by their penetration")
+
+
 def table1_rows(scene: dict, presets: dict) -> list[tuple[str, str, str]]:
     """(parameter, value, units / notes) for every physical parameter of the scene and presets."""
     b, w, pt, fc = scene["belt"], scene["walls"], scene["part"], scene["fences"]
@@ -285,6 +307,7 @@ def table1_rows(scene: dict, presets: dict) -> list[tuple[str, str, str]]:
         ("Cone friction", "on", "enableConeFriction (pyramid friction jams parts)"),
         ("Belt width", f"{2 * b['half_width']:g}", "m between the containment walls' inner faces"),
         ("Belt slab thickness", f"{b['thickness']:g}", "m; belt surface at z = 0"),
+        belt_contact_row(b),
         ("Containment walls", f"{w['height']:g} x {w['thickness']:g}", "m, height x thickness"),
         ("Part density", f"{pt['density']:g}", "kg/m^3; mass, centre of mass and inertia from the exact polygon"),
         ("Part collision margin", f"{pt['collision_margin']:g}", "m; convex pieces are inset by it so the part keeps its true size"),

@@ -66,7 +66,7 @@ import numpy as np
 
 from feeder.errors import FeederError
 from feeder.fences import Fence, config_id, parse_location
-from feeder.scene import FenceGeom, load_settings, scene_fences
+from feeder.scene import FenceGeom, belt_contact, load_settings, scene_fences
 
 STATUSES = ("ok", "jammed", "fell_off", "timed_out", "flipped", "nan")
 PRESET_KEYS = ("time_step", "substeps", "solver_iterations", "lanes", "full_path", "skip_slides", "merge_tolerance")
@@ -393,10 +393,13 @@ class World:
         wt, wh = float(walls["thickness"]), float(walls["height"])
         wx = float(belt["half_width"]) + 0.5 * wt
         fh, fclr = float(fc["height"]), float(fc["clearance"])
+        contact = belt_contact(belt)
         self.belts = []
         for x0 in self.lane_x:
             bb = pb.createMultiBody(0, bshape, basePosition=[x0, *self.belt_start], physicsClientId=c)
             self._surface(bb, float(belt["friction"]))
+            if contact is not None:  # compliant belt: a spring-damper per contact point (Bullet: ERP/CFM)
+                pb.changeDynamics(bb, -1, contactStiffness=contact[0], contactDamping=contact[1], physicsClientId=c)
             self.belts.append(bb)
             ws = pb.createCollisionShapeArray(
                 shapeTypes=[pb.GEOM_BOX, pb.GEOM_BOX], halfExtents=[[0.5 * wt, 0.5 * (whi - wlo), 0.5 * wh]] * 2,
