@@ -63,3 +63,19 @@ def test_job_rate_limit_is_dropped_only_for_local_runs():
     assert remote.scheduler.job_rate_limiter is limiter  # cluster runs keep the limit
     assert drop_local_job_rate_limit(_Workflow(local=True, scheduler=False), log=said.append) is False
     assert len(said) == 1
+
+
+def test_config_overlays_merge_nested_sections_and_replace_lists(tmp_path):
+    import pytest
+
+    from feeder.errors import FeederError
+    from feeder.workflow import load_study_config, overlay_config
+
+    assert overlay_config({"a": {"b": 1, "c": [1, 2]}, "d": 0}, {"a": {"c": [3]}, "e": 5}) == {
+        "a": {"b": 1, "c": [3]}, "d": 0, "e": 5}
+    (tmp_path / "config").mkdir()
+    (tmp_path / "config" / "config.yaml").write_text("sim:\n  drops: 1000\n  preset: fast\n")
+    (tmp_path / "over.yaml").write_text("sim:\n  drops: 50\n")
+    assert load_study_config("over.yaml", root=tmp_path) == {"sim": {"drops": 50, "preset": "fast"}}
+    with pytest.raises(FeederError, match="missing.yaml"):
+        load_study_config("missing.yaml", root=tmp_path)

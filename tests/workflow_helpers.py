@@ -56,17 +56,6 @@ def planned_rules(work: Path, *args: str) -> set[str]:
 
 def merged_config(root: Path, *files: str) -> dict:
     """config/config.yaml overlaid by ``files`` the way Snakemake merges ``--configfile``."""
-    import yaml
+    from feeder.workflow import load_study_config
 
-    def merge(base: dict, over: dict) -> dict:
-        for key, value in over.items():
-            if isinstance(value, dict) and isinstance(base.get(key), dict):
-                merge(base[key], value)
-            else:
-                base[key] = value
-        return base
-
-    merged: dict = {}
-    for name in ("config/config.yaml", *files):
-        merge(merged, yaml.safe_load((root / name).read_text()))
-    return merged
+    return load_study_config(*files, root=root)

@@ -216,8 +216,11 @@ def bench_cli(prog: str, doc: str, argv: list[str]) -> tuple[str, dict, dict, di
     scene, sim, labels): the sections from the ``--settings`` JSON string, else config/config.yaml."""
     parser = argparse.ArgumentParser(prog=prog, description=doc.splitlines()[0])
     parser.add_argument("--out-csv", required=True)
-    parser.add_argument("--settings", default=None,
+    source = parser.add_mutually_exclusive_group()
+    source.add_argument("--settings", default=None,
                         help="JSON {scene, sim, labels} config sections; default config/config.yaml")
+    source.add_argument("--configfile", nargs="+", default=[],
+                        help="config files laid over config/config.yaml (as snakemake --configfile)")
     args = parser.parse_args(argv)
     settings = args.settings
     if settings is not None:
@@ -225,12 +228,11 @@ def bench_cli(prog: str, doc: str, argv: list[str]) -> tuple[str, dict, dict, di
 
         cfg = parse_settings(settings)
     else:
-        import yaml
+        from feeder.workflow import load_study_config
 
         if not os.path.isfile("config/config.yaml"):
             raise FeederError("config/config.yaml not found (run from the project root or pass --settings)")
-        with open("config/config.yaml") as fh:
-            cfg = yaml.safe_load(fh)
+        cfg = load_study_config(*args.configfile)
     try:
         return args.out_csv, cfg["scene"], cfg["sim"], cfg["labels"]
     except (KeyError, TypeError) as err:

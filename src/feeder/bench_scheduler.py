@@ -49,22 +49,11 @@ def spread(items: list, n: int) -> list:
 
 def sim_targets(study: Path, configfiles: list[str], n_jobs: int) -> list[str]:
     """Simulation outputs of n configurations spread over the configured grid."""
-    import yaml
-
     from feeder.datasets import configurations
     from feeder.parts import list_parts
+    from feeder.workflow import load_study_config
 
-    def merge(base: dict, over: dict) -> dict:
-        for key, value in over.items():
-            if isinstance(value, dict) and isinstance(base.get(key), dict):
-                merge(base[key], value)
-            else:
-                base[key] = value
-        return base
-
-    cfg: dict = {}
-    for name in ("config/config.yaml", *configfiles):
-        merge(cfg, yaml.safe_load((study / name).read_text()))
+    cfg = load_study_config(*configfiles, root=study)
     parts = list_parts(str(study / cfg["parts"]["dir"]), cfg["parts"]["include"])
     grid = configurations(cfg, parts)
     rows = spread(list(zip(grid["part"], grid["config_id"])), n_jobs)

@@ -69,3 +69,32 @@ def drop_local_job_rate_limit(workflow, log=print) -> bool:
     scheduler.job_rate_limiter = None
     log("feeder: local run, Snakemake's job rate limiter switched off (snakemake#3744)")
     return True
+
+
+def overlay_config(base: dict, over: dict) -> dict:
+    """``base`` with ``over`` laid on top, nested sections merged key by key (the way Snakemake
+    merges ``--configfile`` files). Modifies and returns ``base``."""
+    for key, value in over.items():
+        if isinstance(value, dict) and isinstance(base.get(key), dict):
+            overlay_config(base[key], value)
+        else:
+            base[key] = value
+    return base
+
+
+def load_study_config(*overlays: str | os.PathLike, root: str | os.PathLike = ".") -> dict:
+    """config/config.yaml of the study in ``root`` overlaid by the given files (paths relative to
+    ``root`` unless absolute), as ``snakemake --configfile <overlays>`` sees it."""
+    from pathlib import Path
+
+    import yaml
+
+    from feeder.errors import FeederError
+
+    merged: dict = {}
+    for name in ("config/config.yaml", *overlays):
+        path = Path(root) / name
+        if not path.is_file():
+            raise FeederError(f"config file {path} not found")
+        overlay_config(merged, yaml.safe_load(path.read_text()) or {})
+    return merged
