@@ -3,26 +3,16 @@
 from __future__ import annotations
 
 import re
-import shutil
 import subprocess
 import sys
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 SNAKEMAKE = str(Path(sys.executable).parent / "snakemake")
-# What a workflow run reads from the repository (src/ only as rule inputs: the package is installed).
-COPIED = ["Snakefile", "workflow", "profiles", "config", "parts", "src"]
-
-
 def scratch_copy(dest: Path) -> Path:
-    dest.mkdir(parents=True, exist_ok=True)
-    for name in COPIED:
-        src = ROOT / name
-        if src.is_dir():
-            shutil.copytree(src, dest / name, ignore=shutil.ignore_patterns("__pycache__", "*.egg-info"))
-        else:
-            shutil.copy2(src, dest / name)
-    return dest
+    from feeder.workflow import copy_study
+
+    return copy_study(ROOT, dest)
 
 
 def snakemake(work: Path, *args: str, timeout: float = 900) -> subprocess.CompletedProcess:

@@ -21,7 +21,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import sys
 import time
 from multiprocessing import get_context
@@ -230,8 +229,6 @@ def bench_cli(prog: str, doc: str, argv: list[str]) -> tuple[str, dict, dict, di
     else:
         from feeder.workflow import load_study_config
 
-        if not os.path.isfile("config/config.yaml"):
-            raise FeederError("config/config.yaml not found (run from the project root or pass --settings)")
         cfg = load_study_config(*args.configfile)
     try:
         return args.out_csv, cfg["scene"], cfg["sim"], cfg["labels"]

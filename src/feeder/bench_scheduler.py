@@ -27,10 +27,6 @@ import pandas as pd
 
 from feeder.errors import FeederError
 
-# What a workflow run reads from the study directory (the package itself is installed).
-STUDY_FILES = ("Snakefile", "workflow", "profiles", "config", "parts", "src")
-
-
 def proc_cpu_seconds(stat_line: str, ticks_per_s: float) -> float:
     """User + system CPU of one process's own threads from a /proc/<pid>/stat line (children,
     fields 16-17, excluded). The command name (field 2) may hold spaces: split after its ')'."""
@@ -63,15 +59,11 @@ def sim_targets(study: Path, configfiles: list[str], n_jobs: int) -> list[str]:
 def run_variant(study: Path, work: Path, configfiles: list[str], targets: list[str], drops: int,
                 local_rate_limit: bool, poll_s: float = 0.5) -> dict:
     """One snakemake run of the targets in a fresh copy of the study; what it cost."""
+    from feeder.workflow import copy_study
+
     if work.exists():
         shutil.rmtree(work)
-    work.mkdir(parents=True)
-    for name in STUDY_FILES:
-        src = study / name
-        if src.is_dir():
-            shutil.copytree(src, work / name, ignore=shutil.ignore_patterns("__pycache__", "*.egg-info"))
-        elif src.is_file():
-            shutil.copy2(src, work / name)
+    copy_study(study, work)
     overlay = work / "config" / "_bench_scheduler.yaml"
     overlay.write_text(
         f"sim:\n  drops: {drops}\n  min_ok_drops: 1\nscheduling:\n  local_rate_limit: {str(local_rate_limit).lower()}\n"

@@ -71,6 +71,27 @@ def drop_local_job_rate_limit(workflow, log=print) -> bool:
     return True
 
 
+# What a workflow run reads from a study directory (the package itself is installed; src/ is
+# there because rules declare its modules as inputs).
+STUDY_FILES = ("Snakefile", "workflow", "profiles", "config", "parts", "src")
+
+
+def copy_study(study: str | os.PathLike, dest: str | os.PathLike):
+    """A fresh copy of what a workflow run of ``study`` reads, at ``dest`` (created); returns it."""
+    import shutil
+    from pathlib import Path
+
+    study, dest = Path(study), Path(dest)
+    dest.mkdir(parents=True, exist_ok=True)
+    for name in STUDY_FILES:
+        src = study / name
+        if src.is_dir():
+            shutil.copytree(src, dest / name, ignore=shutil.ignore_patterns("__pycache__", "*.egg-info"))
+        elif src.is_file():
+            shutil.copy2(src, dest / name)
+    return dest
+
+
 def overlay_config(base: dict, over: dict) -> dict:
     """``base`` with ``over`` laid on top, nested sections merged key by key (the way Snakemake
     merges ``--configfile`` files). Modifies and returns ``base``."""
@@ -95,6 +116,6 @@ def load_study_config(*overlays: str | os.PathLike, root: str | os.PathLike = ".
     for name in ("config/config.yaml", *overlays):
         path = Path(root) / name
         if not path.is_file():
-            raise FeederError(f"config file {path} not found")
+            raise FeederError(f"config file {path} not found (run from the project root or pass --settings)")
         overlay_config(merged, yaml.safe_load(path.read_text()) or {})
     return merged
