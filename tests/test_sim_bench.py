@@ -104,8 +104,8 @@ def test_merge_scene_replaces_nested_values_only():
 def test_bench_settings_can_be_config_overlays(monkeypatch):
     monkeypatch.chdir(Path(__file__).resolve().parents[1])
     _, scene, sim_cfg, _ = bench.bench_cli("feeder bench-sim", "doc", ["--out-csv", "x.csv", "--configfile",
-                                                                       "config/compliant.yaml"])
-    assert scene["belt"]["contact_stiffness"] == 1000.0 and scene["belt"]["speed"] == 0.10  # overlaid, rest kept
+                                                                       "config/rigid.yaml"])
+    assert scene["belt"]["contact_stiffness"] is None and scene["belt"]["speed"] == 0.10  # overlaid, rest kept
     assert [s["name"] for s in sim_cfg["bench"]["sweep"]][1] == "fast"
     _, plain, _, _ = bench.bench_cli("feeder bench-sim", "doc", ["--out-csv", "x.csv"])
-    assert plain["belt"]["contact_stiffness"] is None
+    assert plain["belt"]["contact_stiffness"] == 1000.0
