@@ -109,3 +109,42 @@ def test_bench_settings_can_be_config_overlays(monkeypatch):
     assert [s["name"] for s in sim_cfg["bench"]["sweep"]][1] == "fast"
     _, plain, _, _ = bench.bench_cli("feeder bench-sim", "doc", ["--out-csv", "x.csv"])
     assert plain["belt"]["contact_stiffness"] == 1000.0
+
+
+def _pairs(rng, n, configs, shift_a=0.0, same=False):
+    out = []
+    for _ in range(configs):
+        ref = (90.0 + np.degrees(rng.vonmises(0.0, 8.0, n))) % 360
+        b = (90.0 + np.degrees(rng.vonmises(0.0, 8.0, n))) % 360
+        a = b.copy() if same else (90.0 + np.degrees(rng.vonmises(0.0, 8.0, n))) % 360
+        out.append(((a + shift_a) % 360, b, ref))
+    return out
+
+
+def test_paired_excess_identical_runs_have_zero_excess_and_p_one():
+    t = bench.paired_excess(_pairs(np.random.default_rng(1), 60, 3, same=True), 360, 1.0, 50, seed=0)
+    assert t["js"] == (0.0, 1.0) and t["w1"] == (0.0, 1.0)
+
+
+def test_paired_excess_flags_a_systematic_shift_but_not_sampling():
+    rng = np.random.default_rng(2)
+    shifted = bench.paired_excess(_pairs(rng, 80, 4, shift_a=5.0), 360, 1.0, 100, seed=0)
+    assert shifted["w1"][0] > 2.0 and shifted["w1"][1] < 0.05  # a quarter of the spread: W1 sees it
+    far = bench.paired_excess(_pairs(rng, 80, 4, shift_a=20.0), 360, 1.0, 100, seed=0)
+    assert far["js"][1] < 0.05 and far["w1"][1] < 0.05
+    fair = bench.paired_excess(_pairs(rng, 80, 4), 360, 1.0, 100, seed=0)
+    assert fair["js"][1] > 0.05 and fair["w1"][1] > 0.05
+
+
+def test_paired_excess_wraps_around_zero_and_skips_failed_drops():
+    rng = np.random.default_rng(3)
+    b, r = (np.degrees(rng.vonmises(0.0, 8.0, (2, 40))) % 360)  # both straddle 0/360
+    a = b.copy()
+    a[:5] = np.nan  # failed drops of the setting: left out of its PMF, not an error
+    t = bench.paired_excess([(a, b, r)], 360, 1.0, 50, seed=0)
+    assert np.isfinite(t["js"][0]) and 0.0 < t["js"][1] <= 1.0
+    # a sample straddling 0/360 shifted by one full turn is the same sample
+    t2 = bench.paired_excess([((b + 360.0) % 360, b, r)], 360, 1.0, 20, seed=0)
+    assert t2["js"] == (0.0, 1.0)
+    with pytest.raises(Exception, match="differ in length"):
+        bench.paired_excess([(a[:10], b, r)], 360, 1.0, 5, seed=0)
