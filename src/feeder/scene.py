@@ -322,7 +322,7 @@ def table1_rows(scene: dict, presets: dict) -> list[tuple[str, str, str]]:
          "arc centre x = x0 - r sin(theta), y = y0 + r cos(theta); 0 <= theta <= 90"),
         ("Least gap between the fences", f"{fc['min_gap']:g}", "m; the upstream fence's tip is cut back to keep it (crossing fences trap parts)"),
         ("Jam", f"travel < {scene['status']['jam_travel']:g} m in {scene['status']['jam_window_s']:g} s", "drop status 'jammed'"),
-        ("At rest", f"|v - v_belt| < {scene['status']['rest_speed']:g} m/s and |w_z| < {scene['status']['rest_omega_deg_s']:g} deg/s for {scene['status']['rest_window_s']:g} s", "final yaw recorded once at rest past the last fence"),
+        ("At rest", f"|v - v_belt| < {scene['status']['rest_speed']:g} m/s and |w_z| < {scene['status']['rest_omega_deg_s']:g} deg/s for {scene['status']['rest_window_s']:g} s", "velocities from the displacement between state checks; final yaw recorded once at rest past the last fence"),
         ("Flipped / fell off", f"tilt > {scene['status']['flip_tilt_deg']:g} deg / z < {scene['status']['fall_z']:g} m", "drop status"),
         ("Time limit", f"{scene['status']['timeout_factor']:g} x path / speed + {scene['status']['timeout_extra_s']:g} s", "drop status 'timed_out'"),
     ]

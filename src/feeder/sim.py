@@ -489,6 +489,7 @@ class _Lane:
     inside_fence: bool = False
     teleports: int = 0
     probe_yaw: float = math.nan
+    last: tuple | None = None  # (elapsed, x, y, yaw rad) at the previous check; None after a move
 
 
 def _fence_boxes_array(fences: list[FenceGeom]) -> np.ndarray:
@@ -642,7 +643,17 @@ def run_drops(geom, loc1: Fence, loc2: Fence, yaws0: np.ndarray, scene: dict, pr
                 if elapsed > plan.time_limit:
                     finish(j, "timed_out", pos=(x, y))
                     continue
-                at_rest = math.hypot(lin[0], lin[1] - v) < rest_speed and abs(ang[2]) < rest_omega
+                # at rest: moving with the belt since the previous check, judged from the displacement
+                # (Bullet's reported velocity of a part held by a compliant contact can keep a small
+                # residual while the part does not move: docs/simulation.md)
+                yr = quat_yaw(q)
+                at_rest = False
+                if ln.last is not None:
+                    span = elapsed - ln.last[0]
+                    turn = (yr - ln.last[3] + math.pi) % (2.0 * math.pi) - math.pi
+                    at_rest = (math.hypot((x - ln.last[1]) / span, (y - ln.last[2]) / span - v) < rest_speed
+                               and abs(turn) / span < rest_omega)
+                ln.last = (elapsed, x, y, yr)
                 if skip_slides and straight and not at_rest:
                     # steady sliding along a straight fence is translation-invariant: skip ahead
                     wx_, wy_ = lin[0], lin[1]
@@ -671,6 +682,7 @@ def run_drops(geom, loc1: Fence, loc2: Fence, yaws0: np.ndarray, scene: dict, pr
                             world.move_part(ln.body, jump * d[0], jump * d[1], keep_velocity=(lin, ang))
                             ln.skips += 1
                             ln.hist.clear()
+                            ln.last = None
                         ln.slide = 0
                 ln.rest = ln.rest + 1 if at_rest else 0
                 if ln.rest < rest_checks:
@@ -688,6 +700,7 @@ def run_drops(geom, loc1: Fence, loc2: Fence, yaws0: np.ndarray, scene: dict, pr
                     world.move_part(ln.body, 0.0, gap - approach)
                     ln.teleports += 1
                     ln.hist.clear()
+                    ln.last = None
                     ln.rest = 0
     finally:
         if bar is not None:
