@@ -56,7 +56,7 @@ def draw(df, ref_name: str):
     ax.set_ylabel("JS divergence to reference (bits)")
     ax.legend(fontsize=7)
     fig.suptitle(f"Simulation accuracy against time ({int(full['drops'].max())} drops per configuration, "
-                 f"{df[df['config'] != 'mean']['config'].nunique()} configurations; blue = within floor)")
+                 f"{df[df['config'] != 'mean']['config'].nunique()} configurations; blue = inside the noise floor by the paired test, red = outside)")
     fig.tight_layout()
     return fig
 
