@@ -111,6 +111,7 @@ def paired_excess(triples, bins: int, sigma: float, resamples: int, seed: int) -
         return float(labels.js_divergence(px, ref_pmf)), float(labels.w1(labels.cdf(px), ref_cdf))
 
     rng = np.random.default_rng(seed)
+    triples = [(np.asarray(a, float), np.asarray(b, float), ref) for a, b, ref in triples]
     refs = []
     for a, b, ref in triples:
         if len(a) != len(b):
@@ -123,7 +124,6 @@ def paired_excess(triples, bins: int, sigma: float, resamples: int, seed: int) -
     def excess(swaps):
         d = []
         for (a, b, _), (pr, cr), sw in zip(triples, refs, swaps):
-            a, b = np.asarray(a, float), np.asarray(b, float)
             a2, b2 = np.where(sw, b, a), np.where(sw, a, b)
             d.append(np.subtract(dists(a2, pr, cr), dists(b2, pr, cr)))
         return np.nanmean(np.array(d), axis=0) if d else np.array([np.nan, np.nan])

@@ -480,7 +480,7 @@ class _Lane:
     drop: int
     body: int
     t0: float
-    hist: deque
+    hist: deque  # (elapsed, x, y, yaw rad) of the checks within the jam window; cleared when the part is moved
     rest: int = 0
     max_speed: float = 0.0
     max_omega: float = 0.0
@@ -491,7 +491,6 @@ class _Lane:
     inside_fence: bool = False
     teleports: int = 0
     probe_yaw: float = math.nan
-    last: tuple | None = None  # (elapsed, x, y, yaw rad) at the previous check; None after a move
 
 
 def _fence_boxes_array(fences: list[FenceGeom]) -> np.ndarray:
@@ -635,7 +634,8 @@ def run_drops(geom, loc1: Fence, loc2: Fence, yaws0: np.ndarray, scene: dict, pr
                 if z < fall_z or abs(x) > lat:
                     finish(j, "fell_off", pos=(x, y))
                     continue
-                ln.hist.append((elapsed, x, y))
+                yr = quat_yaw(q)
+                ln.hist.append((elapsed, x, y, yr))
                 while ln.hist and elapsed - ln.hist[0][0] > jam_window + 1e-9:
                     ln.hist.popleft()
                 h0 = ln.hist[0]
@@ -648,14 +648,13 @@ def run_drops(geom, loc1: Fence, loc2: Fence, yaws0: np.ndarray, scene: dict, pr
                 # at rest: moving with the belt since the previous check, judged from the displacement
                 # (Bullet's reported velocity of a part held by a compliant contact can keep a small
                 # residual while the part does not move: docs/simulation.md)
-                yr = quat_yaw(q)
                 at_rest = False
-                if ln.last is not None:
-                    span = elapsed - ln.last[0]
-                    turn = (yr - ln.last[3] + math.pi) % (2.0 * math.pi) - math.pi
-                    at_rest = (math.hypot((x - ln.last[1]) / span, (y - ln.last[2]) / span - v) < rest_speed
+                if len(ln.hist) >= 2:  # the previous check, unless the part was moved since
+                    tp, xp, yp, rp = ln.hist[-2]
+                    span = elapsed - tp
+                    turn = (yr - rp + math.pi) % (2.0 * math.pi) - math.pi
+                    at_rest = (math.hypot((x - xp) / span, (y - yp) / span - v) < rest_speed
                                and abs(turn) / span < rest_omega)
-                ln.last = (elapsed, x, y, yr)
                 if skip_slides and straight and not at_rest:
                     # steady sliding along a straight fence is translation-invariant: skip ahead
                     wx_, wy_ = lin[0], lin[1]
@@ -684,7 +683,6 @@ def run_drops(geom, loc1: Fence, loc2: Fence, yaws0: np.ndarray, scene: dict, pr
                             world.move_part(ln.body, jump * d[0], jump * d[1], keep_velocity=(lin, ang))
                             ln.skips += 1
                             ln.hist.clear()
-                            ln.last = None
                         ln.slide = 0
                 ln.rest = ln.rest + 1 if at_rest else 0
                 if ln.rest < rest_checks:
@@ -702,7 +700,6 @@ def run_drops(geom, loc1: Fence, loc2: Fence, yaws0: np.ndarray, scene: dict, pr
                     world.move_part(ln.body, 0.0, gap - approach)
                     ln.teleports += 1
                     ln.hist.clear()
-                    ln.last = None
                     ln.rest = 0
     finally:
         if bar is not None:
