@@ -241,9 +241,9 @@ def test_cli_writes_npz_per_contract_and_reruns_bit_identical(tmp_path):
         assert r.returncode == 0, r.stderr
         outs.append(np.load(out))
     a, b = outs
-    assert set(a.files) == {"final_yaw_deg", "initial_yaw_deg", "status", "wall_s", "meta"}
+    assert set(a.files) == {"final_yaw_deg", "initial_yaw_deg", "status", "wall_s", "cpu_s", "meta"}
     assert a["final_yaw_deg"].dtype == np.float64 and a["final_yaw_deg"].shape == (8,)
-    assert a["status"].dtype.kind == "U" and a["wall_s"].shape == ()
+    assert a["status"].dtype.kind == "U" and a["wall_s"].shape == () and a["cpu_s"].shape == ()
     meta = json.loads(str(a["meta"]))
     assert (meta["part"], meta["loc1"], meta["loc2"], meta["preset"], meta["seed"], meta["drops"]) == (
         "rect", "straight:45", "none", "fast", 3, 8)

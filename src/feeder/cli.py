@@ -20,6 +20,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "bench-sim": ("feeder.bench", "accuracy-vs-time sweep of simulation settings"),
     "bench-jams": ("feeder.jams", "ok and jam rates of every fence angle of the grid"),
     "bench-yaws": ("feeder.bench_yaws", "sampling error against drops for random and golden initial yaws"),
+    "bench-cost": ("feeder.bench_cost", "project the simulation stage's CPU and wall time from a sample of its jobs"),
     "bench-scheduler": ("feeder.bench_scheduler", "CPU the snakemake process spends scheduling simulation jobs"),
     "scene-table": ("feeder.scene", "Table 1: every physical parameter of the simulated scene"),
     "labels": ("feeder.labels", "PMF/CDF labels from simulation outputs"),

@@ -717,16 +717,17 @@ def simulate(geom, loc1: Fence, loc2: Fence, drops: int, seed: int, scene: dict,
     cfg = config_id(loc1, loc2)
     s = drop_seed(geom.part_id, cfg, seed)
     y0 = initial_yaws(s, int(drops), yaw_sampling)
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     out = run_drops(geom, loc1, loc2, y0, scene, preset, progress=progress, probe_x=probe_x,
                     check_fences=check_fences, prune=prune)
-    wall = time.perf_counter() - t0
+    wall, cpu = time.perf_counter() - t0, time.process_time() - c0
     meta = {"part": geom.part_id, "loc1": loc1.spec, "loc2": loc2.spec, "config_id": cfg,
             "preset": preset_name, "seed": int(seed), "drops": int(drops), "yaw_sampling": yaw_sampling,
             "settings": {"scene": scene, "preset": preset},
             "status_counts": {k: int(np.sum(out["status"] == k)) for k in STATUSES}}
     return {"final_yaw_deg": out["final_yaw_deg"].astype(np.float64), "initial_yaw_deg": y0,
             "status": out["status"].astype(str), "wall_s": np.float64(wall),
+            "cpu_s": np.float64(cpu),
             "meta": json.dumps(meta, sort_keys=True), "diag": out["diag"]}
 
 

@@ -16,6 +16,8 @@ SIM_TARGETS = [
     f"{FIGURES}/sim_accuracy_vs_time.png",
     f"{TABLES}/yaw_sampling.csv",
     f"{FIGURES}/yaw_sampling.png",
+    f"{TABLES}/sim_cost.csv",
+    f"{FIGURES}/sim_cost.png",
 ]
 # Every table and figure of the study (each stage's rules file lists its own).
 PAPER_TARGETS = PARTS_TARGETS + SIM_TARGETS + DATASETS_TARGETS + MODELS_TARGETS + VAE_TARGETS

@@ -7,6 +7,8 @@
 #   results/tables/sim_accuracy_vs_time.csv, results/figures/sim_accuracy_vs_time.png (the figure
 #   is drawn from the table by its own job, feeder figure sim_accuracy_vs_time; uses figure_code)
 #   results/tables/yaw_sampling.csv, results/figures/yaw_sampling.png (drops needed per yaw design)
+#   results/tables/sim_cost.csv, sim_cost_sample.csv, results/figures/sim_cost.png (the stage's
+#   projected cost, measured on a sample of its own jobs)
 SIM_MODULES = ("sim", "scene", "fences", "geometry")
 
 
@@ -171,3 +173,42 @@ rule draw_yaw_sampling:
         "../envs/feeder.yaml"
     shell:
         "feeder figure yaw_sampling --data {input.data} --out {output} > {log} 2>&1"
+
+
+rule bench_cost:
+    """The simulation stage's CPU and wall time projected from a sample of its own jobs (feeder bench-cost)."""
+    input:
+        pkg("bench_cost", "datasets", "labels", "parts", *SIM_MODULES),
+        parts=expand("{dir}/{part}.stl", dir=config["parts"]["dir"], part=PARTS),
+    output:
+        sample=report("results/tables/sim_cost_sample.csv", caption="../report/sim_cost_sample.rst", category="Cost"),
+        summary=report("results/tables/sim_cost.csv", caption="../report/sim_cost.rst", category="Cost"),
+    params:
+        settings=settings_json("parts.dir", "parts.include", "fences", "datasets", "scene", "sim.preset", "sim.presets",
+                               "sim.drops", "sim.base_seed", "sim.yaw_sampling", "sim.cost_bench"),
+    threads: config["sim"]["cost_bench"]["workers"]
+    log:
+        "logs/bench_cost/bench_cost.log",
+    benchmark:
+        "benchmarks/bench_cost/bench_cost.tsv"
+    conda:
+        "../envs/feeder.yaml"
+    shell:
+        "feeder bench-cost --settings '{params.settings}' --out-csv {output.sample} --out-summary {output.summary} > {log} 2>&1"
+
+
+rule draw_sim_cost:
+    """The per-part cost figure drawn from the sampled jobs."""
+    input:
+        figure_code("sim_cost"),
+        data="results/tables/sim_cost_sample.csv",
+    output:
+        report("results/figures/sim_cost.png", caption="../report/sim_cost_figure.rst", category="Cost"),
+    log:
+        "logs/figures/sim_cost.log",
+    benchmark:
+        "benchmarks/figures/sim_cost.tsv"
+    conda:
+        "../envs/feeder.yaml"
+    shell:
+        "feeder figure sim_cost --data {input.data} --out {output} > {log} 2>&1"
