@@ -134,10 +134,12 @@ def test_editing_one_fence_angle_reruns_only_the_simulations_that_use_it(smoke_r
     rules = {rule for rule, _ in jobs}
     assert not rules & {"part_features", "scene_table", "bench_sim", "parts_s1"}
     assert {"datasets_build", "train_model", "evaluate_models"} <= rules  # and what depends on them
+    assert "bench_cost" in rules  # the jobs it projects changed
 
 
 def test_switching_the_yaw_design_reruns_every_simulation_and_no_benchmark(smoke_run, tmp_path):
-    """The benchmarks take only the settings they read: sim.yaw_sampling is not one of them."""
+    """The benchmarks take only the settings they read: sim.yaw_sampling is one only for the cost
+    projection, which runs the study's own jobs."""
     before = merged_config(smoke_run, "config/smoke.yaml")
     override = tmp_path / "golden.yaml"
     override.write_text(yaml.safe_dump({"sim": {"yaw_sampling": "golden"}}))
@@ -145,7 +147,7 @@ def test_switching_the_yaw_design_reruns_every_simulation_and_no_benchmark(smoke
     assert {out for rule, out in jobs if rule == "simulate"} == _sim_outputs(before)
     rules = {rule for rule, _ in jobs}
     assert not rules & {"bench_sim", "bench_yaws", "bench_jams", "scene_table", "part_features"}
-    assert {"datasets_build", "train_model"} <= rules
+    assert {"datasets_build", "train_model", "bench_cost"} <= rules
 
 
 def test_editing_one_model_config_reruns_only_that_model(smoke_run, edit):
