@@ -89,3 +89,30 @@ def test_bench_cost_names_a_missing_section(tmp_path, capsys):
                 "--out-summary", str(tmp_path / "b.csv")]) == 2
     assert "sim.cost_bench" in capsys.readouterr().err
     assert not list(tmp_path.iterdir())
+
+
+def test_check_projection_compares_the_jobs_that_ran(tmp_path, capsys):
+    sample = pd.DataFrame({"part": ["a", "b", "c"], "config_id": ["straight30_none", "none_curved0", "x_y"],
+                           "ms_per_drop": [100.0, 40.0, 10.0]})
+    sim, bench = tmp_path / "sim", tmp_path / "bench"
+    for part, cid, drops, cpu in (("a", "straight30_none", 50, 6.0), ("b", "none_curved0", 100, 3.0)):
+        (sim / part).mkdir(parents=True)
+        np.savez(sim / part / f"{cid}.npz", final_yaw_deg=np.zeros(drops), cpu_s=np.float64(cpu))
+    (bench / "a").mkdir(parents=True)
+    (bench / "a" / "straight30_none.tsv").write_text("s\th:m:s\tmax_rss\tcpu_time\n7.5\t0:00:07\t80\t5.0\n")
+    out = bench_cost.check_projection(sample, sim, bench)
+    assert list(out["part"]) == ["a", "b", "total"]  # c never ran
+    assert out["projected_sim_cpu_s"].tolist() == pytest.approx([5.0, 4.0, 9.0])
+    assert out["ratio"].tolist() == pytest.approx([6.0 / 5.0, 3.0 / 4.0, 9.0 / 9.0])
+    assert out["benchmark_cpu_s"].iloc[0] == 5.0 and np.isnan(out["benchmark_cpu_s"].iloc[1])
+    assert out["benchmark_cpu_s"].iloc[2] == 5.0 and out["benchmark_wall_s"].iloc[0] == 7.5
+
+    csv = tmp_path / "sample.csv"
+    sample.to_csv(csv, index=False)
+    assert cli(["bench-cost", "--check", str(csv), "--sim-dir", str(sim), "--benchmarks", str(bench),
+                "--out-csv", str(tmp_path / "check.csv")]) == 0
+    assert "2 sampled jobs have run" in capsys.readouterr().err
+    assert cli(["bench-cost", "--check", str(csv), "--sim-dir", str(tmp_path / "none"),
+                "--out-csv", str(tmp_path / "check2.csv")]) == 2
+    assert "none of the 3 sampled jobs" in capsys.readouterr().err
+    assert not (tmp_path / "check2.csv").exists()

@@ -21,7 +21,11 @@ and many, so the workflow keeps every core busy (``feeder bench-scheduler`` meas
 scheduling adds).
 
 Writes the sample (one row per configuration) to ``--out-csv`` and the projection (one row) to
-``--out-summary``; the figure (``feeder figure sim_cost``) draws the sample by part.
+``--out-summary``; the figure (``feeder figure sim_cost``) draws the sample by part. Once some of
+the sampled jobs have run for real, ``--check SAMPLE_CSV`` compares their projection with what
+they cost (:func:`check_projection`). Snakemake's own ``benchmark:`` CPU times are polled every
+second for a job's first 30 s and every 30 s after that, so for longer jobs they miss up to the
+last 30 s; the simulation's ``cpu_s`` is exact.
 """
 
 from __future__ import annotations
@@ -168,16 +172,74 @@ def summarize(sample, population: int, full_drops: int, cores: int, preset: str,
         wall_h_hi=wall_hours(hi, cores, longest))])
 
 
+def check_projection(sample, sim_dir, bench_dir=None):
+    """The sampled jobs that have since run for real: projected against measured CPU.
+
+    For each row of ``sample`` (``feeder bench-cost``'s sample table) whose simulation output
+    ``<sim_dir>/<part>/<config_id>.npz`` exists: ``drops`` of that run, ``projected_sim_cpu_s``
+    (its drops × the sampled CPU per drop), ``sim_cpu_s`` (``cpu_s`` of the run) and their
+    ``ratio``; with ``bench_dir``, also Snakemake's ``benchmark_cpu_s`` / ``benchmark_wall_s``
+    (``<bench_dir>/<part>/<config_id>.tsv``, NaN where absent). A last row ``part == "total"``
+    sums each column over the rows that have it (ratio of the sums).
+    """
+    import pandas as pd
+
+    rows = []
+    for _, r in sample.iterrows():
+        npz = Path(sim_dir) / r["part"] / f"{r['config_id']}.npz"
+        if not npz.is_file():
+            continue
+        with np.load(npz) as data:
+            if "cpu_s" not in data:
+                raise FeederError(f"{npz} has no cpu_s (written before feeder simulate recorded it)")
+            drops, cpu = int(data["final_yaw_deg"].size), float(data["cpu_s"])
+        row = dict(part=r["part"], config_id=r["config_id"], drops=drops,
+                   projected_sim_cpu_s=drops * float(r["ms_per_drop"]) / 1e3, sim_cpu_s=cpu,
+                   benchmark_cpu_s=math.nan, benchmark_wall_s=math.nan)
+        tsv = Path(bench_dir) / r["part"] / f"{r['config_id']}.tsv" if bench_dir is not None else None
+        if tsv is not None and tsv.is_file():
+            last = pd.read_csv(tsv, sep="\t").iloc[-1]
+            row.update(benchmark_cpu_s=float(last["cpu_time"]), benchmark_wall_s=float(last["s"]))
+        rows.append(row)
+    if not rows:
+        raise FeederError(f"none of the {len(sample)} sampled jobs has an output in {sim_dir}")
+    out = pd.DataFrame(rows)
+    total = out.drop(columns=["part", "config_id"]).sum(min_count=1)
+    out = pd.concat([out, pd.DataFrame([dict(part="total", config_id="", **total)])], ignore_index=True)
+    out["drops"] = out["drops"].astype(np.int64)
+    out["ratio"] = out["sim_cpu_s"] / out["projected_sim_cpu_s"]
+    return out
+
+
 def main(argv: list[str]) -> int:
     parser = argparse.ArgumentParser(prog="feeder bench-cost", description=__doc__.splitlines()[0])
-    parser.add_argument("--out-csv", required=True, help="the sampled jobs, one row each")
-    parser.add_argument("--out-summary", required=True, help="the projection, one row")
+    parser.add_argument("--out-csv", required=True, help="the sampled jobs, one row each (with --check: the comparison)")
+    parser.add_argument("--out-summary", help="the projection, one row (required unless --check)")
+    parser.add_argument("--check", metavar="SAMPLE_CSV",
+                        help="instead of sampling: compare this sample's projection with the jobs of it that have run")
+    parser.add_argument("--sim-dir", default="results/sim", help="with --check: simulation outputs")
+    parser.add_argument("--benchmarks", default="benchmarks/simulate", help="with --check: Snakemake benchmark files")
     source = parser.add_mutually_exclusive_group()
     source.add_argument("--settings", default=None,
                         help="JSON {parts, fences, datasets, scene, sim} config sections; default config/config.yaml")
     source.add_argument("--configfile", nargs="+", default=[],
                         help="config files laid over config/config.yaml (as snakemake --configfile)")
     args = parser.parse_args(argv)
+    from feeder.io import write_csv
+
+    if args.check is not None:
+        import pandas as pd
+
+        if not Path(args.check).is_file():
+            raise FeederError(f"sample table {args.check} not found")
+        out = check_projection(pd.read_csv(args.check), args.sim_dir, args.benchmarks)
+        write_csv(args.out_csv, out)
+        t = out.iloc[-1]
+        print(f"{len(out) - 1} sampled jobs have run: simulation CPU {t['sim_cpu_s']:.0f} s against "
+              f"{t['projected_sim_cpu_s']:.0f} s projected (ratio {t['ratio']:.2f})", file=sys.stderr)
+        return 0
+    if args.out_summary is None:
+        raise FeederError("--out-summary is required (unless --check)")
     if args.settings is not None:
         from feeder.io import parse_settings
 
@@ -189,8 +251,6 @@ def main(argv: list[str]) -> int:
     missing = [k for k in ("parts", "fences", "datasets", "scene", "sim") if k not in cfg]
     if missing or "cost_bench" not in cfg.get("sim", {}):
         raise FeederError(f"settings lack section(s) {', '.join(missing or ['sim.cost_bench'])}")
-    from feeder.io import write_csv
-
     sample, summary = run_bench(cfg, progress=sys.stderr.isatty())
     write_csv(args.out_csv, sample)
     write_csv(args.out_summary, summary)
