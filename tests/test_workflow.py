@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import re
 import signal
 import subprocess
 import time
@@ -45,6 +46,22 @@ def test_smoke_workflow_builds_every_table_and_figure(smoke_run):
     for png in (smoke_run / "results" / "figures").glob("*.png"):
         assert png.stat().st_size > 1000, png
     assert not list(smoke_run.rglob("*.tmp")), "a temporary file was left behind"
+
+
+def test_report_holds_every_table_and_figure_with_its_caption(smoke_run, tmp_path):
+    """snakemake --report: every file declared with report() is in the HTML with its caption."""
+    html = tmp_path / "report.html"
+    proc = snakemake(smoke_run, *SMOKE, "--report", str(html))
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    text = html.read_text(errors="replace")
+    rules = "".join(p.read_text() for p in sorted((ROOT / "workflow" / "rules").glob("*.smk")))
+    captions = set(re.findall(r'caption="\.\./report/([\w.]+\.rst)"', rules))
+    assert len(captions) >= 30
+    for name in sorted(captions):
+        first = (ROOT / "workflow" / "report" / name).read_text().split()[:4]
+        assert " ".join(first) in text, f"caption {name} is not in the report"
+    for png in (smoke_run / "results" / "figures").glob("*.png"):
+        assert png.name in text, f"{png.name} is not in the report"
 
 
 def test_complete_run_has_nothing_left_to_do(smoke_run):
