@@ -270,26 +270,34 @@ def summarize(results, settings, panel, seeds, ref_name, drops, bench, labels_cf
     return out[first]
 
 
+def add_config_source(parser: argparse.ArgumentParser, sections: str) -> None:
+    """``--settings`` JSON (the named config ``sections``) or ``--configfile`` overlays, exclusive."""
+    source = parser.add_mutually_exclusive_group()
+    source.add_argument("--settings", default=None,
+                        help=f"JSON {{{sections}}} config sections; default config/config.yaml")
+    source.add_argument("--configfile", nargs="+", default=[],
+                        help="config files laid over config/config.yaml (as snakemake --configfile)")
+
+
+def config_from_args(args: argparse.Namespace) -> dict:
+    """The config chosen by :func:`add_config_source`'s options."""
+    if args.settings is not None:
+        from feeder.io import parse_settings
+
+        return parse_settings(args.settings)
+    from feeder.workflow import load_study_config
+
+    return load_study_config(*args.configfile)
+
+
 def bench_cli(prog: str, doc: str, argv: list[str]) -> tuple[str, dict, dict, dict]:
     """The command line shared by the benchmarks (``--out-csv``, ``--settings``) → (out CSV path,
     scene, sim, labels): the sections from the ``--settings`` JSON string, else config/config.yaml."""
     parser = argparse.ArgumentParser(prog=prog, description=doc.splitlines()[0])
     parser.add_argument("--out-csv", required=True)
-    source = parser.add_mutually_exclusive_group()
-    source.add_argument("--settings", default=None,
-                        help="JSON {scene, sim, labels} config sections; default config/config.yaml")
-    source.add_argument("--configfile", nargs="+", default=[],
-                        help="config files laid over config/config.yaml (as snakemake --configfile)")
+    add_config_source(parser, "scene, sim, labels")
     args = parser.parse_args(argv)
-    settings = args.settings
-    if settings is not None:
-        from feeder.io import parse_settings
-
-        cfg = parse_settings(settings)
-    else:
-        from feeder.workflow import load_study_config
-
-        cfg = load_study_config(*args.configfile)
+    cfg = config_from_args(args)
     try:
         return args.out_csv, cfg["scene"], cfg["sim"], cfg["labels"]
     except (KeyError, TypeError) as err:

@@ -212,6 +212,8 @@ def check_projection(sample, sim_dir, bench_dir=None):
 
 
 def main(argv: list[str]) -> int:
+    from feeder.bench import add_config_source, config_from_args
+
     parser = argparse.ArgumentParser(prog="feeder bench-cost", description=__doc__.splitlines()[0])
     parser.add_argument("--out-csv", required=True, help="the sampled jobs, one row each (with --check: the comparison)")
     parser.add_argument("--out-summary", help="the projection, one row (required unless --check)")
@@ -219,11 +221,7 @@ def main(argv: list[str]) -> int:
                         help="instead of sampling: compare this sample's projection with the jobs of it that have run")
     parser.add_argument("--sim-dir", default="results/sim", help="with --check: simulation outputs")
     parser.add_argument("--benchmarks", default="benchmarks/simulate", help="with --check: Snakemake benchmark files")
-    source = parser.add_mutually_exclusive_group()
-    source.add_argument("--settings", default=None,
-                        help="JSON {parts, fences, datasets, scene, sim} config sections; default config/config.yaml")
-    source.add_argument("--configfile", nargs="+", default=[],
-                        help="config files laid over config/config.yaml (as snakemake --configfile)")
+    add_config_source(parser, "parts, fences, datasets, scene, sim")
     args = parser.parse_args(argv)
     from feeder.io import write_csv
 
@@ -240,14 +238,7 @@ def main(argv: list[str]) -> int:
         return 0
     if args.out_summary is None:
         raise FeederError("--out-summary is required (unless --check)")
-    if args.settings is not None:
-        from feeder.io import parse_settings
-
-        cfg = parse_settings(args.settings)
-    else:
-        from feeder.workflow import load_study_config
-
-        cfg = load_study_config(*args.configfile)
+    cfg = config_from_args(args)
     missing = [k for k in ("parts", "fences", "datasets", "scene", "sim") if k not in cfg]
     if missing or "cost_bench" not in cfg.get("sim", {}):
         raise FeederError(f"settings lack section(s) {', '.join(missing or ['sim.cost_bench'])}")

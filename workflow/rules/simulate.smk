@@ -178,7 +178,7 @@ rule draw_yaw_sampling:
 rule bench_cost:
     """The simulation stage's CPU and wall time projected from a sample of its own jobs (feeder bench-cost)."""
     input:
-        pkg("bench_cost", "datasets", "labels", "parts", *SIM_MODULES),
+        pkg("bench_cost", "bench", "datasets", "labels", "parts", *SIM_MODULES),
         parts=expand("{dir}/{part}.stl", dir=config["parts"]["dir"], part=PARTS),
     output:
         sample=report("results/tables/sim_cost_sample.csv", caption="../report/sim_cost_sample.rst", category="Cost"),
