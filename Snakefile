@@ -21,6 +21,7 @@ include: "workflow/rules/simulate.smk"
 include: "workflow/rules/datasets.smk"
 include: "workflow/rules/models.smk"
 include: "workflow/rules/vae.smk"
+include: "workflow/rules/bench.smk"
 include: "workflow/rules/report.smk"
 
 

@@ -1,4 +1,4 @@
-"""feeder.bench_cost: the projection (pure, hand-computed) and a tiny end-to-end run of real jobs."""
+"""feeder.bench.cost: the projection (pure, hand-computed) and a tiny end-to-end run of real jobs."""
 
 import json
 import math
@@ -8,7 +8,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from feeder import bench_cost
+from feeder.bench import cost as bench_cost
 from feeder.cli import main as cli
 from feeder.errors import FeederError
 from feeder.workflow import load_study_config

@@ -9,7 +9,7 @@ import sys
 import pandas as pd
 import pytest
 
-from feeder.bench_scheduler import proc_cpu_seconds, spread
+from feeder.bench.scheduler import proc_cpu_seconds, spread
 from workflow_helpers import ROOT
 
 

@@ -1,4 +1,4 @@
-"""feeder.bench_yaws: drops needed per initial-yaw design (pure summary, power law, a tiny run)."""
+"""feeder.bench.yaws: drops needed per initial-yaw design (pure summary, power law, a tiny run)."""
 
 import json
 import math
@@ -11,7 +11,8 @@ import pandas as pd
 import pytest
 import yaml
 
-from feeder import bench_yaws, labels
+from feeder.bench import yaws as bench_yaws
+from feeder.labels import metrics as labels
 
 ROOT = Path(__file__).resolve().parents[1]
 CFG = yaml.safe_load((ROOT / "config" / "config.yaml").read_text())

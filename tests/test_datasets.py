@@ -7,11 +7,11 @@ import pandas as pd
 import pytest
 import yaml
 
-from feeder import datasets as D
-from feeder import labels as L
+from feeder.labels import dataset as D
+from feeder.labels import metrics as L
 from feeder.cli import main as cli
 from feeder.errors import FeederError
-from feeder.fences import parse_config_id
+from feeder.sim.fences import parse_config_id
 
 ROOT = Path(__file__).resolve().parents[1]
 

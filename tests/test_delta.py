@@ -5,7 +5,7 @@ import pandas as pd
 import pytest
 import torch
 
-from feeder import delta
+from feeder.learn import delta
 from feeder.cli import main as cli
 from feeder.errors import FeederError
 from test_vae import BINS, LEVELS, make_dataset

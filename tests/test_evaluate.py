@@ -6,8 +6,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from feeder import evaluate as E
-from feeder import train as T
+from feeder.learn import evaluate as E
+from feeder.learn import train as T
 from test_train import make_dataset, small_overrides
 
 
@@ -68,7 +68,7 @@ def test_representative_rows_distinct_and_ordered():
 
 
 def test_tables_files_and_values(trained, tmp_path):
-    from feeder.labels import r2_cdf
+    from feeder.labels.metrics import r2_cdf
 
     root, ds, dirs = trained
     written = E.write_tables(ds, dirs, tmp_path)
@@ -109,7 +109,7 @@ def test_groupkfold_trains_one_model_per_fold(trained, tmp_path):
 
 def test_figure_data_and_figures(trained, tmp_path):
     from feeder.cli import main as cli
-    from feeder.labels import r2_cdf
+    from feeder.labels.metrics import r2_cdf
 
     root, ds, dirs = trained
     f12, f13 = tmp_path / "f12.npz", tmp_path / "f13.npz"

@@ -9,7 +9,7 @@ import pytest
 
 from feeder.cli import main as cli
 from feeder.errors import FeederError
-from feeder.features import (
+from feeder.parts.features import (
     DFT,
     as_vector,
     dft_features,
@@ -23,7 +23,7 @@ from feeder.features import (
     reconstruct,
     reconstruction_mse,
 )
-from feeder.geometry import face_cloud, load_part, stl_bytes
+from feeder.parts.geometry import face_cloud, load_part, stl_bytes
 
 PARTS = Path("parts")
 FEEDER = str(Path(sys.executable).with_name("feeder"))

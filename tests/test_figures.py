@@ -257,6 +257,6 @@ def test_style_edit_reruns_only_that_figure(tmp_path):
     assert planned_rules(work, *targets, *smoke) == {"draw_s1_dft_mse"}
     edit("src/feeder/figures/style.py")
     assert planned_rules(work, *targets, *smoke) == {"draw_s1_dft_mse", "draw_fig6_dft_reconstruction"}
-    edit("src/feeder/features.py")
+    edit("src/feeder/parts/features.py")
     assert planned_rules(work, *targets, *smoke) == {"parts_s1", "parts_fig6_data", "draw_s1_dft_mse",
                                                       "draw_fig6_dft_reconstruction"}

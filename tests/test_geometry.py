@@ -6,7 +6,7 @@ import pytest
 import shapely
 
 from feeder.errors import FeederError
-from feeder.geometry import (
+from feeder.parts.geometry import (
     PartGeometry,
     clean_outline,
     convex_decomposition,

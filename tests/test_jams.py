@@ -1,4 +1,4 @@
-"""feeder.jams: the fence-angle jam survey (pure summary and a tiny CLI run)."""
+"""feeder.bench.jams: the fence-angle jam survey (pure summary and a tiny CLI run)."""
 
 import json
 import subprocess
@@ -9,7 +9,7 @@ import pandas as pd
 import pytest
 import yaml
 
-from feeder import jams
+from feeder.bench import jams
 
 ROOT = Path(__file__).resolve().parents[1]
 CFG = yaml.safe_load((ROOT / "config" / "config.yaml").read_text())

@@ -3,7 +3,8 @@ import math
 import numpy as np
 import pytest
 
-from feeder import labels as L
+from feeder.labels import metrics as L
+from feeder.labels import pmf as pmf_cli
 from feeder.errors import FeederError
 
 # Z = sum over all integer offsets d of exp(-d^2 / 2) (sigma = 1 bin), written out by hand
@@ -163,7 +164,7 @@ def test_labels_cli_summarises_a_sim_file(tmp_path, capsys):
     status = np.array(["ok", "ok", "jammed", "ok"])
     np.savez(path, final_yaw_deg=np.array([10.2, 10.7, np.nan, 350.0]), status=status,
              initial_yaw_deg=np.zeros(4), wall_s=np.float64(1.0), meta=np.array("{}"))
-    assert L.main(["pmf", str(path), "--bins", "360", "--sigma", "1"]) == 0
+    assert pmf_cli.main(["pmf", str(path), "--bins", "360", "--sigma", "1"]) == 0
     out = json.loads(capsys.readouterr().out)
     assert out["drops"] == 4 and out["ok"] == 3 and out["mode_deg"] == 10.5
 

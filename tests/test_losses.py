@@ -5,7 +5,7 @@ import math
 import pytest
 import torch
 
-from feeder import losses
+from feeder.learn import losses
 
 
 def t(rows):

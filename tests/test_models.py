@@ -5,8 +5,8 @@ import pytest
 import torch
 from sklearn.isotonic import IsotonicRegression
 
-from feeder import models
-from feeder.models import ModelSpec, RegressionModel
+from feeder.learn import models
+from feeder.learn.models import ModelSpec, RegressionModel
 
 BINS = 360
 

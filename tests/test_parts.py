@@ -9,8 +9,8 @@ import yaml
 
 from feeder.cli import main as cli
 from feeder.errors import FeederError
-from feeder.geometry import load_part
-from feeder.parts import (
+from feeder.parts.geometry import load_part
+from feeder.parts.library import (
     LIBRARY_ID_RE,
     diversity_summary,
     family_outline,

@@ -9,8 +9,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from feeder import predict as P
-from feeder import train as T
+from feeder.learn import predict as P
+from feeder.learn import train as T
 from feeder.errors import FeederError
 from test_train import make_dataset, small_overrides
 
@@ -30,9 +30,9 @@ def model_dir(tmp_path_factory):
 
 
 def test_predict_csv_matches_model(model_dir, tmp_path):
-    from feeder.datasets import feeder_vector
-    from feeder.fences import parse_location
-    from feeder.models import TrainedModel
+    from feeder.labels.dataset import feeder_vector
+    from feeder.sim.fences import parse_location
+    from feeder.learn.models import TrainedModel
 
     out = tmp_path / "pmf.csv"
     args = ["--model", str(model_dir / "m3"), "--features", str(model_dir / "p0.json"),
@@ -83,8 +83,8 @@ def test_predict_from_stl(model_dir, tmp_path):
 
 def test_principal_frame_model_answers_in_the_part_frame(model_dir, tmp_path):
     """A model trained on feature-frame labels: its PMF is moved back by the part's frame_deg."""
-    from feeder import labels as L
-    from feeder.models import TrainedModel
+    from feeder.labels import metrics as L
+    from feeder.learn.models import TrainedModel
 
     m = TrainedModel.load(model_dir / "m3")
     assert m.label_frame == "part"  # make_dataset carries no label_frame: the part frame

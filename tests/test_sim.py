@@ -1,4 +1,4 @@
-"""feeder.sim / feeder.scene: pure math against hand values, the CLI, determinism, the body model."""
+"""feeder.sim.drops / feeder.sim.scene: pure math against hand values, the CLI, determinism, the body model."""
 
 import copy
 import json
@@ -11,12 +11,12 @@ import numpy as np
 import pytest
 import yaml
 
-from feeder import scene as sc
-from feeder import sim
+from feeder.sim import scene as sc
+from feeder.sim import drops as sim
 from feeder.errors import FeederError
-from feeder.fences import Fence, parse_location
-from feeder.geometry import PartGeometry, stl_bytes
-from feeder.sim_shapes import shape_part
+from feeder.sim.fences import Fence, parse_location
+from feeder.parts.geometry import PartGeometry, stl_bytes
+from feeder.parts.shapes import shape_part
 
 ROOT = Path(__file__).resolve().parents[1]
 CFG = yaml.safe_load((ROOT / "config" / "config.yaml").read_text())
@@ -349,7 +349,7 @@ def test_merge_pieces_hand_cases():
              np.array([(0.02, 0), (0.04, 0), (0.04, 0.01), (0.02, 0.0099)])]
     assert len(sim.merge_pieces(notch, 2e-4)) == 1 and len(sim.merge_pieces(notch, 0.0)) == 2
     # the merged shape never leaves the true outline by more than the tolerance
-    from feeder.geometry import load_part
+    from feeder.parts.geometry import load_part
 
     g = load_part(ROOT / "parts" / "crescent-a.stl")
     pieces = sim.merge_pieces(g.convex_pieces, 2e-4)

@@ -1,4 +1,4 @@
-"""feeder.bench: the accuracy-against-time summary (pure) and a tiny end-to-end run."""
+"""feeder.bench.accuracy: the accuracy-against-time summary (pure) and a tiny end-to-end run."""
 
 import json
 import subprocess
@@ -10,7 +10,8 @@ import pandas as pd
 import pytest
 import yaml
 
-from feeder import bench, labels
+from feeder.bench import accuracy as bench
+from feeder.labels import metrics as labels
 
 ROOT = Path(__file__).resolve().parents[1]
 CFG = yaml.safe_load((ROOT / "config" / "config.yaml").read_text())
@@ -85,7 +86,7 @@ def test_bootstrap_floor_of_an_all_jammed_configuration_is_nan():
     """A fence that jams every part leaves no distribution: the floor is NaN, the bench goes on."""
     import math
 
-    from feeder.bench import bootstrap_js_floor
+    from feeder.bench.accuracy import bootstrap_js_floor
 
     jammed = np.full(10, np.nan)
     assert math.isnan(bootstrap_js_floor(jammed, jammed, 5, 360, 1.0, 20, 0.95, seed=0))

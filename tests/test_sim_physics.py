@@ -19,10 +19,11 @@ import numpy as np
 import pytest
 import yaml
 
-from feeder import labels, sim
-from feeder.bench import bootstrap_js_floor
-from feeder.fences import parse_location
-from feeder.sim_shapes import mirror_part, mod180_dist, shape_part
+from feeder.labels import metrics as labels
+from feeder.sim import drops as sim
+from feeder.bench.accuracy import bootstrap_js_floor
+from feeder.sim.fences import parse_location
+from feeder.parts.shapes import mirror_part, mod180_dist, shape_part
 
 ROOT = Path(__file__).resolve().parents[1]
 CFG = yaml.safe_load((ROOT / "config" / "config.yaml").read_text())

@@ -13,7 +13,7 @@ import json
 import numpy as np
 import pytest
 
-from feeder import train as T
+from feeder.learn import train as T
 from feeder.errors import FeederError
 from feeder.io import write_npz
 
@@ -131,7 +131,7 @@ def test_resolved_config_yaml_changes_only_with_the_model():
 
 @pytest.mark.parametrize("model", ["m1", "m2", "m3", "m4", "m5", "m6", "m7", "m8"])
 def test_each_model_trains_and_saves(dataset, tmp_path, model):
-    from feeder.models import TrainedModel
+    from feeder.learn.models import TrainedModel
 
     cfg = T.compose_config(small_overrides(dataset, tmp_path / model, model, epochs=2))
     metrics = T.train(cfg)
@@ -166,7 +166,7 @@ def test_same_seed_same_metrics_different_seed_differs(dataset, tmp_path):
 
 def test_m3_learns_beyond_the_mean(dataset, tmp_path):
     """A few hundred steps on the synthetic data beat the training-mean distribution on Test."""
-    from feeder.labels import r2_cdf
+    from feeder.labels.metrics import r2_cdf
 
     cfg = T.compose_config(small_overrides(dataset, tmp_path / "m3", "m3", epochs=150,
                                            extra=["model.hidden=[64,64]", "trainer.batch_size=16",
@@ -249,7 +249,7 @@ def test_grid_search_config_matches_paper():
 
 
 def test_grid_search_multirun_from_the_cli(dataset, tmp_path, monkeypatch):
-    from feeder.evaluate import grid_table
+    from feeder.learn.evaluate import grid_table
 
     monkeypatch.chdir(tmp_path)
     args = small_overrides(dataset, "unused", "m3", epochs=1)

@@ -5,7 +5,8 @@ import pandas as pd
 import pytest
 import torch
 
-from feeder import labels, vae
+from feeder.labels import metrics as labels
+from feeder.learn import vae
 from feeder.cli import main as cli
 from feeder.errors import FeederError
 

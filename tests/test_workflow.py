@@ -124,8 +124,8 @@ def edit(smoke_run):
 
 
 def _sim_outputs(config: dict) -> set[str]:
-    from feeder.datasets import configurations
-    from feeder.parts import list_parts
+    from feeder.labels.dataset import configurations
+    from feeder.parts.library import list_parts
 
     parts = list_parts(str(ROOT / config["parts"]["dir"]), config["parts"]["include"])
     table = configurations(config, parts)

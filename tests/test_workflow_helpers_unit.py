@@ -2,7 +2,18 @@ import json
 import os
 import sys
 
-from feeder.workflow import module_files, put_interpreter_on_path, select_settings
+import pytest
+
+from feeder.errors import FeederError
+from feeder.workflow import (
+    cli_options,
+    code_inputs,
+    code_modules,
+    feeder_imports,
+    module_file,
+    put_interpreter_on_path,
+    select_settings,
+)
 
 
 def test_select_settings_keeps_nesting_and_only_the_named_keys():
@@ -13,10 +24,47 @@ def test_select_settings_keeps_nesting_and_only_the_named_keys():
     assert select_settings(config, "labels", "sim.min_ok_drops") == select_settings(config, "sim.min_ok_drops", "labels")
 
 
-def test_module_files_include_core_once():
-    files = module_files("sim", "io", "scene")
-    assert files[:3] == ["src/feeder/__init__.py", "src/feeder/errors.py", "src/feeder/io.py"]
-    assert files.count("src/feeder/io.py") == 1 and files[-2:] == ["src/feeder/sim.py", "src/feeder/scene.py"]
+def _fake_package(root):
+    """src/feeder with a stage module that imports one helper at module level and one inside a
+    function, and a helper that imports the core."""
+    pkg = root / "feeder"
+    (pkg / "stage").mkdir(parents=True)
+    (pkg / "__init__.py").write_text("")
+    (pkg / "errors.py").write_text("class FeederError(Exception): ...\n")
+    (pkg / "stage" / "__init__.py").write_text("")
+    (pkg / "stage" / "a.py").write_text("from feeder.stage import b\n\ndef f():\n    from feeder.stage.c import g\n")
+    (pkg / "stage" / "b.py").write_text("import numpy\nfrom feeder.errors import FeederError\n")
+    (pkg / "stage" / "c.py").write_text("def g(): ...\n")
+    (pkg / "stage" / "unused.py").write_text("")
+    return root
+
+
+def test_code_modules_follow_function_local_imports_and_packages(tmp_path):
+    root = _fake_package(tmp_path)
+    assert feeder_imports("feeder.stage.a", root) == {"feeder.stage.b", "feeder.stage.c"}
+    assert code_modules("feeder.stage.a", root=root) == [
+        "feeder", "feeder.errors", "feeder.stage", "feeder.stage.a", "feeder.stage.b", "feeder.stage.c"]
+    assert module_file("feeder.stage", root) == f"{root.as_posix()}/feeder/stage/__init__.py"
+    assert module_file("feeder.stage.nothing", root) is None
+
+
+def test_code_inputs_of_a_command_include_its_dispatcher_and_figure_module():
+    files = code_inputs("figure", "fig12_test_predictions")
+    assert {"src/feeder/cli.py", "src/feeder/figures/__init__.py", "src/feeder/figures/fig12_test_predictions.py",
+            "src/feeder/figures/_cdf_predictions.py", "src/feeder/figures/style.py"} <= set(files)
+    sim = code_inputs("simulate")
+    assert "src/feeder/sim/drops.py" in sim and "src/feeder/parts/geometry.py" in sim
+    assert not any("learn" in f for f in sim)  # a training edit never reruns a simulation
+
+
+def test_code_inputs_refuse_an_unknown_command():
+    with pytest.raises(FeederError, match="no feeder command"):
+        code_inputs("no-such-command")
+
+
+def test_cli_options_join_lists_with_commas():
+    assert cli_options({"chosen": 15, "ids": [1, 2], "name": "faithful"}) == "--chosen 15 --ids 1,2 --name faithful"
+    assert cli_options({}) == ""
 
 
 def test_interpreter_dir_goes_first_on_path():

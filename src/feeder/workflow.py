@@ -6,14 +6,78 @@ import json
 import os
 import sys
 
-# Modules every `feeder` command runs through: a change to them can change any output.
-CORE_MODULES = ("__init__", "errors", "io")
+def module_file(module: str, root: str | os.PathLike = "src") -> str | None:
+    """Source file of a dotted module under ``root`` (``feeder.sim.drops`` ->
+    ``src/feeder/sim/drops.py``; a package -> its ``__init__.py``), or None if there is none."""
+    from pathlib import Path
+
+    base = Path(root, *module.split("."))
+    for path in (base.with_suffix(".py"), base / "__init__.py"):
+        if path.is_file():
+            return path.as_posix()
+    return None
 
 
-def module_files(*modules: str, root: str = "src/feeder") -> list[str]:
-    """Source files of the given feeder modules (plus the core), for a rule's inputs: Snakemake does
-    not track imported Python modules itself, so listing them is what reruns a stage on a code edit."""
-    return [f"{root}/{name}.py" for name in dict.fromkeys(CORE_MODULES + modules)]
+def feeder_imports(module: str, root: str | os.PathLike = "src") -> set[str]:
+    """The ``feeder`` modules that ``module``'s source imports anywhere (function-local imports
+    included), read from its syntax tree without importing it. ``from feeder.x import y`` counts
+    ``feeder.x.y`` when that is a module, else ``feeder.x``."""
+    import ast
+    from pathlib import Path
+
+    from feeder.errors import FeederError
+
+    path = module_file(module, root)
+    if path is None:
+        raise FeederError(f"no source for module {module} under {root}")
+    found: set[str] = set()
+    for node in ast.walk(ast.parse(Path(path).read_text(), filename=path)):
+        if isinstance(node, ast.Import):
+            found.update(a.name for a in node.names if a.name.split(".")[0] == "feeder")
+        elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
+            if node.module.split(".")[0] != "feeder":
+                continue
+            for alias in node.names:
+                sub = f"{node.module}.{alias.name}"
+                found.add(sub if module_file(sub, root) else node.module)
+    return found
+
+
+def code_modules(*modules: str, root: str | os.PathLike = "src") -> list[str]:
+    """``modules`` with everything they import from ``feeder``, transitively, and the packages
+    they sit in (whose ``__init__`` runs first), sorted."""
+    seen: set[str] = set()
+    todo = list(modules)
+    while todo:
+        name = todo.pop()
+        if name in seen:
+            continue
+        seen.add(name)
+        parts = name.split(".")
+        todo.extend(".".join(parts[:i]) for i in range(1, len(parts)))
+        todo.extend(feeder_imports(name, root))
+    return sorted(seen)
+
+
+def command_modules(command: str, *args: str) -> tuple[str, ...]:
+    """The modules that ``feeder COMMAND ARGS…`` runs first: the command's own module, and for
+    ``feeder figure NAME`` the figure's module, which the dispatcher loads by name."""
+    from feeder.cli import COMMANDS
+    from feeder.errors import FeederError
+
+    if command not in COMMANDS:
+        raise FeederError(f"no feeder command {command!r}")
+    modules = ("feeder.cli", COMMANDS[command][0])
+    if command == "figure" and args:
+        modules += (f"feeder.figures.{args[0]}",)
+    return modules
+
+
+def code_inputs(command: str, *args: str, root: str | os.PathLike = "src") -> list[str]:
+    """Source files a ``feeder COMMAND`` job runs, derived from its imports: a rule's code inputs.
+    Snakemake does not track imported Python modules, so listing them is what reruns a stage after
+    a code edit; deriving them means no list can drift from the code."""
+    return [module_file(m, root) for m in code_modules(*command_modules(command, *args), root=root)]
 
 
 def select_settings(config: dict, *keys: str) -> str:
@@ -27,6 +91,15 @@ def select_settings(config: dict, *keys: str) -> str:
             src, dst = src[name], dst.setdefault(name, {})
         dst[last] = src[last]
     return json.dumps(picked, sort_keys=True, separators=(",", ":"))
+
+
+def cli_options(options: dict) -> str:
+    """Command-line options from a dict, for one string param: ``{"chosen": 15, "ids": [1, 2]}``
+    -> ``--chosen 15 --ids 1,2`` (a list or tuple joined by commas)."""
+    return " ".join(
+        f"--{key} {','.join(map(str, value)) if isinstance(value, (list, tuple)) else value}"
+        for key, value in options.items()
+    )
 
 
 def put_interpreter_on_path(environ=os.environ) -> None:

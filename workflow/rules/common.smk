@@ -1,14 +1,14 @@
 # Shared helpers for every rules file: config validation, the part and configuration lists,
-# and the package modules each stage runs (declared as inputs so a code change reruns the stage;
-# Snakemake does not track imported Python modules by itself).
+# and code(): the package modules a job runs, derived from its command's imports (declared as
+# inputs so a code change reruns the job; Snakemake does not track imported Python modules).
 import json
 
 from snakemake.utils import validate
 
-from feeder.datasets import configurations
-from feeder.fences import parse_config_id
-from feeder.parts import list_parts
-from feeder.workflow import drop_local_job_rate_limit, module_files, put_interpreter_on_path, select_settings
+from feeder.labels.dataset import configurations
+from feeder.sim.fences import parse_config_id
+from feeder.parts.library import list_parts
+from feeder.workflow import cli_options, code_inputs, drop_local_job_rate_limit, put_interpreter_on_path, select_settings
 
 
 validate(config, schema="../schemas/config.schema.yaml")
@@ -22,25 +22,15 @@ def sim_path(part, config_id):
     return f"results/sim/{part}/{config_id}.npz"
 
 
-def pkg(*modules):
-    """Source files of the feeder modules a job runs, with the shared core (inputs)."""
-    return module_files(*modules)
+def code(command, *args):
+    """Source files a `feeder COMMAND ARGS` job runs (its transitive feeder imports): the rule's
+    code inputs, so a code edit reruns exactly the jobs whose code changed."""
+    return code_inputs(command, *args)
 
 
 def settings_json(*keys):
     """Config sections or single dotted settings as JSON, for a rule's params."""
     return select_settings(config, *keys)
-
-
-def figure_code(name, *shared):
-    """Source files that draw one figure (inputs of its drawing job only): the module
-    src/feeder/figures/<name>.py, any shared drawing modules it imports (e.g. _cdf_predictions),
-    the shared style, the package's __init__ and the core."""
-    files = pkg() + [f"src/feeder/figures/{m}.py" for m in ("__init__", "style", *shared, name)]
-    missing = [f for f in files if not exists(f)]
-    if missing:
-        raise ValueError(f"figure_code: no drawing module {', '.join(missing)}")
-    return files
 
 
 def sim_settings():

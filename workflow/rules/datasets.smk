@@ -1,6 +1,6 @@
 # Labels and datasets: the configuration table, the merged dataset.npz, Table 4 and the label
 # convergence study (Figs. 4, 5, 9 and the DKW view: one compute job writes their data to
-# results/figdata/, one drawing job per figure). Uses PARTS, CONFIGS, sim_path, pkg, figure_code
+# results/figdata/, one drawing job per figure). Uses PARTS, CONFIGS, sim_path, code
 # and settings_json from common.smk.
 
 DATASET = "results/datasets/dataset.npz"
@@ -22,7 +22,7 @@ DATASETS_TARGETS = [
 rule datasets_configurations:
     """The part x fence configuration table (dataset and split of every row)."""
     input:
-        pkg("datasets", "labels", "fences"),
+        code("datasets"),
     output:
         "results/datasets/configurations.csv",
     params:
@@ -42,7 +42,7 @@ rule datasets_configurations:
 rule datasets_build:
     """Merge every simulation file and the part features into dataset.npz (docs/data.md)."""
     input:
-        pkg("datasets", "labels", "fences"),
+        code("datasets"),
         configurations="results/datasets/configurations.csv",
         sims=[sim_path(p, c) for p, c in zip(CONFIGS["part"], CONFIGS["config_id"])],
         features=expand("results/features/{part}.json", part=sorted(set(CONFIGS["part"]))),
@@ -64,7 +64,7 @@ rule datasets_build:
 rule datasets_table4:
     """Table 4: samples and unique parts per dataset, exclusions counted."""
     input:
-        pkg("datasets", "labels", "fences"),
+        code("datasets"),
         dataset=DATASET,
     output:
         csv=report("results/tables/table4.csv", caption="../report/table4.rst", category="Datasets"),
@@ -82,7 +82,7 @@ rule datasets_table4:
 rule datasets_convergence:
     """The convergence tables and the data of Figs. 4, 5, 9 and the DKW view."""
     input:
-        pkg("datasets", "labels", "fences"),
+        code("datasets"),
         dataset=DATASET,
     output:
         dkw_csv=report(
@@ -107,71 +107,3 @@ rule datasets_convergence:
         "feeder datasets convergence --dataset {input.dataset} --settings '{params.settings}'"
         " --dkw-csv {output.dkw_csv} --js-csv {output.js_csv} --fig4-data {output.fig4}"
         " --fig5-data {output.fig5} --fig9-data {output.fig9} --dkw-data {output.dkw} > {log} 2>&1"
-
-
-rule draw_fig4_js_vs_drops:
-    """Fig. 4 drawn from its data file."""
-    input:
-        figure_code("fig4_js_vs_drops"),
-        data="results/figdata/fig4_js_vs_drops.csv",
-    output:
-        report("results/figures/fig4_js_vs_drops.png", caption="../report/fig4_js_vs_drops.rst", category="Datasets"),
-    log:
-        "logs/figures/fig4_js_vs_drops.log",
-    benchmark:
-        "benchmarks/figures/fig4_js_vs_drops.tsv"
-    conda:
-        "../envs/feeder.yaml"
-    shell:
-        "feeder figure fig4_js_vs_drops --data {input.data} --out {output} > {log} 2>&1"
-
-
-rule draw_fig5_js_hist:
-    """Fig. 5 drawn from its data file."""
-    input:
-        figure_code("fig5_js_hist"),
-        data="results/figdata/fig5_js_hist.npz",
-    output:
-        report("results/figures/fig5_js_hist.png", caption="../report/fig5_js_hist.rst", category="Datasets"),
-    log:
-        "logs/figures/fig5_js_hist.log",
-    benchmark:
-        "benchmarks/figures/fig5_js_hist.tsv"
-    conda:
-        "../envs/feeder.yaml"
-    shell:
-        "feeder figure fig5_js_hist --data {input.data} --out {output} > {log} 2>&1"
-
-
-rule draw_fig9_example_pmfs:
-    """Fig. 9 drawn from its data file."""
-    input:
-        figure_code("fig9_example_pmfs"),
-        data="results/figdata/fig9_example_pmfs.npz",
-    output:
-        report("results/figures/fig9_example_pmfs.png", caption="../report/fig9_example_pmfs.rst", category="Datasets"),
-    log:
-        "logs/figures/fig9_example_pmfs.log",
-    benchmark:
-        "benchmarks/figures/fig9_example_pmfs.tsv"
-    conda:
-        "../envs/feeder.yaml"
-    shell:
-        "feeder figure fig9_example_pmfs --data {input.data} --out {output} > {log} 2>&1"
-
-
-rule draw_convergence_dkw:
-    """The DKW convergence view drawn from its data file."""
-    input:
-        figure_code("convergence_dkw"),
-        data="results/figdata/convergence_dkw.npz",
-    output:
-        report("results/figures/convergence_dkw.png", caption="../report/convergence_dkw.rst", category="Datasets"),
-    log:
-        "logs/figures/convergence_dkw.log",
-    benchmark:
-        "benchmarks/figures/convergence_dkw.tsv"
-    conda:
-        "../envs/feeder.yaml"
-    shell:
-        "feeder figure convergence_dkw --data {input.data} --out {output} > {log} 2>&1"

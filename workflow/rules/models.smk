@@ -1,21 +1,18 @@
 # Regression models of paper Table 2 (Hydra configs in config/model/), Tables 5-8 with baselines
 # and breakdowns, the leave-parts-out GroupKFold table and Figs. 12-13 (one job writes their data
-# to results/figdata/, one drawing job per figure). Uses DATASET (datasets.smk), pkg and
-# figure_code (common.smk).
+# to results/figdata/, one drawing job per figure). Uses DATASET (datasets.smk), code (common.smk).
 #
 # Each model's resolved Hydra config is a param of its training job, so editing one
 # config/model/mK.yaml reruns only model K (and the tables that read it).
 # The §3.4.1 grid search is not part of the DAG: `feeder train -m hparams_search=grid model=m3`.
 import shlex
 
-from feeder.train import resolved_config_yaml
+from feeder.learn.train import resolved_config_yaml
 
 MODELS = config["models"]["regression"]
 HYDRA_OVERRIDES = config["models"]["hydra_overrides"]
 HYDRA_ARGS = " ".join(shlex.quote(o) for o in HYDRA_OVERRIDES)
 REFERENCE_MODEL = "m3"  # the paper's Model 3: Figs. 12-13 and the GroupKFold table
-TRAIN_CODE = pkg("train", "models", "losses", "datasets", "labels", "fences")
-EVAL_CODE = pkg("evaluate", "train", "models", "losses", "datasets", "labels", "fences")
 
 MODELS_TARGETS = [
     *expand("results/tables/table{n}.{ext}", n=[5, 6, 7, 8], ext=["csv", "md"]),
@@ -31,7 +28,7 @@ HYDRA_SETTINGS = {m: resolved_config_yaml(m, HYDRA_OVERRIDES) for m in dict.from
 rule train_model:
     """Train one regression model (Hydra config config/model/{model}.yaml) on the train split."""
     input:
-        TRAIN_CODE,
+        code("train"),
         dataset=DATASET,
     output:
         model="results/models/{model}/model.pt",
@@ -54,7 +51,7 @@ rule train_model:
 rule evaluate_models:
     """Tables 5-8 (Train, Test, Fences, Parts) with both baselines, and the Fences/Parts breakdowns."""
     input:
-        EVAL_CODE,
+        code("evaluate"),
         dataset=DATASET,
         models=expand("results/models/{model}/model.pt", model=MODELS),
     output:
@@ -85,7 +82,7 @@ rule evaluate_models:
 rule groupkfold_model:
     """Leave-parts-out GroupKFold of one model: one training per fold of datasets.group_folds."""
     input:
-        EVAL_CODE,
+        code("evaluate"),
         dataset=DATASET,
     output:
         csv=report("results/tables/groupkfold_{model}.csv", caption="../report/groupkfold.rst", category="Models"),
@@ -107,7 +104,7 @@ rule groupkfold_model:
 rule prediction_figure_data:
     """Data of Figs. 12 (Test) and 13 (Parts): four representative CDF predictions of Model 3 each."""
     input:
-        EVAL_CODE,
+        code("evaluate"),
         dataset=DATASET,
         model=f"results/models/{REFERENCE_MODEL}/model.pt",
     output:
@@ -122,45 +119,3 @@ rule prediction_figure_data:
     shell:
         "feeder evaluate figure-data --dataset {input.dataset} --model $(dirname {input.model})"
         " --fig12-data {output.fig12} --fig13-data {output.fig13} > {log} 2>&1"
-
-
-rule draw_fig12_test_predictions:
-    """Fig. 12 drawn from its data file."""
-    input:
-        figure_code("fig12_test_predictions", "_cdf_predictions"),
-        data="results/figdata/fig12_test_predictions.npz",
-    output:
-        report(
-            "results/figures/fig12_test_predictions.png",
-            caption="../report/fig12_test_predictions.rst",
-            category="Models",
-        ),
-    log:
-        "logs/figures/fig12_test_predictions.log",
-    benchmark:
-        "benchmarks/figures/fig12_test_predictions.tsv"
-    conda:
-        "../envs/feeder.yaml"
-    shell:
-        "feeder figure fig12_test_predictions --data {input.data} --out {output} > {log} 2>&1"
-
-
-rule draw_fig13_parts_predictions:
-    """Fig. 13 drawn from its data file."""
-    input:
-        figure_code("fig13_parts_predictions", "_cdf_predictions"),
-        data="results/figdata/fig13_parts_predictions.npz",
-    output:
-        report(
-            "results/figures/fig13_parts_predictions.png",
-            caption="../report/fig13_parts_predictions.rst",
-            category="Models",
-        ),
-    log:
-        "logs/figures/fig13_parts_predictions.log",
-    benchmark:
-        "benchmarks/figures/fig13_parts_predictions.tsv"
-    conda:
-        "../envs/feeder.yaml"
-    shell:
-        "feeder figure fig13_parts_predictions --data {input.data} --out {output} > {log} 2>&1"

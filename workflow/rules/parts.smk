@@ -2,15 +2,15 @@
 # Supplementary Fig. S1 coefficient study. Parts are read from config["parts"]["dir"] only (the
 # library is generated and committed by `feeder parts generate`; a user may drop in their own
 # <id>.stl). A part's features come from its <id>.xyz face cloud when there is one, otherwise from
-# its STL's top face. Uses PARTS, pkg() and figure_code() from common.smk. Figures are drawn by
+# its STL's top face. Uses PARTS, code() from common.smk. Figures are drawn by
 # their own jobs (feeder figure ...) from data files, so a style edit redraws only that figure.
-from feeder.features import DFT
+
 
 
 rule part_features:
     """45 raw DFT values of one part: results/features/{part}.json (docs/data.md)."""
     input:
-        pkg("features", "geometry"),
+        code("features"),
         stl=lambda w: f"{config['parts']['dir']}/{w.part}.stl",
         src=lambda w: (
             f"{config['parts']['dir']}/{w.part}.xyz"
@@ -33,7 +33,7 @@ rule parts_fig6_data:
     """Fig. 6 (panel b) data: outlines and their reconstructions from the kept DFT coefficients, for
     the parts listed in parts.fig6 that are in use (else the first eight parts)."""
     input:
-        pkg("features", "geometry", "parts"),
+        code("parts"),
         src=lambda w: [
             f"{config['parts']['dir']}/{p}.xyz"
             if exists(f"{config['parts']['dir']}/{p}.xyz")
@@ -56,7 +56,7 @@ rule parts_s1:
     """Supplementary Fig. S1 table: reconstruction MSE over every part in use vs the number of
     largest-magnitude coefficients kept (1 .. parts.s1_max_coefficients)."""
     input:
-        pkg("features", "geometry", "parts"),
+        code("parts"),
         src=lambda w: [
             f"{config['parts']['dir']}/{p}.xyz"
             if exists(f"{config['parts']['dir']}/{p}.xyz")
@@ -75,43 +75,3 @@ rule parts_s1:
         "../envs/feeder.yaml"
     shell:
         "feeder parts s1 {input.src} --table {output} --max-coefficients {params.max_coefficients} > {log} 2>&1"
-
-
-rule draw_fig6_dft_reconstruction:
-    """Fig. 6 (panel b) drawn from its data file."""
-    input:
-        figure_code("fig6_dft_reconstruction"),
-        data="results/figdata/fig6_dft_reconstruction.npz",
-    output:
-        report(
-            "results/figures/fig6_dft_reconstruction.png",
-            caption="../report/fig6_dft_reconstruction.rst",
-            category="Parts",
-        ),
-    log:
-        "logs/figures/fig6_dft_reconstruction.log",
-    benchmark:
-        "benchmarks/figures/fig6_dft_reconstruction.tsv"
-    conda:
-        "../envs/feeder.yaml"
-    shell:
-        "feeder figure fig6_dft_reconstruction --data {input.data} --out {output} > {log} 2>&1"
-
-
-rule draw_s1_dft_mse:
-    """Supplementary Fig. S1 drawn from the S1 table; the feature count is marked."""
-    input:
-        figure_code("s1_dft_mse"),
-        data="results/tables/s1_dft_mse.csv",
-    output:
-        report("results/figures/s1_dft_mse.png", caption="../report/s1_dft_mse.rst", category="Parts"),
-    params:
-        chosen=DFT.coefficients,
-    log:
-        "logs/figures/s1_dft_mse.log",
-    benchmark:
-        "benchmarks/figures/s1_dft_mse.tsv"
-    conda:
-        "../envs/feeder.yaml"
-    shell:
-        "feeder figure s1_dft_mse --data {input.data} --chosen {params.chosen} --out {output} > {log} 2>&1"

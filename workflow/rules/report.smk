@@ -1,4 +1,8 @@
-# The paper's tables and figures as the default target, and what the study cost.
+# The paper's tables and figures as the default target, what the study cost, and every figure:
+# one drawing job per figure (feeder figure NAME) from its data file, so a style edit redraws only
+# that figure. FIGURE_TABLE is the one list of figures.
+
+from feeder.parts.features import DFT
 
 TABLES = "results/tables"
 FIGURES = "results/figures"
@@ -8,17 +12,7 @@ PARTS_TARGETS = [
     f"{TABLES}/s1_dft_mse.csv",
     f"{FIGURES}/s1_dft_mse.png",
 ]
-SIM_TARGETS = [
-    f"{TABLES}/table1.csv",
-    f"{TABLES}/sim_accuracy_vs_time.csv",
-    f"{TABLES}/jam_rates.csv",
-    f"{FIGURES}/jam_rates.png",
-    f"{FIGURES}/sim_accuracy_vs_time.png",
-    f"{TABLES}/yaw_sampling.csv",
-    f"{FIGURES}/yaw_sampling.png",
-    f"{TABLES}/sim_cost.csv",
-    f"{FIGURES}/sim_cost.png",
-]
+SIM_TARGETS = [f"{TABLES}/table1.csv"]
 # Every table and figure of the study (each stage's rules file lists its own).
 PAPER_TARGETS = PARTS_TARGETS + SIM_TARGETS + DATASETS_TARGETS + MODELS_TARGETS + VAE_TARGETS
 
@@ -29,7 +23,7 @@ rule cost_by_stage:
     """Per-stage wall/CPU/memory from every job's benchmark file, once everything else is built."""
     input:
         PAPER_TARGETS,
-        pkg("cost"),
+        code("cost"),
     output:
         csv=report(f"{TABLES}/cost_by_stage.csv", caption="../report/cost_by_stage.rst", category="Cost"),
         provenance="results/provenance.json",
@@ -46,18 +40,48 @@ rule cost_by_stage:
         " --provenance {output.provenance} --config-json '{params.config}' > {log} 2>&1"
 
 
-rule draw_cost_by_stage:
-    """The cost figure drawn from cost_by_stage.csv."""
-    input:
-        figure_code("cost_by_stage"),
-        data=f"{TABLES}/cost_by_stage.csv",
-    output:
-        report(f"{FIGURES}/cost_by_stage.png", caption="../report/cost_by_stage_figure.rst", category="Cost"),
-    log:
-        "logs/figures/cost_by_stage.log",
-    benchmark:
-        "benchmarks/figures/cost_by_stage.tsv"
-    conda:
-        "../envs/feeder.yaml"
-    shell:
-        "feeder figure cost_by_stage --data {input.data} --out {output} > {log} 2>&1"
+# name: data file it is drawn from, report caption, report category, extra `feeder figure` options
+FIGURE_TABLE = {
+    "fig6_dft_reconstruction": ("results/figdata/fig6_dft_reconstruction.npz", "fig6_dft_reconstruction", "Parts", {}),
+    "s1_dft_mse": (f"{TABLES}/s1_dft_mse.csv", "s1_dft_mse", "Parts", {"chosen": DFT.coefficients}),
+    "sim_accuracy_vs_time": (
+        f"{TABLES}/sim_accuracy_vs_time.csv",
+        "sim_accuracy_vs_time",
+        "Simulation",
+        {"reference": config["sim"]["bench"]["reference"]},
+    ),
+    "jam_rates": (f"{TABLES}/jam_rates.csv", "jam_rates_figure", "Simulation", {}),
+    "yaw_sampling": (f"{TABLES}/yaw_sampling.csv", "yaw_sampling", "Simulation", {}),
+    "sim_cost": (f"{TABLES}/sim_cost_sample.csv", "sim_cost_figure", "Cost", {}),
+    "fig4_js_vs_drops": ("results/figdata/fig4_js_vs_drops.csv", "fig4_js_vs_drops", "Datasets", {}),
+    "fig5_js_hist": ("results/figdata/fig5_js_hist.npz", "fig5_js_hist", "Datasets", {}),
+    "fig9_example_pmfs": ("results/figdata/fig9_example_pmfs.npz", "fig9_example_pmfs", "Datasets", {}),
+    "convergence_dkw": ("results/figdata/convergence_dkw.npz", "convergence_dkw", "Datasets", {}),
+    "fig12_test_predictions": ("results/figdata/fig12_test_predictions.npz", "fig12_test_predictions", "Models", {}),
+    "fig13_parts_predictions": ("results/figdata/fig13_parts_predictions.npz", "fig13_parts_predictions", "Models", {}),
+    "fig14_cross_convergence": (f"{TABLES}/p2_levels.csv", "fig14_cross_convergence", "VAE and delta", {}),
+    "s11_delta_sweep": (f"{TABLES}/table10.csv", "s11_delta_sweep", "VAE and delta", {}),
+    "cost_by_stage": (f"{TABLES}/cost_by_stage.csv", "cost_by_stage_figure", "Cost", {}),
+}
+
+
+for fig, (data, caption, category, options) in FIGURE_TABLE.items():
+
+    rule:
+        name:
+            f"draw_{fig}"
+        input:
+            code("figure", fig),
+            data=data,
+        output:
+            report(f"{FIGURES}/{fig}.png", caption=f"../report/{caption}.rst", category=category),
+        params:
+            options=cli_options(options),
+        log:
+            f"logs/figures/{fig}.log",
+        benchmark:
+            f"benchmarks/figures/{fig}.tsv"
+        conda:
+            "../envs/feeder.yaml"
+        shell:
+            f"feeder figure {fig} --data {{input.data}} {{params.options}} --out {{output}} > {{log}} 2>&1"

@@ -1,6 +1,5 @@
 # The VAE (paper §3.4.2, Table 9), the partial-iteration study P2 (Fig. 14, p2_levels) and the
-# delta-to-full correction sweep P4 (Table 10, Fig. S11). Uses DATASET (datasets.smk), pkg and
-# figure_code (common.smk). Figs. 14 and S11 are drawn by their own jobs from p2_levels.csv and
+# delta-to-full correction sweep P4 (Table 10, Fig. S11). Uses DATASET (datasets.smk), code (common.smk). Figs. 14 and S11 are drawn by their own jobs from p2_levels.csv and
 # table10.csv. Model settings: config/vae.yaml and config/delta.yaml (Hydra); the workflow's
 # `vae:` and `delta:` sections choose the levels and add Hydra overrides (smoke shrinks epochs).
 #
@@ -8,11 +7,9 @@
 # exactly the jobs it affects; one job per level lets the levels run in parallel.
 import shlex
 
-from feeder.vae import rule_params, select_levels
+from feeder.learn.vae import rule_params, select_levels
 
 
-VAE_CODE = pkg("vae", "datasets", "labels", "losses", "fences")
-DELTA_CODE = pkg("delta", "vae", "datasets", "labels", "losses", "fences")
 P2_LEVELS = select_levels(config["vae"]["p2_levels"], config["labels"]["levels_pct"], "vae.p2_levels")
 DELTA_LEVELS = select_levels(config["delta"]["levels"], config["labels"]["levels_pct"], "delta.levels")
 VAE_OVERRIDES = [f"dataset={DATASET}", *config["vae"]["hydra_overrides"]]
@@ -35,7 +32,7 @@ VAE_TARGETS = [
 rule vae_train:
     """Train the Table 9 VAE on the Main rows (train + test splits) only."""
     input:
-        VAE_CODE,
+        code("vae"),
         dataset=DATASET,
     output:
         "results/vae/main.pt",
@@ -55,7 +52,7 @@ rule vae_train:
 rule vae_table9:
     """Table 9: reconstruction R² of features and CDFs on the Fences and Parts rows."""
     input:
-        VAE_CODE,
+        code("vae"),
         dataset=DATASET,
         model="results/vae/main.pt",
     output:
@@ -74,7 +71,7 @@ rule vae_table9:
 rule vae_p2_level:
     """P2: a VAE trained from scratch on the level-{level} CDFs of the shared 80 % split."""
     input:
-        VAE_CODE,
+        code("vae"),
         dataset=DATASET,
     output:
         "results/vae/p2/level_{level}.json",
@@ -96,7 +93,7 @@ rule vae_p2_level:
 rule vae_p2_gather:
     """P2 table of every level (within-level vs cross-convergence R², the data of Fig. 14)."""
     input:
-        VAE_CODE,
+        code("vae"),
         levels=expand("results/vae/p2/level_{level}.json", level=P2_LEVELS),
     output:
         csv=report("results/tables/p2_levels.csv", caption="../report/p2_levels.rst", category="VAE and delta"),
@@ -114,7 +111,7 @@ rule vae_p2_gather:
 rule delta_sweep_level:
     """P4: delta-to-full models at one level, part-level GroupKFold and random configuration folds."""
     input:
-        DELTA_CODE,
+        code("delta"),
         dataset=DATASET,
     output:
         "results/delta/level_{level}.json",
@@ -137,7 +134,7 @@ rule delta_table:
     """Table 10 (every swept level in the CSV, the paper's representative rows in the .md; the CSV
     is the data of Fig. S11)."""
     input:
-        DELTA_CODE,
+        code("delta"),
         levels=expand("results/delta/level_{level}.json", level=DELTA_LEVELS),
     output:
         csv=report("results/tables/table10.csv", caption="../report/table10.rst", category="VAE and delta"),
@@ -154,41 +151,3 @@ rule delta_table:
     shell:
         "feeder delta table --table {output.csv} {params.overrides}"
         " {input.levels} > {log} 2>&1"
-
-
-rule draw_fig14_cross_convergence:
-    """Fig. 14 drawn from the P2 table."""
-    input:
-        figure_code("fig14_cross_convergence"),
-        data="results/tables/p2_levels.csv",
-    output:
-        report(
-            "results/figures/fig14_cross_convergence.png",
-            caption="../report/fig14_cross_convergence.rst",
-            category="VAE and delta",
-        ),
-    log:
-        "logs/figures/fig14_cross_convergence.log",
-    benchmark:
-        "benchmarks/figures/fig14_cross_convergence.tsv"
-    conda:
-        "../envs/feeder.yaml"
-    shell:
-        "feeder figure fig14_cross_convergence --data {input.data} --out {output} > {log} 2>&1"
-
-
-rule draw_s11_delta_sweep:
-    """Supplementary Fig. S11 drawn from Table 10."""
-    input:
-        figure_code("s11_delta_sweep"),
-        data="results/tables/table10.csv",
-    output:
-        report("results/figures/s11_delta_sweep.png", caption="../report/s11_delta_sweep.rst", category="VAE and delta"),
-    log:
-        "logs/figures/s11_delta_sweep.log",
-    benchmark:
-        "benchmarks/figures/s11_delta_sweep.tsv"
-    conda:
-        "../envs/feeder.yaml"
-    shell:
-        "feeder figure s11_delta_sweep --data {input.data} --out {output} > {log} 2>&1"

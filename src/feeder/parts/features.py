@@ -5,8 +5,8 @@ Pipeline (:func:`outline_samples` then :func:`dft_features`):
 1. **Points.** An ``.xyz`` file is read as ``x y z`` lines (spaces or commas; blank lines and
    ``#`` comments allowed). The axis with (nearly) no spread is dropped; the others must span a
    plane (not a line). For an ``.stl`` the exact outline of the top face is recovered
-   (:func:`feeder.geometry.read_outline`) and its face is sampled into a point cloud exactly like
-   the library's exports (:func:`feeder.geometry.face_cloud`, ``DFT.stl_cloud_points`` points).
+   (:func:`feeder.parts.geometry.read_outline`) and its face is sampled into a point cloud exactly like
+   the library's exports (:func:`feeder.parts.geometry.face_cloud`, ``DFT.stl_cloud_points`` points).
    **Units:** millimetres and metres both work and need no detection: step 3 scales the shape
    uniformly to the canvas, so every later quantity is in canvas pixels and the features do not
    depend on the unit (nor on the part's absolute size). All tolerances are relative.
@@ -163,7 +163,7 @@ def load_face(path: str | os.PathLike, settings: DFTSettings = DFT) -> tuple[np.
     path = Path(path)
     suffix = path.suffix.lower()
     if suffix == ".stl":
-        from feeder.geometry import clean_outline, face_cloud, read_outline
+        from feeder.parts.geometry import clean_outline, face_cloud, read_outline
 
         outline, _ = read_outline(path)  # metres or millimetres: the features are unit-free
         try:
@@ -213,7 +213,7 @@ def frame_deg(xy: np.ndarray, settings: DFTSettings = DFT) -> float:
     """Angle (degrees, [0, 360)) of the feature frame's x axis in the points' x-y frame.
 
     A part whose own frame is at yaw ψ has its feature frame at ψ + frame_deg: the labels'
-    ``principal`` frame (:mod:`feeder.labels`) measures yaws there, so the same shape gives the
+    ``principal`` frame (:mod:`feeder.labels.metrics`) measures yaws there, so the same shape gives the
     same label whatever frame its CAD file was drawn in.
     """
     e1 = principal_axis(xy, settings)

@@ -43,11 +43,11 @@ import numpy as np
 import pandas as pd
 
 from feeder import io as fio
-from feeder import labels as L
+from feeder.labels import metrics as L
 from feeder.errors import FeederError
-from feeder.fences import TYPES, Fence, config_id, parse_config_id
+from feeder.sim.fences import TYPES, Fence, config_id, parse_config_id
 
-log = logging.getLogger("feeder.datasets")
+log = logging.getLogger("feeder.labels.dataset")
 
 DATASETS = ("main", "fences", "parts")
 SPLITS = ("train", "test", "fences", "parts")

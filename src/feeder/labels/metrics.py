@@ -14,21 +14,15 @@ Everything here is a pure numpy function. Conventions (docs/data.md):
   and R² = 1 − SS_res / SS_tot of one CDF against its truth (see :func:`r2_cdf` for SS_tot = 0).
 * Label frame (``labels.frame``): ``part`` measures the yaw of the part's own (CAD) frame, as the
   simulation records it; ``principal`` measures the yaw of its feature frame (the frame the DFT
-  features are computed in, at ``frame_deg`` in the part's frame, :func:`feeder.features.frame_deg`),
+  features are computed in, at ``frame_deg`` in the part's frame, :func:`feeder.parts.features.frame_deg`),
   i.e. ``θ + frame_deg``. :func:`shift_pmf` moves a PMF between the two.
 * Partial levels use the first ``k %`` of *all* drops (``floor(drops · k / 100)`` drops in drop
   order), and only the ok drops among them enter the PMF (see :func:`partial_pmfs`).
-
-``feeder labels pmf SIM.npz`` prints the label summary of one simulation file.
 """
 
 from __future__ import annotations
 
-import argparse
-import json
 import math
-import sys
-from pathlib import Path
 
 import numpy as np
 
@@ -263,32 +257,3 @@ def dkw_epsilon(n, alpha: float) -> np.ndarray:
     n = np.asarray(n, dtype=np.float64)
     with np.errstate(divide="ignore"):
         return np.sqrt(math.log(2.0 / alpha) / (2.0 * n))
-
-
-# ----------------------------------------------------------------------------------------------
-# CLI
-# ----------------------------------------------------------------------------------------------
-def main(argv: list[str]) -> int:
-    parser = argparse.ArgumentParser(prog="feeder labels", description=__doc__.split("\n")[0])
-    sub = parser.add_subparsers(dest="cmd", required=True)
-    p = sub.add_parser("pmf", help="summarise the labels of one simulation file")
-    p.add_argument("sim", type=Path, help="results/sim/<part>/<config>.npz")
-    p.add_argument("--bins", type=int, required=True)
-    p.add_argument("--sigma", type=float, required=True, help="smoothing sigma in bins")
-    args = parser.parse_args(argv)
-
-    from feeder.datasets import load_sim  # local import: datasets imports this module
-
-    sim = load_sim(args.sim)
-    pmf = pmf_from_yaws(sim.yaws[sim.ok], args.bins, args.sigma)
-    summary = {
-        "file": str(args.sim),
-        "drops": int(sim.yaws.size),
-        "ok": int(sim.ok.sum()),
-        "mode_deg": float((np.argmax(pmf) + 0.5) * FULL_TURN_DEG / args.bins),
-        "max_bin_probability": float(pmf.max()),
-        "js_to_uniform_bits": float(js_divergence(pmf, np.full(args.bins, 1.0 / args.bins))),
-    }
-    json.dump(summary, sys.stdout, indent=2)
-    print()
-    return 0

@@ -70,7 +70,7 @@ def resolved_config_yaml(model: str, overrides=(), config_dir: Path | str = CONF
 # ----------------------------------------------------------------------------------------------
 def load_dataset(path) -> dict[str, np.ndarray]:
     """The arrays of ``results/datasets/dataset.npz`` (docs/data.md), checked for what training needs."""
-    from feeder import datasets
+    from feeder.labels import dataset as datasets
 
     data = datasets.load_dataset(path)
     missing = [k for k in DATASET_KEYS if k not in data]
@@ -105,7 +105,7 @@ def validation_split(rows: np.ndarray, fraction: float, seed: int) -> tuple[np.n
 # ----------------------------------------------------------------------------------------------
 @dataclass
 class Fitted:
-    model: object  # feeder.models.TrainedModel
+    model: object  # feeder.learn.models.TrainedModel
     history: list[dict] = field(default_factory=list)
     best_epoch: int = 0
     best_val_loss: float = float("nan")
@@ -130,9 +130,9 @@ def fit(cfg, data: dict[str, np.ndarray], train_mask: np.ndarray, seed: int | No
     import torch
     from tqdm import tqdm
 
-    from feeder import losses
-    from feeder.datasets import fit_scaler
-    from feeder.models import ModelSpec, RegressionModel, TrainedModel, fit_pca
+    from feeder.learn import losses
+    from feeder.labels.dataset import fit_scaler
+    from feeder.learn.models import ModelSpec, RegressionModel, TrainedModel, fit_pca
 
     t0 = time.perf_counter()
     tr = cfg.trainer
@@ -223,8 +223,8 @@ def fit(cfg, data: dict[str, np.ndarray], train_mask: np.ndarray, seed: int | No
 
 def split_metrics(model, data: dict[str, np.ndarray]) -> dict[str, float]:
     """Mean CDF R² and W1 of the post-processed predictions on every split present."""
-    from feeder.datasets import SPLITS
-    from feeder.labels import r2_cdf, w1
+    from feeder.labels.dataset import SPLITS
+    from feeder.labels.metrics import r2_cdf, w1
 
     x_raw = (data["part_raw"], data["feeder_raw"])
     _, cdf = model.predict(*x_raw)

@@ -1,6 +1,6 @@
 """pybullet simulation of one part through one fence configuration (``feeder simulate``).
 
-The scene (see :mod:`feeder.scene`) is a belt moving along ``+y`` with containment walls and up to
+The scene (see :mod:`feeder.sim.scene`) is a belt moving along ``+y`` with containment walls and up to
 two fences. One *drop* places the part flat, centred, already moving with the belt, with a yaw
 drawn uniformly from [0, 360) (independently, or as an evenly spread golden-ratio sequence:
 :func:`initial_yaws`), carries it past the fences and records its final in-plane yaw
@@ -67,8 +67,8 @@ from pathlib import Path
 import numpy as np
 
 from feeder.errors import FeederError
-from feeder.fences import Fence, config_id, parse_location
-from feeder.scene import FenceGeom, belt_contact, load_settings, scene_fences
+from feeder.sim.fences import Fence, config_id, parse_location
+from feeder.sim.scene import FenceGeom, belt_contact, load_settings, scene_fences
 
 STATUSES = ("ok", "jammed", "fell_off", "timed_out", "flipped", "nan")
 PRESET_KEYS = ("time_step", "substeps", "solver_iterations", "lanes", "full_path", "skip_slides", "merge_tolerance")
@@ -753,7 +753,7 @@ def main(argv: list[str]) -> int:
         raise FeederError(f"--drops must be positive, got {args.drops}")
     scene, presets = load_settings(args.settings)
     preset = get_preset(presets, args.preset)
-    from feeder.geometry import load_part
+    from feeder.parts.geometry import load_part
 
     path = Path(args.part)
     if not path.is_file():

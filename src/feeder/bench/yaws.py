@@ -2,7 +2,7 @@
 
 The orientation PMF of a configuration is a sample estimate: its error falls with the number of
 drops, and the design of the initial yaws decides how fast. ``random`` draws them independently
-(the paper); ``golden`` spreads every prefix evenly over the circle (:func:`feeder.sim.initial_yaws`).
+(the paper); ``golden`` spreads every prefix evenly over the circle (:func:`feeder.sim.drops.initial_yaws`).
 Over the panel of ``sim.bench.panel`` (shape specs, so the benchmark does not depend on the part
 library), a reference of ``reference_drops`` independent drops is simulated with the first seed;
 each design is simulated with the second seed for the largest drop level, and its first k drops
@@ -33,9 +33,9 @@ DESIGNS = ("random", "golden")
 def _run(job):
     """Worker: one (role, design, seed, panel entry) simulation → role, design, index, yaws, CPU seconds."""
     role, design, drops, seed, idx, entry, scene, preset, thickness = job
-    from feeder.fences import parse_location
-    from feeder.sim import simulate
-    from feeder.sim_shapes import shape_part
+    from feeder.sim.fences import parse_location
+    from feeder.sim.drops import simulate
+    from feeder.parts.shapes import shape_part
 
     shape, loc1, loc2 = entry
     geom = shape_part(shape, thickness)
@@ -66,7 +66,7 @@ def summarize(results, ref, panel, levels, labels_cfg):
     """Rows per design × level × configuration plus mean rows (see the module docstring)."""
     import pandas as pd
 
-    from feeder.bench import _metrics
+    from feeder.bench.accuracy import _metrics
 
     bins, sigma = int(labels_cfg["bins"]), float(labels_cfg["sigma_bins"])
     rows = []
@@ -132,7 +132,7 @@ def run_bench(scene, sim_cfg, labels_cfg, progress=False):
 
 
 def main(argv: list[str]) -> int:
-    from feeder.bench import bench_cli
+    from feeder.bench.accuracy import bench_cli
     from feeder.io import write_csv
 
     out_csv, scene, sim_cfg, labels_cfg = bench_cli("feeder bench-yaws", __doc__, argv)

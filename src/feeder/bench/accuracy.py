@@ -1,7 +1,7 @@
 """Accuracy against time of the simulation settings (``feeder bench-sim``).
 
 Over a fixed panel of part × fence configurations (``sim.bench.panel``: shape specs from
-:mod:`feeder.sim_shapes`, so the benchmark does not depend on the part library), the reference
+:mod:`feeder.parts.shapes`, so the benchmark does not depend on the part library), the reference
 preset (``faithful``) is run with two base seeds; the two runs' distance is the *noise floor*
 (what sampling alone gives at this drop count). Each setting of ``sim.bench.sweep`` (overrides of
 a base preset: time step, substeps, solver iterations, lanes, shortcuts) runs with the second
@@ -9,7 +9,7 @@ seed and is compared with the reference's first seed — so, like the floor, the
 two independent samples and a setting without bias lands at the floor. Drops per configuration
 are swept by using the first k drops (``sim.bench.drop_levels``) of every run.
 
-Distances per configuration (PMFs and CDFs as in :mod:`feeder.labels`, ok drops only): JS
+Distances per configuration (PMFs and CDFs as in :mod:`feeder.labels.metrics`, ok drops only): JS
 divergence (bits), W1 on the CDF (degrees) and CDF R² (reference as truth); CPU milliseconds per
 drop from the worker's process time. Writes a CSV (one row per setting × drop level × configuration
 plus ``config = mean`` aggregate rows with the noise floor and the speed-up over the reference).
@@ -39,9 +39,9 @@ from feeder.errors import FeederError
 def _run(job):
     """Worker: one (setting, seed, panel entry) simulation → yaws, statuses, CPU seconds."""
     name, preset, seed, idx, entry, scene, thickness = job
-    from feeder.fences import parse_location
-    from feeder.sim import simulate
-    from feeder.sim_shapes import shape_part
+    from feeder.sim.fences import parse_location
+    from feeder.sim.drops import simulate
+    from feeder.parts.shapes import shape_part
 
     shape, loc1, loc2 = entry
     geom = shape_part(shape, thickness)
@@ -54,7 +54,7 @@ def _run(job):
 
 def _metrics(yaws_a, yaws_b, bins, sigma):
     """JS, W1, CDF R² of sample a against sample b (b is the truth); NaN if either has no ok drop."""
-    from feeder import labels
+    from feeder.labels import metrics as labels
 
     a, b = yaws_a[np.isfinite(yaws_a)], yaws_b[np.isfinite(yaws_b)]
     if a.size == 0 or b.size == 0:
@@ -75,7 +75,7 @@ def bootstrap_js_floor(sample_a, sample_b, n: int, bins: int, sigma: float, resa
     also covers near-discrete outcomes (sub-degree peaks), where two seeds differ by peak weights
     only while any change of the numerics reshuffles drops within a peak.
     """
-    from feeder import labels
+    from feeder.labels import metrics as labels
 
     pool = np.concatenate([np.asarray(sample_a, float), np.asarray(sample_b, float)])
     pool = pool[np.isfinite(pool)]
@@ -101,7 +101,7 @@ def paired_excess(triples, bins: int, sigma: float, resamples: int, seed: int) -
     ``p = (1 + #{resampled excess >= observed}) / (1 + resamples)``: a small ``p`` means the setting
     is farther than sampling explains. A configuration without ok drops is left out (NaN mean).
     """
-    from feeder import labels
+    from feeder.labels import metrics as labels
 
     def dists(x, ref_pmf, ref_cdf):
         x = x[np.isfinite(x)]

@@ -39,7 +39,7 @@ from pathlib import Path
 import numpy as np
 
 from feeder.errors import FeederError
-from feeder.fences import Fence
+from feeder.sim.fences import Fence
 
 CONFIG_PATH = Path("config/config.yaml")
 

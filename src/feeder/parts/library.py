@@ -257,7 +257,7 @@ def shape_metrics(outline: np.ndarray) -> dict[str, float]:
     eigen ratio (largest / smallest eigenvalue of the central second-moment-of-area tensor)."""
     import shapely
 
-    from feeder.geometry import polygon_moments
+    from feeder.parts.geometry import polygon_moments
 
     poly = shapely.Polygon(outline)
     area, _, (ixx, iyy, ixy) = polygon_moments(np.asarray(outline))
@@ -300,7 +300,7 @@ def load_spec(spec_path: str | Path) -> dict[str, Any]:
 
 def build_part(entry: dict, spec: dict) -> dict[str, Any]:
     """Outline (mm), thickness (mm), face cloud (mm) and catalog row of one library entry."""
-    from feeder.geometry import clean_outline, face_cloud
+    from feeder.parts.geometry import clean_outline, face_cloud
 
     lim, cloud = spec["limits"], spec["cloud"]
     pid = str(entry.get("id"))
@@ -352,7 +352,7 @@ def generate(spec_path: str | Path, out_dir: str | Path, progress: bool = True) 
     import pandas as pd
     from tqdm import tqdm
 
-    from feeder.geometry import stl_bytes
+    from feeder.parts.geometry import stl_bytes
     from feeder.io import write_bytes, write_csv, write_text
 
     spec = load_spec(spec_path)
@@ -402,7 +402,7 @@ def _parser() -> argparse.ArgumentParser:
     f.add_argument("paths", nargs="+", help=".xyz or .stl files, one panel each")
     f.add_argument("--out", required=True)
     f.add_argument("--coefficients", type=int, default=None,
-                   help="coefficients kept (default: the feature count, feeder.features.DFT)")
+                   help="coefficients kept (default: the feature count, feeder.parts.features.DFT)")
     s = sub.add_parser("s1", help="reconstruction MSE vs number of coefficients (Fig. S1 table)")
     s.add_argument("paths", nargs="+", help=".xyz or .stl files of the library")
     s.add_argument("--table", required=True)
@@ -420,7 +420,7 @@ def main(argv: list[str]) -> int:
         print(json.dumps({"generated": len(ids), **summary}))
         return 0
     if args.cmd == "xyz":
-        from feeder.geometry import face_cloud, load_part
+        from feeder.parts.geometry import face_cloud, load_part
         from feeder.io import write_text
 
         g = load_part(args.stl)
@@ -431,14 +431,14 @@ def main(argv: list[str]) -> int:
         print("\n".join(list_parts(args.dir, args.include if args.include else "all")))
         return 0
     if args.cmd == "fig6-data":
-        from feeder.features import DFT, reconstruction_data
+        from feeder.parts.features import DFT, reconstruction_data
         from feeder.io import write_npz
 
         count = DFT.coefficients if args.coefficients is None else args.coefficients
         write_npz(args.out, **reconstruction_data(args.paths, count))
         return 0
     if args.cmd == "s1":
-        from feeder.features import study_mse
+        from feeder.parts.features import study_mse
         from feeder.io import write_csv
 
         write_csv(args.table, study_mse(args.paths, args.max_coefficients))

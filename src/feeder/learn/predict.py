@@ -4,9 +4,9 @@ trained regression model, without simulating.
     feeder predict --model results/models/m3 --part parts/<id>.stl --loc1 straight:30 --loc2 none \\
         [--out pmf.csv] [--plot pmf.png]
 
-The part's 45 DFT features come from its ``.stl``/``.xyz`` (:func:`feeder.features.features_of_file`)
+The part's 45 DFT features come from its ``.stl``/``.xyz`` (:func:`feeder.parts.features.features_of_file`)
 or from a precomputed ``--features results/features/<id>.json``; the fences are parsed by
-:func:`feeder.fences.parse_location`. The output CSV has one row per bin: ``angle_deg`` (the
+:func:`feeder.sim.fences.parse_location`. The output CSV has one row per bin: ``angle_deg`` (the
 bin's lower edge in degrees), ``pmf`` (probability of the bin) and ``cdf`` (cumulative from 0°),
 post-processed exactly as in evaluation, for the yaw of the part file's own frame (a model trained
 on ``principal``-frame labels is shifted back by the part's ``frame_deg``). Without ``--out`` the
@@ -32,7 +32,7 @@ def part_vector(part: Path | None, features: Path | None) -> tuple[np.ndarray, f
     if (part is None) == (features is None):
         raise FeederError("give exactly one of --part or --features")
     if features is not None:
-        from feeder.datasets import load_features, load_frame_deg
+        from feeder.labels.dataset import load_features, load_frame_deg
 
         try:
             frame = load_frame_deg(features)
@@ -41,7 +41,7 @@ def part_vector(part: Path | None, features: Path | None) -> tuple[np.ndarray, f
         return load_features(features), frame
     if not part.is_file():
         raise FeederError(f"part file {part} is missing")
-    from feeder.features import as_vector, features_of_file
+    from feeder.parts.features import as_vector, features_of_file
 
     feats = features_of_file(part)
     return as_vector(feats), feats["frame_deg"]
@@ -52,11 +52,11 @@ def predict_frame(model, part_raw: np.ndarray, loc1: str, loc2: str,
     """The 360-bin prediction of ``model`` (a TrainedModel) as a DataFrame, in the part's own frame.
 
     A model trained on ``principal``-frame labels predicts the yaw of the part's feature frame;
-    it is moved back by ``frame_deg`` (:func:`feeder.labels.shift_pmf`), which it then needs.
+    it is moved back by ``frame_deg`` (:func:`feeder.labels.metrics.shift_pmf`), which it then needs.
     """
-    from feeder import labels as L
-    from feeder.datasets import feeder_vector
-    from feeder.fences import parse_location
+    from feeder.labels import metrics as L
+    from feeder.labels.dataset import feeder_vector
+    from feeder.sim.fences import parse_location
 
     feeder_raw = feeder_vector(parse_location(loc1), parse_location(loc2))
     pmf, cdf = model.predict(part_raw[None, :], feeder_raw[None, :])
@@ -101,8 +101,8 @@ def main(argv: list[str]) -> int:
     parser.add_argument("--plot", type=Path, help="also draw the PMF/CDF to this image")
     args = parser.parse_args(argv)
 
-    from feeder.fences import parse_location
-    from feeder.models import TrainedModel
+    from feeder.sim.fences import parse_location
+    from feeder.learn.models import TrainedModel
 
     parse_location(args.loc1), parse_location(args.loc2)  # bad fences fail before any work
     model = TrainedModel.load(args.model)

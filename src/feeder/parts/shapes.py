@@ -11,7 +11,7 @@ A spec is ``<family>-<numbers in mm separated by x>`` so it is also a valid part
 * ``star-NxROxRI``: N-pointed star, outer / inner radius;
 * ``tri-WxH``: right triangle with legs W, H.
 
-``shape_part(spec, thickness_m)`` returns a :class:`feeder.geometry.PartGeometry`;
+``shape_part(spec, thickness_m)`` returns a :class:`feeder.parts.geometry.PartGeometry`;
 ``mirror_part(geom)`` its left/right mirror image (x → −x).
 """
 
@@ -74,14 +74,14 @@ def outline_mm(spec: str) -> np.ndarray:
 
 
 def shape_part(spec: str, thickness: float):
-    from feeder.geometry import PartGeometry
+    from feeder.parts.geometry import PartGeometry
 
     return PartGeometry.from_polygon(spec, outline_mm(spec) / 1000.0, thickness)
 
 
 def mirror_part(geom, part_id: str | None = None):
     """The mirror image x → −x (outline reversed to stay CCW)."""
-    from feeder.geometry import PartGeometry
+    from feeder.parts.geometry import PartGeometry
 
     pts = np.asarray(geom.outline, float) * np.array([-1.0, 1.0])
     return PartGeometry.from_polygon(part_id or f"{geom.part_id}-m", pts[::-1], geom.thickness)

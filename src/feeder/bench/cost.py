@@ -4,7 +4,7 @@
 A study's simulation stage is one ``feeder simulate`` job per part × fence configuration, and a
 job's cost depends mostly on the part (its convex pieces) and the fences (how long the part turns
 and slides). Before committing a machine for a day, this draws a seeded simple random sample of
-``sim.cost_bench.configurations`` of the study's configurations (:func:`feeder.datasets.configurations`),
+``sim.cost_bench.configurations`` of the study's configurations (:func:`feeder.labels.dataset.configurations`),
 runs each through the very command the workflow runs (``feeder simulate``, the study's preset,
 scene, seed and yaw design) with ``sim.cost_bench.drops`` drops, and measures per job:
 
@@ -105,8 +105,8 @@ def _run_job(job):
 
 def run_bench(cfg: dict, progress: bool = False):
     """Sample, run and project (see the module docstring) → (sample frame, summary frame)."""
-    from feeder.datasets import configurations
-    from feeder.parts import list_parts
+    from feeder.labels.dataset import configurations
+    from feeder.parts.library import list_parts
 
     sim, cb = cfg["sim"], cfg["sim"]["cost_bench"]
     preset_name = sim["preset"]
@@ -212,7 +212,7 @@ def check_projection(sample, sim_dir, bench_dir=None):
 
 
 def main(argv: list[str]) -> int:
-    from feeder.bench import add_config_source, config_from_args
+    from feeder.bench.accuracy import add_config_source, config_from_args
 
     parser = argparse.ArgumentParser(prog="feeder bench-cost", description=__doc__.splitlines()[0])
     parser.add_argument("--out-csv", required=True, help="the sampled jobs, one row each (with --check: the comparison)")

@@ -39,9 +39,9 @@ def survey_jobs(angles: dict, parts: list[str]) -> list[tuple[str, str, str]]:
 
 def _run(job):
     loc1, loc2, part, parts_dir, drops, seed, scene, preset, name = job
-    from feeder.fences import parse_location
-    from feeder.geometry import load_part
-    from feeder.sim import STATUSES, simulate
+    from feeder.sim.fences import parse_location
+    from feeder.parts.geometry import load_part
+    from feeder.sim.drops import STATUSES, simulate
 
     geom = load_part(f"{parts_dir}/{part}.stl")
     res = simulate(geom, parse_location(loc1), parse_location(loc2), drops, seed, scene, preset, name)
@@ -76,7 +76,7 @@ def main(argv: list[str]) -> int:
         survey, parts_dir = sim_cfg["jam_survey"], cfg["parts"]["dir"]
     except (KeyError, TypeError) as err:
         raise FeederError(f"--settings lacks {err}") from None
-    from feeder.sim import get_preset
+    from feeder.sim.drops import get_preset
 
     preset = get_preset(sim_cfg["presets"], survey["preset"])
     drops = int(survey["drops"])

@@ -2,7 +2,7 @@
 Figs. 12–13) and the leave-parts-out GroupKFold study of one model.
 
 Metrics compare post-processed predicted CDFs with the true CDFs row by row
-(``feeder.labels``): R² over the bins of one configuration, W1 = Σ|ΔF| in degrees and the MSE;
+(``feeder.labels.metrics``): R² over the bins of one configuration, W1 = Σ|ΔF| in degrees and the MSE;
 a table reports mean ± population SD (ddof = 0) over the configurations of a split.
 
 Two baselines sit beside the models in every table:
@@ -56,7 +56,7 @@ FIGURE_QUANTILES = (0.9, 0.6, 0.3, 0.1)
 # ----------------------------------------------------------------------------------------------
 def row_metrics(cdf_true: np.ndarray, cdf_pred: np.ndarray) -> dict[str, np.ndarray]:
     """Per-configuration R², W1 (degrees) and MSE of predicted against true CDF rows."""
-    from feeder.labels import mse, r2_cdf, w1
+    from feeder.labels.metrics import mse, r2_cdf, w1
 
     return {"r2": r2_cdf(cdf_true, cdf_pred), "w1": w1(cdf_true, cdf_pred), "mse": mse(cdf_true, cdf_pred)}
 
@@ -96,7 +96,7 @@ def nearest_rows(query: np.ndarray, ref: np.ndarray, exclude_same: np.ndarray | 
 
 def baseline_predictions(data: dict, train_mask: np.ndarray) -> dict[str, tuple[np.ndarray, float]]:
     """CDF predictions of both baselines for every row, with the seconds each took to build."""
-    from feeder.datasets import fit_scaler
+    from feeder.labels.dataset import fit_scaler
 
     t0 = time.perf_counter()
     mean_pmf = data["pmf"][train_mask].mean(axis=0)
@@ -119,7 +119,7 @@ def baseline_predictions(data: dict, train_mask: np.ndarray) -> dict[str, tuple[
 
 def combo_label(config_id: str) -> str:
     """Fence-type combination of a configuration id: ``curved-1 + straight-2``, ``curved-2 only``."""
-    from feeder.fences import parse_config_id
+    from feeder.sim.fences import parse_config_id
 
     loc1, loc2 = parse_config_id(config_id)
     present = [f"{f.type}-{i}" for i, f in ((1, loc1), (2, loc2)) if f.present]
@@ -153,7 +153,7 @@ def _write_table(path: Path, df: pd.DataFrame, caption: str) -> None:
 
 def load_models(model_dirs) -> list[tuple[str, object, float]]:
     """(name, TrainedModel, train_s) of every model directory."""
-    from feeder.models import TrainedModel
+    from feeder.learn.models import TrainedModel
 
     out = []
     for d in model_dirs:
@@ -198,7 +198,7 @@ def evaluation_tables(data: dict, models: list[tuple[str, object, float]]):
 
 
 def write_tables(dataset, model_dirs, out_dir) -> list[Path]:
-    from feeder.train import load_dataset
+    from feeder.learn.train import load_dataset
 
     data = load_dataset(dataset)
     models = load_models(model_dirs)
@@ -225,7 +225,7 @@ def groupkfold(data: dict, cfg, progress: bool | None = None) -> pd.DataFrame:
     """Train ``cfg.model`` once per ``group_fold`` on every row of the other folds and predict the
     held-out parts. Rows: per part, all held-out configurations, and the mean ± SD of the
     per-part means ("over parts"), for the model and both baselines (built per fold)."""
-    from feeder.train import fit
+    from feeder.learn.train import fit
 
     folds = np.unique(data["group_fold"])
     if folds.size < 2:
@@ -281,9 +281,9 @@ def representative_rows(r2: np.ndarray, quantiles=FIGURE_QUANTILES) -> list[int]
 def prediction_data(dataset, model_dir) -> dict[str, dict[str, np.ndarray]]:
     """For the Test and Parts splits: the representative rows' true and predicted CDFs, their R²
     and labels, as the arrays feeder.figures._cdf_predictions reads."""
-    from feeder.labels import r2_cdf
-    from feeder.models import TrainedModel
-    from feeder.train import load_dataset
+    from feeder.labels.metrics import r2_cdf
+    from feeder.learn.models import TrainedModel
+    from feeder.learn.train import load_dataset
 
     data = load_dataset(dataset)
     model = TrainedModel.load(model_dir)
@@ -357,7 +357,7 @@ def main(argv: list[str]) -> int:
         for path in write_tables(args.dataset, args.models, args.out_dir):
             print(path)
     elif args.cmd == "groupkfold":
-        from feeder.train import compose_config, load_dataset
+        from feeder.learn.train import compose_config, load_dataset
 
         data = load_dataset(args.dataset)
         cfg = compose_config(args.overrides)

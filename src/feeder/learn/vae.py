@@ -29,7 +29,7 @@ Training
     epochs without improvement. Reconstructions for metrics also use the latent mean.
 
 Metrics
-    R² per configuration (``feeder.labels.r2_cdf``: 1 - SS_res / SS_tot along the row) of the
+    R² per configuration (``feeder.labels.metrics.r2_cdf``: 1 - SS_res / SS_tot along the row) of the
     53 scaled features and of the 360-bin CDF; tables give mean and population SD (ddof = 0).
 
 P2
@@ -61,7 +61,7 @@ import numpy as np
 from feeder import io
 from feeder.errors import FeederError
 from feeder.workflow import hydra_config_dir
-from feeder.labels import r2_cdf
+from feeder.labels.metrics import r2_cdf
 
 CONFIG_DIR = hydra_config_dir()  # ./config of the run directory, else the repository's
 DATASET_KEYS = ("part", "config_id", "split", "group_fold", "part_raw", "feeder_raw", "pmf", "cdf",
@@ -128,7 +128,7 @@ def config_digest(cfg) -> str:
 # ----------------------------------------------------------------------------------------------
 def load_dataset(path: str | Path) -> dict[str, np.ndarray]:
     """Read ``dataset.npz`` (docs/data.md) and check the keys and shapes this module uses."""
-    from feeder.datasets import load_dataset as read_npz
+    from feeder.labels.dataset import load_dataset as read_npz
 
     path = Path(path)
     try:
@@ -160,7 +160,7 @@ def split_mask(data: dict[str, np.ndarray], splits: Sequence[str], what: str) ->
 
 def scaled_features(data: dict[str, np.ndarray], fit_mask: np.ndarray) -> np.ndarray:
     """The 53 model inputs of every row, with the scaler fitted on ``fit_mask`` rows only."""
-    from feeder.datasets import fit_scaler
+    from feeder.labels.dataset import fit_scaler
 
     scaler = fit_scaler(data["part_raw"], data["feeder_raw"], fit_mask)
     return np.asarray(scaler.transform(data["part_raw"], data["feeder_raw"]), dtype=np.float64)
@@ -255,7 +255,7 @@ def vae_loss(out, x, cdf, cfg, beta: float):
     import torch
     from torch.nn import functional as F
 
-    from feeder import losses
+    from feeder.learn import losses
 
     mcfg, lcfg = cfg.model, cfg.loss
     mask = onehot_mask(mcfg, x.shape[-1])

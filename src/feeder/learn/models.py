@@ -334,7 +334,7 @@ def postprocess(spec: ModelSpec, raw_pmf: np.ndarray, raw_cdf: np.ndarray) -> tu
 # A trained model on disk: weights + the input scaler (+ label PCA inside the weights)
 # ----------------------------------------------------------------------------------------------
 WEIGHTS_FILE = "model.pt"
-SCALER_FILE = "scaler.json"  # feeder.datasets.Scaler.to_dict()
+SCALER_FILE = "scaler.json"  # feeder.labels.dataset.Scaler.to_dict()
 
 
 class TrainedModel:
@@ -344,7 +344,7 @@ class TrainedModel:
         self.net = net.eval()
         self.spec = net.spec
         self.scaler = scaler
-        self.label_frame = label_frame  # labels.frame of the training data (feeder.labels)
+        self.label_frame = label_frame  # labels.frame of the training data (feeder.labels.metrics)
 
     def raw(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Raw (pmf, cdf) network outputs for scaled inputs ``x`` (N, 53), float64."""
@@ -395,7 +395,7 @@ class TrainedModel:
         net.load_state_dict(state)
         import json
 
-        from feeder.datasets import Scaler
+        from feeder.labels.dataset import Scaler
 
         scaler = Scaler.from_dict(json.loads(scaler_path.read_text()))
         return cls(net, scaler, str(blob.get("label_frame", "part")))  # older models: the part frame

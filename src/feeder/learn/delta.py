@@ -4,7 +4,7 @@ Given the PMF after the first k % of drops, predict the correction ΔPMF such th
 ``PMF_k + ΔPMF`` approximates the 100 % PMF.
 
 Inputs (one row per configuration, built by :func:`delta_inputs`)
-    * the 53 scaled part+feeder values (``feeder.datasets`` scaler fitted on the fold's training rows);
+    * the 53 scaled part+feeder values (``feeder.labels.dataset`` scaler fitted on the fold's training rows);
     * the PMFs at k, k-5 and k-10 (``checkpoint_offsets``), multiplied by the bin count so a uniform
       PMF is 1 in every bin; a checkpoint at or below 0 % is all zeros (zero padding);
     * their differences (PMF_k - PMF_{k-5}, PMF_{k-5} - PMF_{k-10}), same scale;
@@ -19,7 +19,7 @@ Output head: valid by construction
     is non-negative and sums to 1, so ``PMF_k + ΔPMF`` is a valid PMF for any weights; ``w -> 0``
     is the baseline "the partial PMF is the answer". ``log q`` is formed with log-sum-exp from
     ``log_softmax(z)`` and ``log max(PMF_k, floor)`` so the KL term stays finite on sparse PMFs.
-    The loss is a ``feeder.losses`` composite (``loss:`` weights) against the 100 % PMF/CDF.
+    The loss is a ``feeder.learn.losses`` composite (``loss:`` weights) against the 100 % PMF/CDF.
 
 Evaluation
     One model per (level, split mode, fold). Split modes: ``part`` = the dataset's leave-parts-out
@@ -46,8 +46,8 @@ import numpy as np
 
 from feeder import io
 from feeder.errors import FeederError
-from feeder.labels import cdf as cdf_of, js_divergence, r2_cdf, w1
-from feeder.vae import (_read_json, compose_config, config_digest, level_index, load_dataset, scaled_features,
+from feeder.labels.metrics import cdf as cdf_of, js_divergence, r2_cdf, w1
+from feeder.learn.vae import (_read_json, compose_config, config_digest, level_index, load_dataset, scaled_features,
                         seeded_run, split_mask, summarize)
 
 MODES = ("part", "config")
@@ -161,7 +161,7 @@ def fit_delta(cfg, x: np.ndarray, pmf_k: np.ndarray, pmf_full: np.ndarray, seed:
     """Train one delta model on input rows ``x`` towards ``pmf_full`` from ``pmf_k``."""
     import torch
 
-    from feeder import losses
+    from feeder.learn import losses
 
     weights = {str(k): float(v) for k, v in cfg.loss.items()}
     try:

@@ -1,0 +1,1 @@
+"""Benchmarks: accuracy against time, yaw designs, jams, cost, scheduling (workflow/rules/bench.smk)."""

@@ -1,0 +1,105 @@
+# Benchmarks of the simulation itself: what accuracy costs in time (bench_sim), how many drops
+# each initial-yaw design needs (bench_yaws), which fence angles jam (bench_jams), and what the
+# simulation stage will cost (bench_cost). Not part of the study's default target: `make bench`
+# (snakemake bench) rebuilds them. Outputs:
+#   results/tables/sim_accuracy_vs_time.csv   (+ figure)  settings against CPU time
+#   results/tables/yaw_sampling.csv           (+ figure)  distance to a large reference against drops
+#   results/tables/jam_rates.csv              (+ figure)  ok and jam rates of each fence angle
+#   results/tables/sim_cost.csv, sim_cost_sample.csv (+ figure)  the stage's projected cost
+
+BENCH_TARGETS = [
+    "results/tables/sim_accuracy_vs_time.csv",
+    "results/figures/sim_accuracy_vs_time.png",
+    "results/tables/jam_rates.csv",
+    "results/figures/jam_rates.png",
+    "results/tables/yaw_sampling.csv",
+    "results/figures/yaw_sampling.png",
+    "results/tables/sim_cost.csv",
+    "results/figures/sim_cost.png",
+]
+
+
+rule bench:
+    """Every benchmark table and figure (not part of the default target)."""
+    input:
+        BENCH_TARGETS,
+
+
+rule bench_sim:
+    """Accuracy against CPU time of the simulation settings over a fixed panel (feeder bench-sim)."""
+    input:
+        code("bench-sim"),
+    output:
+        report("results/tables/sim_accuracy_vs_time.csv", caption="../report/sim_accuracy_vs_time_table.rst", category="Simulation"),
+    params:
+        settings=settings_json("scene", "sim.presets", "sim.bench", "labels"),
+    threads: config["sim"]["bench"]["workers"]
+    log:
+        "logs/bench_sim/bench_sim.log",
+    benchmark:
+        "benchmarks/bench_sim/bench_sim.tsv"
+    conda:
+        "../envs/feeder.yaml"
+    shell:
+        "feeder bench-sim --settings '{params.settings}' --out-csv {output} > {log} 2>&1"
+
+
+rule bench_jams:
+    """Ok and jam rates of each fence angle of the survey, alone at each location (feeder bench-jams)."""
+    input:
+        code("bench-jams"),
+        parts=expand("{dir}/{part}.stl", dir=config["parts"]["dir"], part=config["sim"]["jam_survey"]["parts"]),
+    output:
+        report("results/tables/jam_rates.csv", caption="../report/jam_rates.rst", category="Simulation"),
+    params:
+        settings=settings_json("scene", "sim.presets", "sim.jam_survey", "sim.base_seed", "parts.dir"),
+    threads: config["sim"]["jam_survey"]["workers"]
+    log:
+        "logs/bench_jams/bench_jams.log",
+    benchmark:
+        "benchmarks/bench_jams/bench_jams.tsv"
+    conda:
+        "../envs/feeder.yaml"
+    shell:
+        "feeder bench-jams --settings '{params.settings}' --out-csv {output} > {log} 2>&1"
+
+
+rule bench_yaws:
+    """Distance to a large independent reference against drops, per initial-yaw design (feeder bench-yaws)."""
+    input:
+        code("bench-yaws"),
+    output:
+        report("results/tables/yaw_sampling.csv", caption="../report/yaw_sampling_table.rst", category="Simulation"),
+    params:
+        settings=settings_json("scene", "sim.presets", "sim.bench", "sim.yaw_bench", "labels"),
+    threads: config["sim"]["yaw_bench"]["workers"]
+    log:
+        "logs/bench_yaws/bench_yaws.log",
+    benchmark:
+        "benchmarks/bench_yaws/bench_yaws.tsv"
+    conda:
+        "../envs/feeder.yaml"
+    shell:
+        "feeder bench-yaws --settings '{params.settings}' --out-csv {output} > {log} 2>&1"
+
+
+rule bench_cost:
+    """The simulation stage's CPU and wall time projected from a sample of its own jobs (feeder bench-cost)."""
+    input:
+        code("bench-cost"),
+        parts=expand("{dir}/{part}.stl", dir=config["parts"]["dir"], part=PARTS),
+    output:
+        sample=report("results/tables/sim_cost_sample.csv", caption="../report/sim_cost_sample.rst", category="Cost"),
+        summary=report("results/tables/sim_cost.csv", caption="../report/sim_cost.rst", category="Cost"),
+    params:
+        settings=settings_json("parts.dir", "parts.include", "fences", "datasets", "scene", "sim.preset", "sim.presets",
+                               "sim.drops", "sim.base_seed", "sim.yaw_sampling", "sim.cost_bench"),
+    threads: config["sim"]["cost_bench"]["workers"]
+    log:
+        "logs/bench_cost/bench_cost.log",
+    benchmark:
+        "benchmarks/bench_cost/bench_cost.tsv"
+    conda:
+        "../envs/feeder.yaml"
+    shell:
+        "feeder bench-cost --settings '{params.settings}' --out-csv {output.sample} --out-summary {output.summary} > {log} 2>&1"
