@@ -4,7 +4,7 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: run test smoke lint dryrun lock clean-venv
+.PHONY: run test smoke bench lint dryrun lock clean-venv
 
 # (Re)build the environment when it is missing or older than the lock or the package metadata.
 $(STAMP): environment.lock pyproject.toml
@@ -21,6 +21,10 @@ run: $(STAMP)
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -q
+
+# The benchmarks of the simulator (accuracy against time, yaw designs, jams, projected cost): hours.
+bench: $(STAMP)
+	$(BIN)/snakemake --cores 2 bench
 
 smoke: $(STAMP)
 	$(BIN)/snakemake --cores 2 --configfile config/smoke.yaml

@@ -11,7 +11,7 @@ import pytest
 from feeder.bench import cost as bench_cost
 from feeder.cli import main as cli
 from feeder.errors import FeederError
-from feeder.workflow import load_study_config
+from feeder.config import load_study_config
 
 ROOT = Path(__file__).resolve().parents[1]
 

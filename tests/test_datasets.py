@@ -7,10 +7,12 @@ import pandas as pd
 import pytest
 import yaml
 
-from feeder.labels import dataset as D
-from feeder.labels import metrics as L
 from feeder.cli import main as cli
 from feeder.errors import FeederError
+from feeder.labels import convergence as C
+from feeder.labels import dataset as D
+from feeder.labels import grid as G
+from feeder.labels import metrics as L
 from feeder.sim.fences import parse_config_id
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -50,11 +52,11 @@ def _combo(cid):
 # ---------------------------------------------------------------- configurations
 def test_configurations_structure_and_determinism():
     cfg = small_config()
-    df = D.configurations(cfg, PARTS)
+    df = G.configurations(cfg, PARTS)
     assert list(df.columns) == ["part", "config_id", "loc1", "loc2", "dataset", "split"]
-    pd.testing.assert_frame_equal(df, D.configurations(copy.deepcopy(cfg), list(reversed(PARTS))))
+    pd.testing.assert_frame_equal(df, G.configurations(copy.deepcopy(cfg), list(reversed(PARTS))))
     assert not df.duplicated(["part", "config_id"]).any()
-    held = D.holdout_parts(cfg, PARTS)
+    held = G.holdout_parts(cfg, PARTS)
     assert len(held) == 1
     assert set(df.loc[df.dataset == "parts", "part"]) == set(held)
     main = df[df.dataset == "main"]
@@ -87,13 +89,13 @@ def test_split_matches_sklearn_train_test_split():
 
     for n in (7, 40, 1026):
         _, test = train_test_split(np.arange(n), test_size=0.15, random_state=42)
-        np.testing.assert_array_equal(np.sort(D.random_test_rows(n, 0.15, 42)), np.sort(test))
+        np.testing.assert_array_equal(np.sort(G.random_test_rows(n, 0.15, 42)), np.sort(test))
 
 
 def test_adding_a_part_keeps_other_parts_configurations():
     cfg = small_config(fences_parts=0, fences_samples=0, holdout_parts=["a"])
-    before = D.configurations(cfg, PARTS)
-    after = D.configurations(cfg, PARTS + ["g"])
+    before = G.configurations(cfg, PARTS)
+    after = G.configurations(cfg, PARTS + ["g"])
     key = ["part", "config_id"]
     b = before[before.dataset == "main"][key].sort_values(key).reset_index(drop=True)
     a = after[(after.dataset == "main") & (after.part != "g")][key].sort_values(key).reset_index(drop=True)
@@ -102,18 +104,18 @@ def test_adding_a_part_keeps_other_parts_configurations():
 
 def test_holdout_list_and_errors():
     cfg = small_config(holdout_parts=["c", "e"])
-    df = D.configurations(cfg, PARTS)
+    df = G.configurations(cfg, PARTS)
     assert set(df.loc[df.dataset == "parts", "part"]) == {"c", "e"}
     with pytest.raises(FeederError, match="zz"):
-        D.configurations(small_config(holdout_parts=["zz"]), PARTS)
+        G.configurations(small_config(holdout_parts=["zz"]), PARTS)
     with pytest.raises(FeederError, match="fences_parts"):
-        D.configurations(small_config(fences_parts=9), PARTS)
+        G.configurations(small_config(fences_parts=9), PARTS)
 
 
 def test_default_config_matches_table4_scale():
     cfg = yaml.safe_load((ROOT / "config/config.yaml").read_text())
     parts = [f"p{i:02d}" for i in range(41)]
-    df = D.configurations(cfg, parts)
+    df = G.configurations(cfg, parts)
     sizes = df.groupby("dataset").agg(n=("part", "size"), parts=("part", "nunique"))
     assert sizes.loc["main", "parts"] == 38 and sizes.loc["main", "n"] == 38 * cfg["fences"]["main_per_part"]
     assert sizes.loc["fences", "n"] == cfg["datasets"]["fences_samples"] and sizes.loc["fences", "parts"] == 18
@@ -189,7 +191,7 @@ def write_sim(path, part, cid, rng, drops=60, ok_frac=0.95, centers=(30.0, 200.0
 
 
 def make_world(tmp_path, cfg, parts=PARTS):
-    df = D.configurations(cfg, parts)
+    df = G.configurations(cfg, parts)
     csv = tmp_path / "configurations.csv"
     df.to_csv(csv, index=False)
     rng = np.random.default_rng(1)
@@ -284,12 +286,12 @@ def test_dkw_inside_band_for_exchangeable_drops():
     levels = np.array([10, 25, 50, 100])
     ds = {"part": np.array(["p"] * n), "final_yaw_deg": y, "n_drops": np.full(n, drops), "levels_pct": levels,
           "n_ok_levels": np.tile(drops * levels // 100, (n, 1))}
-    table, sup = D.dkw_table(ds, 0.05)
+    table, sup = C.dkw_table(ds, 0.05)
     assert (table.fraction_inside_band >= 0.9).all()
     # a drifting sequence (first half all near 0 deg) falls outside
     y2 = y.copy()
     y2[:, : drops // 2] = rng.uniform(0, 10, (n, drops // 2))
-    table2, _ = D.dkw_table({**ds, "final_yaw_deg": y2}, 0.05)
+    table2, _ = C.dkw_table({**ds, "final_yaw_deg": y2}, 0.05)
     assert table2.loc[table2.level_pct == 10, "fraction_inside_band"].item() < 0.05
 
 

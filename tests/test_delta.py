@@ -4,11 +4,13 @@ import numpy as np
 import pandas as pd
 import pytest
 import torch
+from factories import BINS, LEVELS, make_level_dataset
 
-from feeder.learn import delta
 from feeder.cli import main as cli
+from feeder.config import compose_config
 from feeder.errors import FeederError
-from test_vae import BINS, LEVELS, make_dataset
+from feeder.labels.dataset import load_dataset
+from feeder.learn import delta
 
 TINY = ["train.max_epochs=3", "train.batch_size=16"]
 
@@ -16,12 +18,12 @@ TINY = ["train.max_epochs=3", "train.batch_size=16"]
 @pytest.fixture(scope="module")
 def dataset(tmp_path_factory):
     path = tmp_path_factory.mktemp("delta") / "dataset.npz"
-    make_dataset(path, n_parts=5, n_configs=8)
+    make_level_dataset(path, n_parts=5, n_configs=8)
     return path
 
 
 def tiny_cfg(dataset, *extra):
-    return delta.compose_config("delta", [f"dataset={dataset}", *TINY, *extra])
+    return compose_config("delta", [f"dataset={dataset}", *TINY, *extra])
 
 
 def test_checkpoints_zero_pad_below_zero_percent():
@@ -107,7 +109,7 @@ def test_full_level_baseline_is_exact(dataset):
 
 def test_part_split_holds_out_whole_parts(dataset):
     cfg = tiny_cfg(dataset)
-    data = delta.load_dataset(dataset)
+    data = load_dataset(dataset)
     rows = np.arange(len(data["part"]))
     labels = delta.folds(data, rows, "part", cfg)
     for f in np.unique(labels):
@@ -147,8 +149,8 @@ def test_errors_write_nothing(dataset, tmp_path):
 def test_model_beats_the_partial_pmf_at_five_percent(dataset):
     """At 5 % (10 of 200 drops) the fixture's partial PMFs are noisy while the full PMFs follow
     the part and fences: the learned correction must beat the partial PMF under both splits."""
-    res = delta.sweep_level(delta.compose_config("delta", [f"dataset={dataset}", "train.max_epochs=20",
-                                                           "train.batch_size=16"]), 5)
+    res = delta.sweep_level(compose_config("delta", [f"dataset={dataset}", "train.max_epochs=20",
+                                                     "train.batch_size=16"]), 5)
     for mode in delta.MODES:
         m = res["modes"][mode]
         assert m["r2_mean"] > m["baseline_mean"] + 0.02

@@ -5,20 +5,21 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 import pytest
+from factories import small_overrides
 
+from feeder.config import compose_config
+from feeder.labels.dataset import load_dataset
 from feeder.learn import evaluate as E
 from feeder.learn import train as T
-from test_train import make_dataset, small_overrides
 
 
 @pytest.fixture(scope="module")
-def trained(tmp_path_factory):
+def trained(tmp_path_factory, regression_dataset):
     root = tmp_path_factory.mktemp("eval")
-    ds = root / "dataset.npz"
-    make_dataset(ds)
+    ds = regression_dataset
     dirs = []
     for model in ("m3", "m7"):
-        T.train(T.compose_config(small_overrides(ds, root / model, model, epochs=3)))
+        T.train(compose_config("train", small_overrides(ds, root / model, model, epochs=3)))
         dirs.append(root / model)
     return root, ds, dirs
 
@@ -72,7 +73,7 @@ def test_tables_files_and_values(trained, tmp_path):
 
     root, ds, dirs = trained
     written = E.write_tables(ds, dirs, tmp_path)
-    data = T.load_dataset(ds)
+    data = load_dataset(ds)
     for number, split in ((5, "train"), (6, "test"), (7, "fences"), (8, "parts")):
         df = pd.read_csv(tmp_path / f"table{number}.csv")
         assert list(df.columns) == E.COLUMNS
@@ -94,8 +95,8 @@ def test_tables_files_and_values(trained, tmp_path):
 
 def test_groupkfold_trains_one_model_per_fold(trained, tmp_path):
     root, ds, _ = trained
-    data = T.load_dataset(ds)
-    cfg = T.compose_config(small_overrides(ds, tmp_path / "unused", "m3", epochs=2))
+    data = load_dataset(ds)
+    cfg = compose_config("train", small_overrides(ds, tmp_path / "unused", "m3", epochs=2))
     df = E.groupkfold(data, cfg, progress=False)
     parts = sorted(set(data["part"]))
     for model in ("m3", E.BASELINE_MEAN, E.BASELINE_NEAREST):
@@ -131,8 +132,8 @@ def test_grid_table(trained, tmp_path):
     root, ds, _ = trained
     for lr, bs in ((0.01, 16), (0.001, 32)):
         out = tmp_path / "grid" / f"lr{lr}_bs{bs}"
-        T.train(T.compose_config(small_overrides(ds, out, "m3", epochs=1,
-                                                 extra=[f"model.lr={lr}", f"trainer.batch_size={bs}"])))
+        extra = [f"model.lr={lr}", f"trainer.batch_size={bs}"]
+        T.train(compose_config("train", small_overrides(ds, out, "m3", epochs=1, extra=extra)))
     df = E.grid_table(tmp_path / "grid")
     assert len(df) == 2 and set(df.batch_size) == {16, 32}
     assert df.best_val_loss.is_monotonic_increasing

@@ -8,11 +8,13 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
+from factories import make_regression_dataset, small_overrides
 
+from feeder.config import compose_config
+from feeder.errors import FeederError
+from feeder.labels.dataset import load_dataset
 from feeder.learn import predict as P
 from feeder.learn import train as T
-from feeder.errors import FeederError
-from test_train import make_dataset, small_overrides
 
 PARTS = Path(__file__).resolve().parents[1] / "parts"
 
@@ -20,9 +22,9 @@ PARTS = Path(__file__).resolve().parents[1] / "parts"
 @pytest.fixture(scope="module")
 def model_dir(tmp_path_factory):
     root = tmp_path_factory.mktemp("pred")
-    make_dataset(root / "ds.npz")
-    T.train(T.compose_config(small_overrides(root / "ds.npz", root / "m3", "m3", epochs=2)))
-    data = T.load_dataset(root / "ds.npz")
+    make_regression_dataset(root / "ds.npz")
+    T.train(compose_config("train", small_overrides(root / "ds.npz", root / "m3", "m3", epochs=2)))
+    data = load_dataset(root / "ds.npz")
     raw = data["part_raw"][0].reshape(15, 3)
     (root / "p0.json").write_text(json.dumps({"k": raw[:, 0].tolist(), "magnitude": raw[:, 1].tolist(),
                                               "phase": raw[:, 2].tolist()}))
@@ -31,8 +33,8 @@ def model_dir(tmp_path_factory):
 
 def test_predict_csv_matches_model(model_dir, tmp_path):
     from feeder.labels.dataset import feeder_vector
-    from feeder.sim.fences import parse_location
     from feeder.learn.models import TrainedModel
+    from feeder.sim.fences import parse_location
 
     out = tmp_path / "pmf.csv"
     args = ["--model", str(model_dir / "m3"), "--features", str(model_dir / "p0.json"),
@@ -42,7 +44,7 @@ def test_predict_csv_matches_model(model_dir, tmp_path):
     assert list(df.columns) == ["angle_deg", "pmf", "cdf"] and len(df) == 360
     assert df.angle_deg.iloc[1] == 1.0 and df.pmf.sum() == pytest.approx(1.0)
     assert np.allclose(np.cumsum(df.pmf), df.cdf)
-    data = T.load_dataset(model_dir / "ds.npz")
+    data = load_dataset(model_dir / "ds.npz")
     fv = feeder_vector(parse_location("straight:30"), parse_location("none"))
     pmf, _ = TrainedModel.load(model_dir / "m3").predict(data["part_raw"][:1], fv[None])
     assert np.allclose(df.pmf, pmf[0])
@@ -87,7 +89,7 @@ def test_principal_frame_model_answers_in_the_part_frame(model_dir, tmp_path):
     from feeder.learn.models import TrainedModel
 
     m = TrainedModel.load(model_dir / "m3")
-    assert m.label_frame == "part"  # make_dataset carries no label_frame: the part frame
+    assert m.label_frame == "part"  # make_regression_dataset carries no label_frame: the part frame
     m.label_frame = "principal"
     m.save(tmp_path / "mp")
     assert TrainedModel.load(tmp_path / "mp").label_frame == "principal"

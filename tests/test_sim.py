@@ -1,18 +1,21 @@
-"""feeder.sim.drops / feeder.sim.scene: pure math against hand values, the CLI, determinism, the body model."""
+"""feeder.sim.drops / body / scene / record: pure math against hand values, the CLI, determinism, the body model."""
 
 import copy
 import json
 import math
 import subprocess
 import sys
+from collections import deque
 from pathlib import Path
 
 import numpy as np
 import pytest
 import yaml
 
-from feeder.sim import scene as sc
+from feeder.sim import body as simbody
 from feeder.sim import drops as sim
+from feeder.sim import record
+from feeder.sim import scene as sc
 from feeder.errors import FeederError
 from feeder.sim.fences import Fence, parse_location
 from feeder.parts.geometry import PartGeometry, stl_bytes
@@ -34,7 +37,7 @@ def run(*args, cwd=ROOT):
 # ------------------------------------------------------------------------------------------
 def test_principal_inertia_rectangle_hand_values():
     # 40 x 20 mm, 5 mm, 1200 kg/m³: m = 1200·0.005·8e-4; ∫x² = w³h/12, ∫y² = wh³/12
-    m, (ixx, iyy, izz), alpha = sim.principal_inertia(8e-4, (0.04 * 0.02**3 / 12, 0.04**3 * 0.02 / 12, 0.0),
+    m, (ixx, iyy, izz), alpha = simbody.principal_inertia(8e-4, (0.04 * 0.02**3 / 12, 0.04**3 * 0.02 / 12, 0.0),
                                                        0.005, 1200.0)
     assert m == pytest.approx(0.0048)
     flat = m * 0.005**2 / 12
@@ -49,9 +52,9 @@ def test_principal_axes_of_rotated_rectangle():
     rot = np.array([[math.cos(a), -math.sin(a)], [math.sin(a), math.cos(a)]])
     pts = np.array([(0, 0), (0.04, 0), (0.04, 0.02), (0, 0.02)]) @ rot.T
     g = PartGeometry.from_polygon("r30", pts, 0.005)
-    model = sim.part_model(g, SCENE)
+    model = simbody.part_model(g, SCENE)
     assert math.degrees(model.alpha) == pytest.approx(30.0, abs=1e-6)
-    ref = sim.part_model(RECT, SCENE)
+    ref = simbody.part_model(RECT, SCENE)
     assert np.allclose(model.inertia, ref.inertia, rtol=1e-9)
     assert model.radius == pytest.approx(math.hypot(0.02, 0.01))
     # pieces are inset by the collision margin: 40 x 20 becomes 39.8 x 19.8 mm
@@ -86,8 +89,18 @@ def test_golden_yaws_spread_every_prefix_evenly():
         # every prefix is closer to uniform (KS distance) than independent draws of the same size
         ks = lambda y: np.max(np.abs(np.sort(y) / 360.0 - (np.arange(n) + 0.5) / n))  # noqa: E731
         assert ks(g[:n]) < ks(r[:n]) and ks(g[:n]) < 2.0 / n
-    with pytest.raises(FeederError, match="yaw sampling"):
+    with pytest.raises(FeederError, match="initial yaws are drawn for"):
         sim.initial_yaws(s, 5, "sobol")
+    with pytest.raises(FeederError, match="initial yaws are drawn for"):
+        sim.initial_yaws(s, 5, "adaptive")  # chooses its yaws as it goes
+
+
+def test_grid_yaws_are_evenly_spaced_with_a_seeded_offset():
+    s = sim.drop_seed("rect-a", "straight30_none", 0)
+    g = sim.initial_yaws(s, 8, "grid")
+    np.testing.assert_allclose(np.diff(g), 45.0)
+    assert 0.0 <= g[0] < 45.0 and np.array_equal(g, sim.initial_yaws(s, 8, "grid"))
+    assert sim.initial_yaws(sim.drop_seed("rect-a", "straight30_none", 1), 8, "grid")[0] != g[0]
 
 
 def test_straight_fence_geometry_hand_values():
@@ -181,10 +194,10 @@ def test_gap_ahead_hand_values():
 
 def test_quaternion_helpers():
     q = [0.0, 0.0, math.sin(0.35), math.cos(0.35)]
-    assert sim.quat_yaw(q) == pytest.approx(0.7)
-    assert sim.quat_tilt_deg(q) == pytest.approx(0.0, abs=1e-9)
+    assert simbody.quat_yaw(q) == pytest.approx(0.7)
+    assert simbody.quat_tilt_deg(q) == pytest.approx(0.0, abs=1e-9)
     qx = [math.sin(math.radians(20)), 0.0, 0.0, math.cos(math.radians(20))]
-    assert sim.quat_tilt_deg(qx) == pytest.approx(40.0)
+    assert simbody.quat_tilt_deg(qx) == pytest.approx(40.0)
 
 
 def test_table1_lists_the_scene_from_config(tmp_path):
@@ -288,9 +301,9 @@ def test_cli_bad_input_one_line_error_no_output(tmp_path, args, needle):
 # the body in pybullet
 # ------------------------------------------------------------------------------------------
 def _world(geom, loc1="straight:45", lanes=1, preset=FAST):
-    model = sim.part_model(geom, SCENE)
+    model = simbody.part_model(geom, SCENE)
     plan = sim.make_plan(SCENE, parse_location(loc1), parse_location("none"), model, False)
-    return sim.World(SCENE, preset, plan, lanes, model), model, plan
+    return simbody.World(SCENE, preset, plan, lanes, model), model, plan
 
 
 def test_part_rests_at_true_half_thickness_with_set_mass_and_inertia():
@@ -326,6 +339,47 @@ def test_parts_in_one_world_never_touch_each_other():
         w.close()
 
 
+def _state(**kw):
+    """A part's state at one check: flat at rest on the belt at y = 0.5 unless overridden."""
+    base = dict(elapsed=1.0, x=0.0, y=0.5, z=0.0025, q=(0.0, 0.0, 0.0, 1.0), lin=(0.0, 0.1, 0.0),
+                ang=(0.0, 0.0, 0.0), yaw_rad=0.0, yaw_deg=0.0)
+    return sim.PartState(**dict(base, **kw))
+
+
+def test_status_checks_in_their_order():
+    lim = sim.drop_limits(SCENE, FAST)
+    assert lim.check_steps == 4 and lim.rest_checks == 5 and lim.slide_checks == 15  # 0.02 s checks at 5 ms steps
+    lane = lambda: sim._Lane(0, 0, 0.0, deque())  # noqa: E731
+    tilted = (math.sin(math.radians(20)), 0.0, 0.0, math.cos(math.radians(20)))  # normal 40 deg off vertical
+    assert sim.failure(lane(), _state(q=tilted, z=-1.0), lim, 100.0) == "flipped"  # before fell_off
+    assert sim.failure(lane(), _state(z=-1.0), lim, 100.0) == "fell_off"
+    assert sim.failure(lane(), _state(x=-0.31), lim, 100.0) == "fell_off"
+    assert sim.failure(lane(), _state(elapsed=100.02), lim, 100.0) == "timed_out"
+    held = lane()  # a part that does not move: jammed once a whole jam window (0.5 s) has passed
+    ends = [sim.failure(held, _state(elapsed=0.02 * k), lim, 100.0) for k in range(27)]
+    assert ends[:25] == [None] * 25 and ends[25:] == ["jammed", "jammed"]
+    assert len(held.hist) == 26  # the checks within the window
+    # at rest: carried with the belt since the previous check; a part that turned is not
+    hist = deque([(0.98, 0.0, 0.498, 0.0), (1.0, 0.0, 0.5, 0.0)])
+    assert sim.at_rest(hist, _state(), lim)
+    assert not sim.at_rest(deque([(0.98, 0.0, 0.498, -0.01), (1.0, 0.0, 0.5, 0.0)]), _state(), lim)
+    assert not sim.at_rest(deque([(1.0, 0.0, 0.5, 0.0)]), _state(), lim)  # just moved: nothing to compare
+
+
+def test_sim_file_round_trip(tmp_path):
+    res = sim.simulate(RECT, Fence("none"), Fence("none"), 5, 0, SCENE, FAST)
+    path = tmp_path / "sim.npz"
+    record.write_sim(path, res)
+    with np.load(path) as z:
+        assert tuple(z.files) == record.SIM_KEYS  # what docs/data.md lists, without the diagnostics
+    rec = record.load_sim(path, min_ok_drops=5)
+    assert np.array_equal(rec.yaws, res["final_yaw_deg"]) and rec.ok.all() and rec.meta["drops"] == 5
+    with pytest.raises(record.BadData, match="5 ok drops of 5"):
+        record.load_sim(path, min_ok_drops=6)
+    with pytest.raises(record.BadData, match="missing"):
+        record.load_sim(tmp_path / "none.npz")
+
+
 def test_bad_preset_rejected():
     with pytest.raises(FeederError, match="lacks"):
         sim.get_preset({"x": {"time_step": 0.005}}, "x")
@@ -339,20 +393,20 @@ def test_merge_pieces_hand_cases():
 
     halves = [np.array([(0, 0), (0.02, 0), (0.02, 0.02), (0, 0.02)]),
               np.array([(0.02, 0), (0.04, 0), (0.04, 0.02), (0.02, 0.02)])]
-    merged = sim.merge_pieces(halves, 0.0)  # the union is exactly convex: one piece
+    merged = simbody.merge_pieces(halves, 0.0)  # the union is exactly convex: one piece
     assert len(merged) == 1 and Polygon(merged[0]).area == pytest.approx(8e-4)
     ell = [np.array([(0, 0), (0.04, 0), (0.04, 0.01), (0, 0.01)]),
            np.array([(0, 0.01), (0.01, 0.01), (0.01, 0.03), (0, 0.03)])]
-    assert len(sim.merge_pieces(ell, 2e-4)) == 2  # an L's corner is far deeper than 0.2 mm
+    assert len(simbody.merge_pieces(ell, 2e-4)) == 2  # an L's corner is far deeper than 0.2 mm
     # a shallow notch (0.1 mm deep) is filled at 0.2 mm, kept at 0
     notch = [np.array([(0, 0), (0.02, 0), (0.02, 0.0099), (0, 0.01)]),
              np.array([(0.02, 0), (0.04, 0), (0.04, 0.01), (0.02, 0.0099)])]
-    assert len(sim.merge_pieces(notch, 2e-4)) == 1 and len(sim.merge_pieces(notch, 0.0)) == 2
+    assert len(simbody.merge_pieces(notch, 2e-4)) == 1 and len(simbody.merge_pieces(notch, 0.0)) == 2
     # the merged shape never leaves the true outline by more than the tolerance
     from feeder.parts.geometry import load_part
 
     g = load_part(ROOT / "parts" / "crescent-a.stl")
-    pieces = sim.merge_pieces(g.convex_pieces, 2e-4)
+    pieces = simbody.merge_pieces(g.convex_pieces, 2e-4)
     assert len(pieces) < len(g.convex_pieces)
     true = Polygon(g.outline)
     approx = unary_union([Polygon(p) for p in pieces])
@@ -381,9 +435,9 @@ def test_belt_contact_settings_go_together():
 
 def test_compliant_belt_holds_the_part_at_its_half_thickness():
     scene = _compliant()
-    model = sim.part_model(RECT, scene)
+    model = simbody.part_model(RECT, scene)
     plan = sim.make_plan(scene, parse_location("straight:45"), parse_location("none"), model, False)
-    w = sim.World(scene, FAST, plan, 1, model)
+    w = simbody.World(scene, FAST, plan, 1, model)
     try:
         info = w.pb.getDynamicsInfo(w.belts[0], -1)
         assert info[9] == pytest.approx(1000.0) and info[8] == pytest.approx(1.0)  # stiffness, damping

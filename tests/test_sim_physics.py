@@ -20,6 +20,7 @@ import pytest
 import yaml
 
 from feeder.labels import metrics as labels
+from feeder.sim import body as simbody
 from feeder.sim import drops as sim
 from feeder.bench.accuracy import bootstrap_js_floor
 from feeder.sim.fences import parse_location
@@ -188,7 +189,7 @@ def test_hard_case_is_stable(shape, loc1, loc2):
     assert not d["inside_fence"].any()  # the centroid never entered a fence: no tunnelling
     # no energy gain: never faster than the belt by more than a quarter (world frame), and the
     # kinetic energy never beyond twice the energy of riding the belt
-    model = sim.part_model(geom, SCENE)
+    model = simbody.part_model(geom, SCENE)
     assert d["max_speed"].max() <= 1.25 * V
     energy = 0.5 * model.mass * d["max_speed"] ** 2 + 0.5 * model.inertia[2] * d["max_omega"] ** 2
     assert energy.max() <= 2.0 * 0.5 * model.mass * V**2

@@ -4,73 +4,36 @@ import numpy as np
 import pandas as pd
 import pytest
 import torch
+from factories import BINS
 
-from feeder.labels import metrics as labels
-from feeder.learn import vae
 from feeder.cli import main as cli
+from feeder.config import compose_config
 from feeder.errors import FeederError
-
-LEVELS = np.arange(5, 105, 5)
-BINS = 360
-
-
-def make_dataset(path, n_parts=6, n_configs=10, drops=200, seed=0):
-    """A small dataset.npz in the docs/data.md layout: PMFs drawn from von Mises mixtures that
-    depend on the part and the fence configuration; partial levels from the first k % of drops."""
-    rng = np.random.default_rng(seed)
-    parts = [f"p{i}" for i in range(n_parts)]
-    part_vec = {p: rng.normal(size=45) for p in parts}
-    rows = {k: [] for k in ("part", "config_id", "split", "group_fold", "part_raw", "feeder_raw", "pmf_levels")}
-    for pi, p in enumerate(parts):
-        for c in range(n_configs):
-            t1, t2 = rng.integers(0, 3, size=2)
-            a1, a2 = (0.0 if t == 0 else float(rng.uniform(5, 85)) for t in (t1, t2))
-            feeder = np.zeros(8)
-            feeder[t1], feeder[3], feeder[4 + t2], feeder[7] = 1, a1, 1, a2
-            centres = np.deg2rad([(40 * pi + a1) % 360, (40 * pi + 180 + a2) % 360])
-            weight = 0.3 + 0.4 * (c % 3) / 2
-            comp = rng.random(drops) < weight
-            yaw = np.where(comp, rng.vonmises(centres[0], 8.0, drops), rng.vonmises(centres[1], 3.0, drops))
-            pl, _ = labels.partial_pmfs(np.rad2deg(yaw), LEVELS, BINS, 1.0)
-            if pi >= n_parts - 2:
-                split = "parts"
-            else:
-                split = ["train", "train", "train", "train", "train", "test", "fences"][c % 7]
-            for key, val in (("part", p), ("config_id", f"cfg{c}"), ("split", split), ("group_fold", pi % 3),
-                             ("part_raw", part_vec[p]), ("feeder_raw", feeder), ("pmf_levels", pl)):
-                rows[key].append(val)
-    arrays = {k: np.asarray(v) for k, v in rows.items()}
-    arrays["pmf"] = arrays["pmf_levels"][:, -1]
-    arrays["cdf"] = np.cumsum(arrays["pmf"], axis=-1)
-    arrays["levels_pct"] = LEVELS
-    arrays["n_ok"] = np.full(len(arrays["part"]), drops)
-    np.savez(path, **arrays)
-    return arrays
-
+from feeder.labels import metrics as labels
+from feeder.labels.dataset import load_dataset
+from feeder.learn import vae
 
 TINY = ["train.epochs=3", "train.batch_size=16", "train.patience=null"]
 
 
 @pytest.fixture(scope="module")
-def dataset(tmp_path_factory):
-    path = tmp_path_factory.mktemp("vae") / "dataset.npz"
-    make_dataset(path)
-    return path
+def dataset(level_dataset):
+    return level_dataset
 
 
 def tiny_cfg(dataset, *extra):
-    return vae.compose_config("vae", [f"dataset={dataset}", *TINY, *extra])
+    return compose_config("vae", [f"dataset={dataset}", *TINY, *extra])
 
 
 def test_config_is_table3():
-    cfg = vae.compose_config("vae")
+    cfg = compose_config("vae")
     assert cfg.model.latent_dim == 35 and list(cfg.model.part_encoder) == [128, 64, 45]
     assert (cfg.train.lr, cfg.train.batch_size, cfg.train.epochs) == (0.002, 64, 120)
     assert (cfg.loss.alpha1, cfg.loss.alpha2, cfg.loss.beta_max, cfg.loss.gamma, cfg.loss.delta) == (2, 8, 0.25, 20, 4)
 
 
 def test_architecture_shapes():
-    cfg = vae.compose_config("vae")
+    cfg = compose_config("vae")
     net = vae.build_vae(cfg.model, 53, BINS)
     lin = lambda seq: [(m.in_features, m.out_features) for m in seq if isinstance(m, torch.nn.Linear)]
     assert lin(net["enc_x"]) == [(53, 128), (128, 64), (64, 45)]
@@ -87,7 +50,7 @@ def test_kl_hand_values_and_annealing():
     assert float(vae.kl_standard_normal(torch.ones(1, 4), torch.zeros(1, 4))) == pytest.approx(2.0)
     # KL(N(0, e) || N(0, 1)) = 0.5 (e - 1 - 1) per dimension
     assert float(vae.kl_standard_normal(torch.zeros(1, 1), torch.ones(1, 1))) == pytest.approx(0.5 * (np.e - 2))
-    loss = vae.compose_config("vae").loss
+    loss = compose_config("vae").loss
     assert [vae.kl_weight(loss, e) for e in (0, 50, 100, 119)] == [0.0, 0.125, 0.25, 0.25]
 
 
@@ -110,7 +73,7 @@ def _features(n, rng):
 
 
 def test_one_hot_cdfs_and_identical_rows_are_finite():
-    cfg = vae.compose_config("vae")
+    cfg = compose_config("vae")
     rng = np.random.default_rng(1)
     # all mass in one bin: step CDFs, including the extreme bins 0 and 359
     pmf = np.eye(BINS)[[0, 17, 180, 359]]
@@ -129,7 +92,7 @@ def test_one_hot_cdfs_and_identical_rows_are_finite():
 
 
 def test_logvar_clamp_keeps_kl_finite():
-    cfg = vae.compose_config("vae")
+    cfg = compose_config("vae")
     net = vae.build_vae(cfg.model, 53, BINS)
     with torch.no_grad():
         net["logvar"].bias.fill_(1e4)
@@ -139,7 +102,7 @@ def test_logvar_clamp_keeps_kl_finite():
 
 
 def test_fit_on_identical_rows_stays_finite():
-    cfg = vae.compose_config("vae", TINY)
+    cfg = compose_config("vae", TINY)
     rng = np.random.default_rng(2)
     x = np.repeat(_features(1, rng), 12, axis=0)
     cdf = np.repeat(np.cumsum(np.eye(BINS)[[90]], axis=-1), 12, axis=0)
@@ -192,7 +155,7 @@ def test_p2_levels_share_split_and_are_finite(dataset):
 
 def test_p2_split_matches_fraction(dataset):
     cfg = tiny_cfg(dataset)
-    data = vae.load_dataset(dataset)
+    data = load_dataset(dataset)
     train, hold = vae.p2_split(data, cfg)
     main = np.flatnonzero(np.isin(data["split"], ["train", "test"]))
     assert sorted(np.concatenate([train, hold])) == sorted(main)

@@ -16,7 +16,8 @@ import yaml
 from workflow_helpers import ROOT, SNAKEMAKE, merged_config, planned_jobs, planned_rules, scratch_copy, snakemake
 
 pytestmark = pytest.mark.slow
-SMOKE = ("--configfile", "config/smoke.yaml")
+# the study and the benchmarks (not part of the default target), at smoke scale
+SMOKE = ("all", "bench", "--configfile", "config/smoke.yaml")
 
 
 @pytest.fixture(scope="session")
@@ -102,7 +103,7 @@ def test_crash_midway_then_restart_gives_identical_outputs(smoke_run, tmp_path):
 
 # --- partial reruns: what a dry run plans after one edit in the finished smoke workspace ---------
 
-ALWAYS = {"cost_by_stage", "draw_cost_by_stage", "all"}  # the cost table re-sums every benchmark
+ALWAYS = {"cost_by_stage", "draw_cost_by_stage", "all", "bench"}  # the cost table re-sums every benchmark
 
 
 @pytest.fixture
@@ -124,7 +125,7 @@ def edit(smoke_run):
 
 
 def _sim_outputs(config: dict) -> set[str]:
-    from feeder.labels.dataset import configurations
+    from feeder.labels.grid import configurations
     from feeder.parts.library import list_parts
 
     parts = list_parts(str(ROOT / config["parts"]["dir"]), config["parts"]["include"])
@@ -166,7 +167,7 @@ def test_switching_the_yaw_design_reruns_every_simulation_and_no_benchmark(smoke
 
 
 def test_editing_one_model_config_reruns_only_that_model(smoke_run, edit):
-    edit("config/model/m3.yaml", "lr: 0.0004", "lr: 0.0005")
+    edit("config/hydra/model/m3.yaml", "lr: 0.0004", "lr: 0.0005")
     jobs = planned_jobs(smoke_run, *SMOKE)
     trained = {out for rule, out in jobs if rule == "train_model"}
     assert trained == {"results/models/m3/model.pt"}

@@ -77,12 +77,38 @@ def test_interpreter_dir_goes_first_on_path():
 def test_hydra_settings_come_from_the_run_directory_when_it_has_them(tmp_path):
     from pathlib import Path
 
-    from feeder.workflow import hydra_config_dir
+    from feeder.config import hydra_config_dir
 
-    assert Path(hydra_config_dir(tmp_path)).joinpath("train.yaml").is_file()  # falls back to the repo
+    repo = Path(hydra_config_dir(tmp_path))  # falls back to the repository's config/hydra
+    assert repo.parts[-2:] == ("config", "hydra")
+    assert all((repo / name).is_file() for name in ("train.yaml", "vae.yaml", "delta.yaml", "model/m3.yaml"))
     (tmp_path / "config").mkdir()
-    (tmp_path / "config" / "train.yaml").write_text("seed: 0\n")
-    assert hydra_config_dir(tmp_path) == str((tmp_path / "config").resolve())
+    (tmp_path / "config" / "train.yaml").write_text("seed: 0\n")  # the old place is not read
+    assert Path(hydra_config_dir(tmp_path)) == repo
+    (tmp_path / "config" / "hydra").mkdir()
+    (tmp_path / "config" / "hydra" / "train.yaml").write_text("seed: 0\n")
+    assert hydra_config_dir(tmp_path) == str((tmp_path / "config" / "hydra").resolve())
+
+
+def test_compose_config_reads_the_run_directory_and_errors_are_one_line(tmp_path, monkeypatch):
+    from feeder.config import compose_config
+
+    (tmp_path / "config" / "hydra").mkdir(parents=True)
+    (tmp_path / "config" / "hydra" / "vae.yaml").write_text("seed: 3\ntrain:\n  epochs: 2\n")
+    monkeypatch.chdir(tmp_path)
+    assert compose_config("vae", ["train.epochs=5"]).train.epochs == 5
+    assert compose_config("vae").seed == 3
+    for name, overrides in (("vae", ["train.nonexistent=1"]), ("vae", ["=="]), ("missing", [])):
+        with pytest.raises(FeederError) as err:
+            compose_config(name, overrides)
+        assert "\n" not in str(err.value) and name in str(err.value)
+
+
+def test_resolved_yaml_drops_keys_and_resolves_interpolations(tmp_path):
+    from feeder.config import resolved_yaml
+
+    (tmp_path / "t.yaml").write_text("a: 1\nb: ${a}\npaths:\n  out: x\n")
+    assert resolved_yaml("t", ["a=2"], drop=("paths",), config_dir=tmp_path) == "a: 2\nb: 2\n"
 
 
 class _Scheduler:
@@ -116,8 +142,8 @@ def test_job_rate_limit_is_dropped_only_for_local_runs():
 def test_config_overlays_merge_nested_sections_and_replace_lists(tmp_path):
     import pytest
 
+    from feeder.config import load_study_config, overlay_config
     from feeder.errors import FeederError
-    from feeder.workflow import load_study_config, overlay_config
 
     assert overlay_config({"a": {"b": 1, "c": [1, 2]}, "d": 0}, {"a": {"c": [3]}, "e": 5}) == {
         "a": {"b": 1, "c": [3]}, "d": 0, "e": 5}

@@ -46,6 +46,6 @@ def planned_rules(work: Path, *args: str) -> set[str]:
 
 def merged_config(root: Path, *files: str) -> dict:
     """config/config.yaml overlaid by ``files`` the way Snakemake merges ``--configfile``."""
-    from feeder.workflow import load_study_config
+    from feeder.config import load_study_config
 
     return load_study_config(*files, root=root)

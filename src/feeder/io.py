@@ -1,5 +1,6 @@
 """Atomic output: every file is written to a temporary sibling and renamed into place,
-so a crash never leaves a half-written result that a rerun would trust."""
+so a crash never leaves a half-written result that a rerun would trust. Also the one markdown
+form of a result table (:func:`markdown_table`)."""
 
 from __future__ import annotations
 
@@ -74,18 +75,16 @@ def save_figure(path: str | os.PathLike, fig) -> None:
     write_bytes(path, buf.getvalue())
 
 
-def parse_settings(text: str, *sections: str) -> dict:
-    """The ``--settings`` JSON of a command (config sections, as the workflow passes them), with
-    the named top-level sections required; a one-line :class:`FeederError` otherwise."""
-    from feeder.errors import FeederError
+def markdown_table(frame, caption: str) -> str:
+    """A pandas DataFrame as a GitHub-markdown table under a caption line (floats to 4 significant
+    digits, ``nan`` for non-finite ones; everything else as ``str``)."""
 
-    try:
-        obj = json.loads(text)
-    except json.JSONDecodeError as err:
-        raise FeederError(f"--settings is not valid JSON: {err.msg}") from None
-    if not isinstance(obj, dict):
-        raise FeederError("--settings must be a JSON object of config sections")
-    missing = [s for s in sections if s not in obj]
-    if missing:
-        raise FeederError(f"--settings lacks the config section(s): {', '.join(missing)}")
-    return obj
+    def cell(value) -> str:
+        if isinstance(value, (float, np.floating)):
+            return "nan" if not np.isfinite(value) else f"{value:.4g}"
+        return str(value)
+
+    head = "| " + " | ".join(map(str, frame.columns)) + " |"
+    rule = "|" + "|".join("---" for _ in frame.columns) + "|"
+    body = ["| " + " | ".join(cell(v) for v in row) + " |" for row in frame.itertuples(index=False)]
+    return "\n".join([caption, "", head, rule, *body]) + "\n"

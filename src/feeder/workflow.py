@@ -111,18 +111,6 @@ def put_interpreter_on_path(environ=os.environ) -> None:
         environ["PATH"] = os.pathsep.join([here, *[p for p in parts if p]])
 
 
-def hydra_config_dir(cwd: str | os.PathLike | None = None) -> str:
-    """Where the Hydra model settings live: ``config/`` of the directory the study runs in (the
-    workflow's working directory, like ``config/config.yaml``), else the repository's own ``config/``
-    next to the package. Parse-time params and the jobs both read this one place."""
-    from pathlib import Path
-
-    local = Path(cwd or os.getcwd()) / "config"
-    if (local / "train.yaml").is_file():
-        return str(local.resolve())
-    return str(Path(__file__).resolve().parents[2] / "config")
-
-
 def drop_local_job_rate_limit(workflow, log=print) -> bool:
     """Switch off Snakemake's job-submission rate limiter for a local run (call from ``onstart``).
 
@@ -163,32 +151,3 @@ def copy_study(study: str | os.PathLike, dest: str | os.PathLike):
         elif src.is_file():
             shutil.copy2(src, dest / name)
     return dest
-
-
-def overlay_config(base: dict, over: dict) -> dict:
-    """``base`` with ``over`` laid on top, nested sections merged key by key (the way Snakemake
-    merges ``--configfile`` files). Modifies and returns ``base``."""
-    for key, value in over.items():
-        if isinstance(value, dict) and isinstance(base.get(key), dict):
-            overlay_config(base[key], value)
-        else:
-            base[key] = value
-    return base
-
-
-def load_study_config(*overlays: str | os.PathLike, root: str | os.PathLike = ".") -> dict:
-    """config/config.yaml of the study in ``root`` overlaid by the given files (paths relative to
-    ``root`` unless absolute), as ``snakemake --configfile <overlays>`` sees it."""
-    from pathlib import Path
-
-    import yaml
-
-    from feeder.errors import FeederError
-
-    merged: dict = {}
-    for name in ("config/config.yaml", *overlays):
-        path = Path(root) / name
-        if not path.is_file():
-            raise FeederError(f"config file {path} not found (run from the project root or pass --settings)")
-        overlay_config(merged, yaml.safe_load(path.read_text()) or {})
-    return merged

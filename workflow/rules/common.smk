@@ -5,7 +5,7 @@ import json
 
 from snakemake.utils import validate
 
-from feeder.labels.dataset import configurations
+from feeder.labels.grid import configurations
 from feeder.sim.fences import parse_config_id
 from feeder.parts.library import list_parts
 from feeder.workflow import cli_options, code_inputs, drop_local_job_rate_limit, put_interpreter_on_path, select_settings

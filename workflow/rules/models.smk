@@ -1,9 +1,9 @@
-# Regression models of paper Table 2 (Hydra configs in config/model/), Tables 5-8 with baselines
+# Regression models of paper Table 2 (Hydra configs in config/hydra/model/), Tables 5-8 with baselines
 # and breakdowns, the leave-parts-out GroupKFold table and Figs. 12-13 (one job writes their data
 # to results/figdata/, one drawing job per figure). Uses DATASET (datasets.smk), code (common.smk).
 #
 # Each model's resolved Hydra config is a param of its training job, so editing one
-# config/model/mK.yaml reruns only model K (and the tables that read it).
+# config/hydra/model/mK.yaml reruns only model K (and the tables that read it).
 # The §3.4.1 grid search is not part of the DAG: `feeder train -m hparams_search=grid model=m3`.
 import shlex
 
@@ -26,7 +26,7 @@ HYDRA_SETTINGS = {m: resolved_config_yaml(m, HYDRA_OVERRIDES) for m in dict.from
 
 
 rule train_model:
-    """Train one regression model (Hydra config config/model/{model}.yaml) on the train split."""
+    """Train one regression model (Hydra config config/hydra/model/{model}.yaml) on the train split."""
     input:
         code("train"),
         dataset=DATASET,

@@ -1,6 +1,6 @@
 # The VAE (paper §3.4.2, Table 9), the partial-iteration study P2 (Fig. 14, p2_levels) and the
 # delta-to-full correction sweep P4 (Table 10, Fig. S11). Uses DATASET (datasets.smk), code (common.smk). Figs. 14 and S11 are drawn by their own jobs from p2_levels.csv and
-# table10.csv. Model settings: config/vae.yaml and config/delta.yaml (Hydra); the workflow's
+# table10.csv. Model settings: config/hydra/vae.yaml and config/hydra/delta.yaml (Hydra); the workflow's
 # `vae:` and `delta:` sections choose the levels and add Hydra overrides (smoke shrinks epochs).
 #
 # Every training job gets the resolved Hydra config as a param, so editing a setting reruns

@@ -282,10 +282,10 @@ def add_config_source(parser: argparse.ArgumentParser, sections: str) -> None:
 def config_from_args(args: argparse.Namespace) -> dict:
     """The config chosen by :func:`add_config_source`'s options."""
     if args.settings is not None:
-        from feeder.io import parse_settings
+        from feeder.config import parse_settings
 
         return parse_settings(args.settings)
-    from feeder.workflow import load_study_config
+    from feeder.config import load_study_config
 
     return load_study_config(*args.configfile)
 

@@ -105,7 +105,7 @@ def _run_job(job):
 
 def run_bench(cfg: dict, progress: bool = False):
     """Sample, run and project (see the module docstring) → (sample frame, summary frame)."""
-    from feeder.labels.dataset import configurations
+    from feeder.labels.grid import configurations
     from feeder.parts.library import list_parts
 
     sim, cb = cfg["sim"], cfg["sim"]["cost_bench"]

@@ -68,7 +68,7 @@ def main(argv: list[str]) -> int:
     parser.add_argument("--settings", required=True, help="JSON {scene, sim, parts} config sections")
     parser.add_argument("--out-csv", required=True)
     args = parser.parse_args(argv)
-    from feeder.io import parse_settings
+    from feeder.config import parse_settings
 
     cfg = parse_settings(args.settings, "scene", "sim", "parts")
     try:

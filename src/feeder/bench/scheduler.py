@@ -45,9 +45,9 @@ def spread(items: list, n: int) -> list:
 
 def sim_targets(study: Path, configfiles: list[str], n_jobs: int) -> list[str]:
     """Simulation outputs of n configurations spread over the configured grid."""
-    from feeder.labels.dataset import configurations
+    from feeder.labels.grid import configurations
     from feeder.parts.library import list_parts
-    from feeder.workflow import load_study_config
+    from feeder.config import load_study_config
 
     cfg = load_study_config(*configfiles, root=study)
     parts = list_parts(str(study / cfg["parts"]["dir"]), cfg["parts"]["include"])

@@ -9,8 +9,8 @@ from pathlib import Path
 
 import numpy as np
 
-from feeder.labels.dataset import load_sim
 from feeder.labels.metrics import FULL_TURN_DEG, js_divergence, pmf_from_yaws
+from feeder.sim.record import load_sim
 
 
 def main(argv: list[str]) -> int:

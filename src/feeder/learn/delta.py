@@ -45,10 +45,13 @@ from typing import Any, Sequence
 import numpy as np
 
 from feeder import io
+from feeder.config import compose_config
 from feeder.errors import FeederError
-from feeder.labels.metrics import cdf as cdf_of, js_divergence, r2_cdf, w1
-from feeder.learn.vae import (_read_json, compose_config, config_digest, level_index, load_dataset, scaled_features,
-                        seeded_run, split_mask, summarize)
+from feeder.labels.dataset import DATASET_KEYS, LEVEL_KEYS, load_dataset
+from feeder.labels.metrics import cdf as cdf_of
+from feeder.labels.metrics import js_divergence, r2_cdf, w1
+from feeder.learn.data import level_index, scaled_features, split_mask
+from feeder.learn.vae import _read_json, config_digest, seeded_run, summarize
 
 MODES = ("part", "config")
 LOG_FLOOR = 1e-12
@@ -167,7 +170,7 @@ def fit_delta(cfg, x: np.ndarray, pmf_k: np.ndarray, pmf_full: np.ndarray, seed:
     try:
         losses.check_terms(weights, has_log_pmf=True)
     except ValueError as err:
-        raise FeederError(f"config/delta.yaml loss: {err}") from None
+        raise FeederError(f"config/hydra/delta.yaml loss: {err}") from None
     tcfg = cfg.train
     tr, va, gen = seeded_run(tcfg, x.shape[0], seed)
     net = build_delta(cfg.model, x.shape[1], pmf_k.shape[1])
@@ -254,7 +257,7 @@ def folds(data: dict[str, np.ndarray], rows: np.ndarray, mode: str, cfg) -> np.n
 
 def sweep_level(cfg, level: int) -> dict[str, Any]:
     """Train and score the delta model at one level under both split modes."""
-    data = load_dataset(cfg.dataset)
+    data = load_dataset(cfg.dataset, DATASET_KEYS + LEVEL_KEYS)
     rows = np.flatnonzero(split_mask(data, cfg.splits, "splits"))
     if rows.size < 4:
         raise FeederError(f"{cfg.dataset}: the delta sweep needs at least 4 rows in {list(cfg.splits)}")
@@ -357,11 +360,11 @@ def main(argv: list[str]) -> int:
     p = sub.add_parser("sweep", help="train and score the delta model at one level (both split modes)")
     p.add_argument("--level", type=int, required=True, help="percentage, one of the dataset's levels")
     p.add_argument("--out", type=Path, required=True, help="level result (.json)")
-    p.add_argument("overrides", nargs="*", help="Hydra overrides of config/delta.yaml")
+    p.add_argument("overrides", nargs="*", help="Hydra overrides of config/hydra/delta.yaml")
     p = sub.add_parser("table", help="Table 10 (+ .md; also the data of Fig. S11) from level results")
     p.add_argument("--table", type=Path, required=True, help="table10.csv (a .md is written beside it)")
     p.add_argument("--override", action="append", default=[], metavar="KEY=VALUE",
-                   help="Hydra override of config/delta.yaml (repeatable; representative_levels is read)")
+                   help="Hydra override of config/hydra/delta.yaml (repeatable; representative_levels is read)")
     p.add_argument("results", nargs="+", type=Path, help="level JSONs from `feeder delta sweep`")
     args = parser.parse_args(argv)
     if args.cmd == "sweep":

@@ -131,21 +131,8 @@ def combo_label(config_id: str) -> str:
 # ----------------------------------------------------------------------------------------------
 # Tables
 # ----------------------------------------------------------------------------------------------
-def markdown_table(df: pd.DataFrame, caption: str) -> str:
-    """A GitHub-markdown table (floats to 4 significant digits) under a caption line."""
-    def fmt(v):
-        if isinstance(v, (float, np.floating)):
-            return "nan" if not np.isfinite(v) else f"{v:.4g}"
-        return str(v)
-
-    head = "| " + " | ".join(df.columns) + " |"
-    rule = "|" + "|".join("---" for _ in df.columns) + "|"
-    body = ["| " + " | ".join(fmt(v) for v in row) + " |" for row in df.itertuples(index=False)]
-    return "\n".join([caption, "", head, rule, *body]) + "\n"
-
-
 def _write_table(path: Path, df: pd.DataFrame, caption: str) -> None:
-    from feeder.io import write_csv, write_text
+    from feeder.io import markdown_table, write_csv, write_text
 
     write_csv(path, df)
     write_text(path.with_suffix(".md"), markdown_table(df, caption))
@@ -198,7 +185,7 @@ def evaluation_tables(data: dict, models: list[tuple[str, object, float]]):
 
 
 def write_tables(dataset, model_dirs, out_dir) -> list[Path]:
-    from feeder.learn.train import load_dataset
+    from feeder.labels.dataset import load_dataset
 
     data = load_dataset(dataset)
     models = load_models(model_dirs)
@@ -281,9 +268,9 @@ def representative_rows(r2: np.ndarray, quantiles=FIGURE_QUANTILES) -> list[int]
 def prediction_data(dataset, model_dir) -> dict[str, dict[str, np.ndarray]]:
     """For the Test and Parts splits: the representative rows' true and predicted CDFs, their R²
     and labels, as the arrays feeder.figures._cdf_predictions reads."""
+    from feeder.labels.dataset import load_dataset
     from feeder.labels.metrics import r2_cdf
     from feeder.learn.models import TrainedModel
-    from feeder.learn.train import load_dataset
 
     data = load_dataset(dataset)
     model = TrainedModel.load(model_dir)
@@ -357,10 +344,11 @@ def main(argv: list[str]) -> int:
         for path in write_tables(args.dataset, args.models, args.out_dir):
             print(path)
     elif args.cmd == "groupkfold":
-        from feeder.learn.train import compose_config, load_dataset
+        from feeder.config import compose_config
+        from feeder.labels.dataset import load_dataset
 
         data = load_dataset(args.dataset)
-        cfg = compose_config(args.overrides)
+        cfg = compose_config("train", args.overrides)
         df = groupkfold(data, cfg)
         name = str(cfg.model.name)
         _write_table(args.out, df, f"Leave-parts-out GroupKFold of {name} ({np.unique(data['group_fold']).size} folds): "

@@ -11,7 +11,7 @@ Terms (the names used in the Hydra model configs, ``loss.terms``):
 ``cdf_ks``    max over bins of |F̂ − F| (Kolmogorov–Smirnov statistic)
 ``pmf_kl``    KL(p̂ ‖ p) = Σ p̂ (log p̂ − log p), the direction written in §3.4.1
 ``pmf_kl_fwd``  KL(p ‖ p̂) = Σ p (log p − log p̂), the direction of torch's ``KLDivLoss``; the
-              one Models 3–4 use (``config/model/m3.yaml`` says why: measured, ``pmf_kl``
+              one Models 3–4 use (``config/hydra/model/m3.yaml`` says why: measured, ``pmf_kl``
               with sparse targets is dominated by the log floor of empty bins)
 
 Numerical safety: KL terms work in log space. The predicted log-PMF comes straight from

@@ -1,6 +1,6 @@
 """The eight regression networks of paper Table 2, their label PCA and output post-processing.
 
-A model is described by its Hydra node ``model`` (``config/model/m1.yaml`` … ``m8.yaml``):
+A model is described by its Hydra node ``model`` (``config/hydra/model/m1.yaml`` … ``m8.yaml``):
 
 * ``label``: ``pmf`` or ``cdf`` — which distribution the network outputs;
 * ``repr``: ``full`` (360 bins) or ``pca`` (``components`` principal-component scores);

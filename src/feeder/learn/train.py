@@ -1,20 +1,20 @@
 """``feeder train``: train one regression model of paper Table 2 from its Hydra config.
 
-The config is ``config/train.yaml`` (defaults: ``model: m3``, ``trainer: default``); the model
-group ``config/model/m1.yaml`` … ``m8.yaml`` holds each model's label, architecture, learning
-rate and loss terms, ``config/trainer/default.yaml`` the shared settings (Adam, batch 64, at most
+The config is ``config/hydra/train.yaml`` (defaults: ``model: m3``, ``trainer: default``); the
+model group ``config/hydra/model/m1.yaml`` … ``m8.yaml`` holds each model's label, architecture,
+learning rate and loss terms, ``config/hydra/trainer/default.yaml`` the shared settings (Adam, batch 64, at most
 400 epochs, early stopping with patience 20 on a 10 % validation carve-out of the training rows).
 
     feeder train model=m3 paths.dataset=results/datasets/dataset.npz \\
         paths.out=results/models/m3 hydra.run.dir=results/models/m3/hydra
     feeder train -m hparams_search=grid model=m3          # the §3.4.1 grid search (multirun)
 
-:func:`train` is a plain function of a composed config (tests call it through Hydra's compose
-API); :func:`fit` trains on any row mask (the GroupKFold study reuses it). A model directory
-holds ``model.pt`` (spec + weights, PCA loadings as buffers), ``scaler.npz`` (input scaler),
-``config.yaml`` (the resolved config), ``history.csv`` (per-epoch losses) and ``metrics.json``
-(``train_s`` = training wall seconds, best epoch, validation loss, PCA components kept, and the
-CDF R² per split).
+:func:`train` is a plain function of a composed config (:func:`feeder.config.compose_config`
+with ``"train"``; tests call it that way); :func:`fit` trains on any row mask (the GroupKFold
+study reuses it). A model directory holds ``model.pt`` (spec + weights, PCA loadings as
+buffers), ``scaler.json`` (input scaler), ``config.yaml`` (the resolved config), ``history.csv``
+(per-epoch losses) and ``metrics.json`` (``train_s`` = training wall seconds, best epoch,
+validation loss, PCA components kept, and the CDF R² per split).
 
 Reproducibility: the seed fixes network initialisation, the validation carve-out and the batch
 order; torch runs single-threaded (``trainer.threads``) with deterministic algorithms, so the
@@ -32,72 +32,18 @@ from pathlib import Path
 
 import numpy as np
 
+from feeder.config import hydra_config_dir, resolved_yaml
 from feeder.errors import FeederError
-from feeder.workflow import hydra_config_dir
+from feeder.learn.data import validation_split
 
-CONFIG_DIR = hydra_config_dir()  # ./config of the run directory, else the repository's
 CONFIG_NAME = "train"
-DATASET_KEYS = ("part", "config_id", "split", "group_fold", "part_raw", "feeder_raw", "pmf", "cdf")
 
 
-# ----------------------------------------------------------------------------------------------
-# Config
-# ----------------------------------------------------------------------------------------------
-def compose_config(overrides=(), config_dir: Path | str = CONFIG_DIR):
-    """Compose ``train.yaml`` with Hydra's compose API (no output directory, no logging setup)."""
-    from hydra import compose, initialize_config_dir
-    from hydra.core.global_hydra import GlobalHydra
-
-    if GlobalHydra.instance().is_initialized():
-        GlobalHydra.instance().clear()
-    with initialize_config_dir(version_base="1.3", config_dir=str(Path(config_dir).resolve())):
-        return compose(config_name=CONFIG_NAME, overrides=list(overrides))
-
-
-def resolved_config_yaml(model: str, overrides=(), config_dir: Path | str = CONFIG_DIR) -> str:
-    """The resolved settings that determine a trained model (``model``, ``trainer``, ``seed``) as
-    YAML. The workflow passes it as a rule param, so editing one model's Hydra file reruns only
-    that model."""
-    from omegaconf import OmegaConf
-
-    cfg = compose_config([f"model={model}", *overrides], config_dir)
-    keep = {k: cfg[k] for k in cfg if k != "paths"}
-    return OmegaConf.to_yaml(OmegaConf.create(OmegaConf.to_container(OmegaConf.create(keep), resolve=True)))
-
-
-# ----------------------------------------------------------------------------------------------
-# Data
-# ----------------------------------------------------------------------------------------------
-def load_dataset(path) -> dict[str, np.ndarray]:
-    """The arrays of ``results/datasets/dataset.npz`` (docs/data.md), checked for what training needs."""
-    from feeder.labels import dataset as datasets
-
-    data = datasets.load_dataset(path)
-    missing = [k for k in DATASET_KEYS if k not in data]
-    if missing:
-        raise FeederError(f"{path}: missing keys {', '.join(missing)}")
-    n = data["pmf"].shape[0]
-    if data["part_raw"].shape != (n, 45) or data["feeder_raw"].shape != (n, 8) or data["cdf"].shape != data["pmf"].shape:
-        raise FeederError(f"{path}: part_raw/feeder_raw/pmf/cdf shapes do not match docs/data.md")
-    for k in ("part_raw", "feeder_raw", "pmf", "cdf"):
-        if not np.isfinite(data[k]).all():
-            raise FeederError(f"{path}: {k} has non-finite values")
-    data["split"] = data["split"].astype(str)
-    data["part"] = data["part"].astype(str)
-    data["config_id"] = data["config_id"].astype(str)
-    return data
-
-
-def validation_split(rows: np.ndarray, fraction: float, seed: int) -> tuple[np.ndarray, np.ndarray]:
-    """Split row indices into (fit, validation) with a seeded permutation; at least one of each."""
-    rows = np.asarray(rows)
-    if rows.size < 2:
-        raise FeederError(f"need at least 2 training rows, got {rows.size}")
-    if not 0.0 < fraction < 1.0:
-        raise FeederError(f"trainer.val_fraction must be in (0, 1), got {fraction}")
-    n_val = int(min(max(1, round(fraction * rows.size)), rows.size - 1))
-    perm = np.random.default_rng(seed).permutation(rows)
-    return np.sort(perm[n_val:]), np.sort(perm[:n_val])
+def resolved_config_yaml(model: str, overrides=(), config_dir=None) -> str:
+    """The resolved settings that determine a trained model (``model``, ``trainer``, ``seed``;
+    not the ``paths``) as YAML. The workflow passes it as a rule param, so editing one model's
+    Hydra file reruns only that model."""
+    return resolved_yaml(CONFIG_NAME, [f"model={model}", *overrides], drop=("paths",), config_dir=config_dir)
 
 
 # ----------------------------------------------------------------------------------------------
@@ -123,34 +69,25 @@ def setup_torch(threads: int) -> None:
     torch.use_deterministic_algorithms(True)
 
 
-def fit(cfg, data: dict[str, np.ndarray], train_mask: np.ndarray, seed: int | None = None,
-        progress: bool | None = None) -> Fitted:
-    """Train the model of ``cfg.model`` on the rows in ``train_mask`` (scaler and PCA fit on
-    them, a ``trainer.val_fraction`` carve-out of them for early stopping)."""
-    import torch
-    from tqdm import tqdm
-
+def _model_spec(cfg, bins: int):
+    """The model's spec and its loss weights, checked."""
     from feeder.learn import losses
-    from feeder.labels.dataset import fit_scaler
-    from feeder.learn.models import ModelSpec, RegressionModel, TrainedModel, fit_pca
+    from feeder.learn.models import ModelSpec
 
-    t0 = time.perf_counter()
-    tr = cfg.trainer
-    seed = int(cfg.seed if seed is None else seed)
-    setup_torch(tr.threads)
-    if str(tr.optimizer).lower() != "adam":
-        raise FeederError(f"trainer.optimizer {tr.optimizer!r}: only adam is implemented")
-    train_mask = np.asarray(train_mask, dtype=bool)
-    rows = np.flatnonzero(train_mask)
-    fit_rows, val_rows = validation_split(rows, float(tr.val_fraction), seed)
-
-    bins = data["pmf"].shape[1]
     try:
         spec = ModelSpec.from_config(cfg.model, bins)
         weights = {str(k): float(v) for k, v in cfg.model.loss.items()}
         losses.check_terms(weights, has_log_pmf=spec.output_activation == "softmax")
     except ValueError as err:
         raise FeederError(str(err)) from None
+    return spec, weights
+
+
+def _model_inputs(spec, data: dict[str, np.ndarray], train_mask: np.ndarray, rows: np.ndarray):
+    """The input scaler and the PCA of the label (for PCA models), both fit on the training rows,
+    and the scaled inputs of every row."""
+    from feeder.labels.dataset import fit_scaler
+    from feeder.learn.models import fit_pca
 
     scaler = fit_scaler(data["part_raw"], data["feeder_raw"], train_mask)
     x_all = np.asarray(scaler.transform(data["part_raw"], data["feeder_raw"]), dtype=np.float64)
@@ -160,25 +97,64 @@ def fit(cfg, data: dict[str, np.ndarray], train_mask: np.ndarray, seed: int | No
         if pca.capped:
             print(f"feeder train: {spec.name}: PCA capped at {pca.n_components} components "
                   f"(requested {spec.components}; {rows.size} training rows)", file=sys.stderr)
-    n_out = pca.n_components if pca is not None else bins
+    return scaler, x_all, pca
 
+
+def _init_net(spec, pca, data: dict[str, np.ndarray], rows: np.ndarray, seed: int):
+    """The seeded network, its output initialised to the training rows' mean label."""
+    import torch
+
+    from feeder.learn.models import RegressionModel
+
+    n_out = pca.n_components if pca is not None else data["pmf"].shape[1]
     torch.manual_seed(seed)
     net = RegressionModel(spec, n_out, None if pca is None else pca.mean, None if pca is None else pca.components)
     net.init_output_to_mean(data["pmf"][rows].mean(axis=0), data["cdf"][rows].mean(axis=0))
+    return net
+
+
+def _train_epoch(net, opt, loss_of, tensors, batch: int, gen, name: str, epoch: int) -> float:
+    """One pass over the fit rows in a seeded batch order; the mean training loss."""
+    import torch
+
+    x, p, c = tensors
+    net.train()
+    order = torch.randperm(x.shape[0], generator=gen)
+    total, seen = 0.0, 0
+    for start in range(0, x.shape[0], batch):
+        idx = order[start:start + batch]
+        loss, _ = loss_of(x[idx], p[idx], c[idx])
+        if not torch.isfinite(loss):
+            raise FeederError(f"{name}: non-finite training loss at epoch {epoch}")
+        opt.zero_grad(set_to_none=True)
+        loss.backward()
+        opt.step()
+        total += loss.item() * idx.numel()
+        seen += idx.numel()
+    return total / seen
+
+
+def _train_epochs(cfg, net, spec, weights: dict, x_all: np.ndarray, data: dict[str, np.ndarray],
+                  fit_rows: np.ndarray, val_rows: np.ndarray, seed: int, progress: bool | None):
+    """Adam with early stopping on the validation rows; leaves ``net`` at its best epoch.
+    Returns (history, best epoch, best validation loss)."""
+    import torch
+    from tqdm import tqdm
+
+    from feeder.learn import losses
+
+    tr = cfg.trainer
     opt = torch.optim.Adam(net.parameters(), lr=float(cfg.model.lr))
     gen = torch.Generator().manual_seed(seed)
-
     f32 = lambda a: torch.as_tensor(a, dtype=torch.float32)  # noqa: E731
-    xf, pf, cf = f32(x_all[fit_rows]), f32(data["pmf"][fit_rows]), f32(data["cdf"][fit_rows])
+    fit_t = f32(x_all[fit_rows]), f32(data["pmf"][fit_rows]), f32(data["cdf"][fit_rows])
     xv, pv, cv = f32(x_all[val_rows]), f32(data["pmf"][val_rows]), f32(data["cdf"][val_rows])
 
     def loss_of(x, p, c):
         out = net(x)
         return losses.composite(weights, out["pmf"], out["log_pmf"], out["cdf"], p, c)
 
-    batch = int(tr.batch_size)
-    patience = int(tr.patience)
-    max_epochs = int(tr.max_epochs)
+    batch, patience, max_epochs = int(tr.batch_size), int(tr.patience), int(tr.max_epochs)
     if batch < 1 or max_epochs < 1 or patience < 1:
         raise FeederError("trainer.batch_size, max_epochs and patience must be >= 1")
     best_val, best_epoch, best_state = float("inf"), 0, copy.deepcopy(net.state_dict())
@@ -186,26 +162,14 @@ def fit(cfg, data: dict[str, np.ndarray], train_mask: np.ndarray, seed: int | No
     show = sys.stderr.isatty() if progress is None else progress
     bar = tqdm(range(1, max_epochs + 1), desc=f"train {spec.name}", disable=not show, file=sys.stderr)
     for epoch in bar:
-        net.train()
-        order = torch.randperm(xf.shape[0], generator=gen)
-        total, seen = 0.0, 0
-        for start in range(0, xf.shape[0], batch):
-            idx = order[start:start + batch]
-            loss, _ = loss_of(xf[idx], pf[idx], cf[idx])
-            if not torch.isfinite(loss):
-                raise FeederError(f"{spec.name}: non-finite training loss at epoch {epoch}")
-            opt.zero_grad(set_to_none=True)
-            loss.backward()
-            opt.step()
-            total += loss.item() * idx.numel()
-            seen += idx.numel()
+        train_loss = _train_epoch(net, opt, loss_of, fit_t, batch, gen, spec.name, epoch)
         net.eval()
         with torch.no_grad():
             val_loss, parts = loss_of(xv, pv, cv)
         val_loss = float(val_loss)
         if not np.isfinite(val_loss):
             raise FeederError(f"{spec.name}: non-finite validation loss at epoch {epoch}")
-        history.append({"epoch": epoch, "train_loss": total / seen, "val_loss": val_loss,
+        history.append({"epoch": epoch, "train_loss": train_loss, "val_loss": val_loss,
                         **{f"val_{k}": float(v) for k, v in parts.items()}})
         bar.set_postfix(val=f"{val_loss:.4g}")
         if val_loss < best_val:
@@ -213,9 +177,33 @@ def fit(cfg, data: dict[str, np.ndarray], train_mask: np.ndarray, seed: int | No
         elif epoch - best_epoch >= patience:
             break
     net.load_state_dict(best_state)
+    return history, best_epoch, best_val
+
+
+def fit(cfg, data: dict[str, np.ndarray], train_mask: np.ndarray, seed: int | None = None,
+        progress: bool | None = None) -> Fitted:
+    """Train the model of ``cfg.model`` on the rows in ``train_mask`` (scaler and PCA fit on
+    them, a ``trainer.val_fraction`` carve-out of them for early stopping)."""
+    from feeder.learn.models import TrainedModel
+
+    t0 = time.perf_counter()
+    tr = cfg.trainer
+    seed = int(cfg.seed if seed is None else seed)
+    setup_torch(tr.threads)
+    if str(tr.optimizer).lower() != "adam":
+        raise FeederError(f"trainer.optimizer {tr.optimizer!r}: only adam is implemented")
+    train_mask = np.asarray(train_mask, dtype=bool)
+    rows = np.flatnonzero(train_mask)
+    fit_rows, val_rows = validation_split(rows, float(tr.val_fraction), seed, "trainer.val_fraction")
+    spec, weights = _model_spec(cfg, data["pmf"].shape[1])
+    scaler, x_all, pca = _model_inputs(spec, data, train_mask, rows)
+    net = _init_net(spec, pca, data, rows, seed)
+    history, best_epoch, best_val = _train_epochs(cfg, net, spec, weights, x_all, data, fit_rows, val_rows,
+                                                  seed, progress)
     return Fitted(
-        model=TrainedModel(net, scaler, str(data.get("label_frame", "part"))), history=history, best_epoch=best_epoch, best_val_loss=best_val,
-        train_s=time.perf_counter() - t0, n_fit=int(fit_rows.size), n_val=int(val_rows.size),
+        model=TrainedModel(net, scaler, str(data.get("label_frame", "part"))), history=history,
+        best_epoch=best_epoch, best_val_loss=best_val, train_s=time.perf_counter() - t0,
+        n_fit=int(fit_rows.size), n_val=int(val_rows.size),
         pca_components=None if pca is None else pca.n_components,
         pca_requested=None if pca is None else pca.requested,
     )
@@ -223,7 +211,7 @@ def fit(cfg, data: dict[str, np.ndarray], train_mask: np.ndarray, seed: int | No
 
 def split_metrics(model, data: dict[str, np.ndarray]) -> dict[str, float]:
     """Mean CDF R² and W1 of the post-processed predictions on every split present."""
-    from feeder.labels.dataset import SPLITS
+    from feeder.labels.grid import SPLITS
     from feeder.labels.metrics import r2_cdf, w1
 
     x_raw = (data["part_raw"], data["feeder_raw"])
@@ -244,6 +232,7 @@ def train(cfg) -> dict:
     from omegaconf import OmegaConf
 
     from feeder.io import write_csv, write_json, write_text
+    from feeder.labels.dataset import load_dataset
 
     data = load_dataset(cfg.paths.dataset)
     train_mask = data["split"] == "train"
@@ -280,7 +269,7 @@ def main(argv: list[str]) -> int:
 
     errors: list[FeederError] = []
 
-    @hydra.main(version_base="1.3", config_path=str(CONFIG_DIR), config_name=CONFIG_NAME)
+    @hydra.main(version_base="1.3", config_path=hydra_config_dir(), config_name=CONFIG_NAME)
     def _app(cfg) -> None:
         try:
             metrics = train(cfg)

@@ -1,7 +1,7 @@
 """Variational autoencoder of part+feeder features and orientation CDFs (paper §3.4.2, Table 3),
 its reconstruction table (Table 9) and the partial-iteration study P2 (§4.7.2, Fig. 14).
 
-Model (all sizes from ``config/vae.yaml``)
+Model (all sizes from ``config/hydra/vae.yaml``)
     Two encoders, each Linear -> LayerNorm -> ReLU per layer: the 53 scaled part+feeder values
     (53 -> 128 -> 64 -> 45) and the 360-bin CDF (360 -> 256 -> 128). Their outputs are concatenated
     (173) and two linear heads give the mean and the log-variance of a 35-dimensional Gaussian
@@ -40,7 +40,7 @@ P2
     convergence"); the R² of the raw level-k CDF against the 100 % CDF is reported beside them.
 
 CLI: ``feeder vae train|table9|p2-level|p2-gather`` (see ``feeder vae <cmd> -h``); every command
-that trains takes Hydra overrides of ``config/vae.yaml`` as trailing arguments.
+that trains takes Hydra overrides of ``config/hydra/vae.yaml`` as trailing arguments.
 """
 
 from __future__ import annotations
@@ -59,13 +59,12 @@ from typing import Any, Sequence
 import numpy as np
 
 from feeder import io
+from feeder.config import compose_config, resolved_yaml
 from feeder.errors import FeederError
-from feeder.workflow import hydra_config_dir
+from feeder.labels.dataset import DATASET_KEYS, LEVEL_KEYS, load_dataset
 from feeder.labels.metrics import r2_cdf
+from feeder.learn.data import level_index, scaled_features, split_mask, validation_split
 
-CONFIG_DIR = hydra_config_dir()  # ./config of the run directory, else the repository's
-DATASET_KEYS = ("part", "config_id", "split", "group_fold", "part_raw", "feeder_raw", "pmf", "cdf",
-                "pmf_levels", "levels_pct")
 P2_COLUMNS = ["level_pct", "n_train", "n_val", "n_holdout", "within_r2_mean", "within_r2_sd",
               "cross_r2_mean", "cross_r2_sd", "features_r2_mean", "features_r2_sd",
               "partial_baseline_r2_mean", "partial_baseline_r2_sd", "best_epoch", "epochs_run",
@@ -76,30 +75,6 @@ TABLE9_COLUMNS = ["dataset", "n", "r2_features_mean", "r2_features_sd", "r2_cdf_
 # ----------------------------------------------------------------------------------------------
 # Hydra configuration
 # ----------------------------------------------------------------------------------------------
-def compose_config(name: str, overrides: Sequence[str] = ()):
-    """Compose ``config/<name>.yaml`` with Hydra overrides (version_base 1.3, no output dir)."""
-    from hydra import compose, initialize_config_dir
-    from hydra.core.global_hydra import GlobalHydra
-    from hydra.errors import HydraException
-    from omegaconf.errors import OmegaConfBaseException
-
-    if GlobalHydra.instance().is_initialized():
-        GlobalHydra.instance().clear()
-    try:
-        with initialize_config_dir(version_base="1.3", config_dir=str(CONFIG_DIR), job_name=f"feeder_{name}"):
-            return compose(config_name=name, overrides=list(overrides))
-    except (HydraException, OmegaConfBaseException) as err:
-        first = str(err).strip().splitlines()[0] if str(err).strip() else type(err).__name__
-        raise FeederError(f"config/{name}.yaml with overrides {list(overrides)}: {first}") from None
-
-
-def resolved_yaml(name: str, overrides: Sequence[str] = ()) -> str:
-    """The fully resolved composed config as YAML text (a Snakemake ``params:`` value)."""
-    from omegaconf import OmegaConf
-
-    return OmegaConf.to_yaml(compose_config(name, overrides), resolve=True)
-
-
 def rule_params(name: str, overrides: Sequence[str] = ()) -> dict[str, str]:
     """``params:`` for a rule that runs a Hydra-configured command: the shell-quoted overrides to
     append to the command and the resolved config (so a changed setting reruns the job)."""
@@ -126,53 +101,6 @@ def config_digest(cfg) -> str:
 # ----------------------------------------------------------------------------------------------
 # Data
 # ----------------------------------------------------------------------------------------------
-def load_dataset(path: str | Path) -> dict[str, np.ndarray]:
-    """Read ``dataset.npz`` (docs/data.md) and check the keys and shapes this module uses."""
-    from feeder.labels.dataset import load_dataset as read_npz
-
-    path = Path(path)
-    try:
-        data = read_npz(path)
-    except (OSError, ValueError) as err:
-        raise FeederError(f"{path}: not a readable dataset npz ({err})") from None
-    missing = [k for k in DATASET_KEYS if k not in data]
-    if missing:
-        raise FeederError(f"{path}: dataset lacks keys {missing}")
-    n, bins = data["pmf"].shape
-    levels = data["levels_pct"]
-    if data["pmf_levels"].shape != (n, levels.size, bins) or data["cdf"].shape != (n, bins):
-        raise FeederError(f"{path}: pmf/cdf/pmf_levels/levels_pct shapes disagree")
-    for key in ("part_raw", "feeder_raw", "pmf", "cdf", "pmf_levels"):
-        if not np.isfinite(data[key]).all():
-            raise FeederError(f"{path}: {key} has non-finite values")
-    data["split"] = data["split"].astype(str)
-    data["part"] = data["part"].astype(str)
-    return data
-
-
-def split_mask(data: dict[str, np.ndarray], splits: Sequence[str], what: str) -> np.ndarray:
-    known = {"train", "test", "fences", "parts"}
-    bad = [s for s in splits if s not in known]
-    if bad:
-        raise FeederError(f"{what}: unknown split names {bad} (known: {sorted(known)})")
-    return np.isin(data["split"], list(splits))
-
-
-def scaled_features(data: dict[str, np.ndarray], fit_mask: np.ndarray) -> np.ndarray:
-    """The 53 model inputs of every row, with the scaler fitted on ``fit_mask`` rows only."""
-    from feeder.labels.dataset import fit_scaler
-
-    scaler = fit_scaler(data["part_raw"], data["feeder_raw"], fit_mask)
-    return np.asarray(scaler.transform(data["part_raw"], data["feeder_raw"]), dtype=np.float64)
-
-
-def level_index(levels_pct: np.ndarray, level: int) -> int:
-    hits = np.flatnonzero(np.asarray(levels_pct) == int(level))
-    if hits.size != 1:
-        raise FeederError(f"level {level} % is not one of the dataset's levels {list(map(int, levels_pct))}")
-    return int(hits[0])
-
-
 def summarize(values: np.ndarray) -> tuple[float, float]:
     """Mean and population SD (ddof = 0)."""
     values = np.asarray(values, dtype=np.float64)
@@ -295,27 +223,66 @@ class VaeFit:
     history: list[dict[str, float]] = field(default_factory=list)
 
 
-def validation_split(n: int, fraction: float, seed: int) -> tuple[np.ndarray, np.ndarray]:
-    """Seeded (train, validation) row indices; at least one row on each side."""
-    if n < 2:
-        raise FeederError(f"need at least 2 training rows for a validation split, got {n}")
-    if not 0 < fraction < 1:
-        raise FeederError(f"val_fraction must be in (0, 1), got {fraction}")
-    perm = np.random.default_rng(seed).permutation(n)
-    n_val = min(max(1, int(round(fraction * n))), n - 1)
-    return np.sort(perm[n_val:]), np.sort(perm[:n_val])
-
-
 def seeded_run(tcfg, n: int, seed: int):
     """What makes one training run reproducible: the seeded (train, validation) row split, torch's
     thread count and seed, and the generator that orders its batches. Shared by the VAE and the
     delta model."""
     import torch
 
-    tr, va = validation_split(n, float(tcfg.val_fraction), seed)
+    tr, va = validation_split(np.arange(n), float(tcfg.val_fraction), seed, "train.val_fraction")
     torch.set_num_threads(int(tcfg.threads))
     torch.manual_seed(seed)
     return tr, va, torch.Generator().manual_seed(seed)
+
+
+def _fit_inputs(x: np.ndarray, cdf: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``x`` and ``cdf`` as float64 matrices with one row per configuration, finite."""
+    x = np.asarray(x, dtype=np.float64)
+    cdf = np.asarray(cdf, dtype=np.float64)
+    if x.ndim != 2 or cdf.ndim != 2 or x.shape[0] != cdf.shape[0]:
+        raise FeederError(f"fit_vae: features {x.shape} and CDFs {cdf.shape} do not pair up")
+    if not (np.isfinite(x).all() and np.isfinite(cdf).all()):
+        raise FeederError("fit_vae: non-finite features or CDFs")
+    return x, cdf
+
+
+def _vae_epoch(net, opt, cfg, x_tr, f_tr, gen, beta: float, epoch: int) -> float:
+    """One pass over the training rows (seeded batch order and latent noise, gradient clipping);
+    the mean training loss."""
+    import torch
+
+    batch, latent = int(cfg.train.batch_size), int(cfg.model.latent_dim)
+    net.train()
+    order = torch.randperm(len(x_tr), generator=gen)
+    total, count = 0.0, 0
+    for i in range(0, len(x_tr), batch):
+        idx = order[i:i + batch]
+        noise = torch.randn(len(idx), latent, generator=gen)
+        out = vae_forward(net, cfg.model, x_tr[idx], f_tr[idx], noise)
+        loss, _ = vae_loss(out, x_tr[idx], f_tr[idx], cfg, beta)
+        if not torch.isfinite(loss):
+            raise FeederError(f"VAE training diverged: non-finite loss at epoch {epoch}")
+        opt.zero_grad()
+        loss.backward()
+        torch.nn.utils.clip_grad_norm_(net.parameters(), float(cfg.train.grad_clip))
+        opt.step()
+        total += float(loss.detach()) * len(idx)
+        count += len(idx)
+    return total / count
+
+
+def _vae_validation(net, cfg, x_va, f_va, epoch: int) -> tuple[float, dict]:
+    """Validation loss (latent mean, final KL weight ``beta_max``) and its parts."""
+    import torch
+
+    net.eval()
+    with torch.no_grad():
+        out = vae_forward(net, cfg.model, x_va, f_va)
+        val, parts = vae_loss(out, x_va, f_va, cfg, float(cfg.loss.beta_max))
+    val = float(val)
+    if not np.isfinite(val):
+        raise FeederError(f"VAE training diverged: non-finite validation loss at epoch {epoch}")
+    return val, parts
 
 
 def fit_vae(cfg, x: np.ndarray, cdf: np.ndarray, seed: int | None = None) -> VaeFit:
@@ -324,21 +291,14 @@ def fit_vae(cfg, x: np.ndarray, cdf: np.ndarray, seed: int | None = None) -> Vae
     from tqdm import tqdm
 
     seed = int(cfg.seed if seed is None else seed)
-    x = np.asarray(x, dtype=np.float64)
-    cdf = np.asarray(cdf, dtype=np.float64)
-    if x.ndim != 2 or cdf.ndim != 2 or x.shape[0] != cdf.shape[0]:
-        raise FeederError(f"fit_vae: features {x.shape} and CDFs {cdf.shape} do not pair up")
-    if not (np.isfinite(x).all() and np.isfinite(cdf).all()):
-        raise FeederError("fit_vae: non-finite features or CDFs")
+    x, cdf = _fit_inputs(x, cdf)
     tcfg = cfg.train
     tr, va, gen = seeded_run(tcfg, x.shape[0], seed)
     net = build_vae(cfg.model, x.shape[1], cdf.shape[1])
     xt, ft = torch.as_tensor(x, dtype=torch.float32), torch.as_tensor(cdf, dtype=torch.float32)
     x_tr, f_tr, x_va, f_va = xt[tr], ft[tr], xt[va], ft[va]
     opt = torch.optim.Adam(net.parameters(), lr=float(tcfg.lr), weight_decay=float(tcfg.weight_decay))
-    batch = int(tcfg.batch_size)
     patience = None if tcfg.patience is None else int(tcfg.patience)
-    latent = int(cfg.model.latent_dim)
     best, best_state, best_epoch, stale = float("inf"), None, -1, 0
     history: list[dict[str, float]] = []
     start = time.perf_counter()
@@ -346,30 +306,9 @@ def fit_vae(cfg, x: np.ndarray, cdf: np.ndarray, seed: int | None = None) -> Vae
                   disable=not sys.stderr.isatty(), leave=False)
     for epoch in epochs:
         beta = kl_weight(cfg.loss, epoch)
-        net.train()
-        order = torch.randperm(len(tr), generator=gen)
-        total, count = 0.0, 0
-        for i in range(0, len(tr), batch):
-            idx = order[i:i + batch]
-            noise = torch.randn(len(idx), latent, generator=gen)
-            out = vae_forward(net, cfg.model, x_tr[idx], f_tr[idx], noise)
-            loss, _ = vae_loss(out, x_tr[idx], f_tr[idx], cfg, beta)
-            if not torch.isfinite(loss):
-                raise FeederError(f"VAE training diverged: non-finite loss at epoch {epoch}")
-            opt.zero_grad()
-            loss.backward()
-            torch.nn.utils.clip_grad_norm_(net.parameters(), float(tcfg.grad_clip))
-            opt.step()
-            total += float(loss.detach()) * len(idx)
-            count += len(idx)
-        net.eval()
-        with torch.no_grad():
-            out = vae_forward(net, cfg.model, x_va, f_va)
-            val, parts = vae_loss(out, x_va, f_va, cfg, float(cfg.loss.beta_max))
-        val = float(val)
-        if not np.isfinite(val):
-            raise FeederError(f"VAE training diverged: non-finite validation loss at epoch {epoch}")
-        history.append({"epoch": epoch, "beta": beta, "train_loss": total / count, "val_loss": val,
+        train_loss = _vae_epoch(net, opt, cfg, x_tr, f_tr, gen, beta, epoch)
+        val, parts = _vae_validation(net, cfg, x_va, f_va, epoch)
+        history.append({"epoch": epoch, "beta": beta, "train_loss": train_loss, "val_loss": val,
                         **{f"val_{k}": float(v) for k, v in parts.items()}})
         if val < best:
             best, best_epoch, stale = val, epoch, 0
@@ -448,7 +387,7 @@ def train_vae(cfg) -> tuple[VaeFit, dict[str, np.ndarray]]:
 
     Returns the fit and the dataset (with its ``features`` key added: scaled on the training rows).
     """
-    data = load_dataset(cfg.dataset)
+    data = load_dataset(cfg.dataset, DATASET_KEYS + LEVEL_KEYS)
     mask = split_mask(data, cfg.table9.train_splits, "table9.train_splits")
     if mask.sum() < 2:
         raise FeederError(f"{cfg.dataset}: fewer than 2 rows in splits {list(cfg.table9.train_splits)}")
@@ -501,7 +440,7 @@ def table9_markdown(frame, blob: dict, cfg) -> str:
         "Provenance:",
         f"- training wall time {blob['wall_s']:.1f} s, {blob['epochs_run']} epochs run, "
         f"best epoch {blob['best_epoch']} (lowest validation loss)",
-        f"- config digest {config_digest(cfg)} (config/vae.yaml + overrides), dataset {cfg.dataset}",
+        f"- config digest {config_digest(cfg)} (config/hydra/vae.yaml + overrides), dataset {cfg.dataset}",
     ]
     return "\n".join(lines) + "\n"
 
@@ -524,7 +463,7 @@ def p2_split(data: dict[str, np.ndarray], cfg) -> tuple[np.ndarray, np.ndarray]:
 
 def p2_level(cfg, level: int) -> dict[str, Any]:
     """Train a VAE from scratch on level-``level`` CDFs and score it on the shared holdout."""
-    data = load_dataset(cfg.dataset)
+    data = load_dataset(cfg.dataset, DATASET_KEYS + LEVEL_KEYS)
     li = level_index(data["levels_pct"], level)
     train, hold = p2_split(data, cfg)
     fit_mask = np.zeros(len(data["split"]), dtype=bool)
@@ -595,14 +534,14 @@ def main(argv: list[str]) -> int:
     sub = parser.add_subparsers(dest="cmd", required=True)
     p = sub.add_parser("train", help="train the Table 9 VAE on the Main rows")
     p.add_argument("--out", type=Path, required=True, help="checkpoint (.pt)")
-    p.add_argument("overrides", nargs="*", help="Hydra overrides of config/vae.yaml")
+    p.add_argument("overrides", nargs="*", help="Hydra overrides of config/hydra/vae.yaml")
     p = sub.add_parser("table9", help="Table 9 from a trained checkpoint")
     p.add_argument("--model", type=Path, required=True)
     p.add_argument("--out", type=Path, required=True, help="table9.csv (a .md is written beside it)")
     p = sub.add_parser("p2-level", help="train and score one P2 iteration level")
     p.add_argument("--level", type=int, required=True, help="percentage, one of the dataset's levels")
     p.add_argument("--out", type=Path, required=True, help="level result (.json)")
-    p.add_argument("overrides", nargs="*", help="Hydra overrides of config/vae.yaml")
+    p.add_argument("overrides", nargs="*", help="Hydra overrides of config/hydra/vae.yaml")
     p = sub.add_parser("p2-gather", help="P2 table (the data of Fig. 14) from level results")
     p.add_argument("--table", type=Path, required=True, help="p2_levels.csv (a .md is written beside it)")
     p.add_argument("results", nargs="+", type=Path, help="level JSONs from p2-level")
@@ -616,7 +555,7 @@ def main(argv: list[str]) -> int:
               f"{fit.wall_s:.1f} s -> {args.out}", file=sys.stderr)
     elif args.cmd == "table9":
         net, cfg, blob = load_checkpoint(args.model)
-        data = load_dataset(cfg.dataset)
+        data = load_dataset(cfg.dataset, DATASET_KEYS + LEVEL_KEYS)
         data["features"] = scaled_features(data, split_mask(data, cfg.table9.train_splits, "table9.train_splits"))
         frame = table9(net, cfg, data)
         md = table9_markdown(frame, blob, cfg)

@@ -87,12 +87,6 @@ def mirror_part(geom, part_id: str | None = None):
     return PartGeometry.from_polygon(part_id or f"{geom.part_id}-m", pts[::-1], geom.thickness)
 
 
-def wrap180(deg):
-    """Angles to (-180, 180]."""
-    d = np.mod(np.asarray(deg, float) + 180.0, 360.0) - 180.0
-    return np.where(d == -180.0, 180.0, d)
-
-
 def mod180_dist(a, b):
     """Distance between two axial angles (mod 180), degrees in [0, 90]."""
     d = np.mod(np.asarray(a, float) - np.asarray(b, float), 180.0)

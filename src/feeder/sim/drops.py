@@ -28,11 +28,11 @@ Each drop ends ``ok``, ``jammed`` (moved less than ``jam_travel`` in ``jam_windo
 stops the configuration. Seeds: the initial yaws come from a generator seeded by a SHA-256 hash
 of (part id, fence configuration id, base seed); a rerun of one configuration is bit-identical.
 
-The part body is a compound of the exact convex pieces of its outline, each inset by the
-collision margin and extruded (so the margin-inflated shape is the true part), in the part's
-centroidal principal frame; mass, centre of mass and the inertia diagonal are set from the
-polygon. Each lane's belt is a fixed-base box given the belt velocity (and its start pose) when
-a drop starts; Bullet carries it along (see :class:`World` for why it is not reset every step).
+The part body and the world (:mod:`feeder.sim.body`): a compound of the part's exact convex
+pieces in its centroidal principal frame; each lane's belt is a fixed-base box given the belt
+velocity (and its start pose) when a drop starts, which Bullet carries along (see
+:class:`feeder.sim.body.World` for why it is not reset every step). The output file is written by
+:mod:`feeder.sim.record`.
 Measured (``feeder bench-sim``, results/tables/sim_accuracy_vs_time.csv): internal steps of 1 ms
 or more move the distributions beyond the noise floor (small parts, fences near the friction
 limit), so ``fast`` keeps the paper's 0.5 ms steps and saves time only by stepping the fence
@@ -45,9 +45,6 @@ before the fences) outside the noise floor on concave parts (docs/simulation.md)
 compliant contact ``fast`` is as close to ``faithful`` as ``faithful`` started 0.5 m earlier.
 A part is at rest when its displacement between two state checks says so: Bullet's reported
 velocity of a part held by the compliant contact can keep a residual of ~1 mm/s.
-
-Bullet combines friction coefficients by multiplication: part-belt 0.8 x 1.0, part-fence
-0.8 x 0.5 = 0.4 (a straight fence holds parts for θ > atan(1/0.4) = 68.2°).
 """
 
 from __future__ import annotations
@@ -56,27 +53,32 @@ import argparse
 import hashlib
 import json
 import math
-import os
 import sys
-import tempfile
 import time
 from collections import deque
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
 from feeder.errors import FeederError
+from feeder.labels.pushforward import (
+    DEFAULT_MIN_WIDTH_DEG,
+    DEFAULT_N0,
+    DEFAULT_TOLERANCE_DEG,
+    Design,
+    grid_yaws,
+    refine,
+)
+from feeder.parts.symmetry import check_order, rotational_order
+from feeder.sim.body import PartModel, Plan, World, part_model, quat_tilt_deg, quat_yaw
 from feeder.sim.fences import Fence, config_id, parse_location
-from feeder.sim.scene import FenceGeom, belt_contact, load_settings, scene_fences
+from feeder.sim.scene import FenceGeom, load_settings, scene_fences
 
 STATUSES = ("ok", "jammed", "fell_off", "timed_out", "flipped", "nan")
 PRESET_KEYS = ("time_step", "substeps", "solver_iterations", "lanes", "full_path", "skip_slides", "merge_tolerance")
-# Part collision filter: group bit 1 (dynamic) colliding only with static bodies (group bit 2).
-_PART_GROUP, _PART_MASK = 1, 2
-_TRACE = None  # debugging: a list collects per-check states when set
-_REACH_SAMPLE = 0.001
-_MAX_COMPOUND = 16  # pybullet's createCollisionShapeArray silently drops shapes beyond 16  # m: spacing of fence outline samples used for lane-reach queries
+_REACH_SAMPLE = 0.001  # m: spacing of fence outline samples used for lane-reach queries
 
 
 # --------------------------------------------------------------------------------------------
@@ -88,7 +90,9 @@ def drop_seed(part_id: str, cfg_id: str, base_seed: int) -> int:
     return int.from_bytes(digest[:8], "little")
 
 
-YAW_SAMPLINGS = ("random", "golden")
+YAW_SAMPLINGS = ("random", "golden", "grid", "adaptive")
+# designs whose drops are independent of each other's outcome, drawn up front (initial_yaws)
+DRAWN_SAMPLINGS = ("random", "golden")
 _GOLDEN = (math.sqrt(5.0) - 1.0) / 2.0  # 1/phi: the additive recurrence with the most even prefixes
 
 
@@ -100,139 +104,19 @@ def initial_yaws(seed: int, drops: int, sampling: str = "random") -> np.ndarray:
     is still uniform on [0, 360), but the drops are not independent: every prefix (every partial
     level) covers the circle evenly, with gaps of at most three lengths (three-gap theorem), so a
     distribution estimated from N drops has less sampling error where the final yaw depends on
-    the initial one piecewise smoothly (``feeder bench-yaws`` measures how much).
+    the initial one piecewise smoothly (``feeder bench-yaws`` measures how much). ``grid``: N
+    evenly spaced yaws with a random offset from the seed (sorted). The ``adaptive`` design
+    chooses its yaws as it goes (:func:`run_design`).
     """
-    if sampling not in YAW_SAMPLINGS:
-        raise FeederError(f"yaw sampling must be one of {', '.join(YAW_SAMPLINGS)}, got {sampling!r}")
+    if sampling not in YAW_SAMPLINGS or sampling == "adaptive":
+        raise FeederError(f"initial yaws are drawn for {', '.join(DRAWN_SAMPLINGS)} or grid, got {sampling!r}")
     rng = np.random.default_rng(seed)
     if sampling == "random":
         return rng.uniform(0.0, 360.0, size=int(drops))
     u = rng.uniform(0.0, 1.0)
+    if sampling == "grid":
+        return grid_yaws(int(drops), 360.0 * u / int(drops))
     return 360.0 * np.mod(u + _GOLDEN * np.arange(int(drops), dtype=np.float64), 1.0)
-
-
-# --------------------------------------------------------------------------------------------
-# Part model (pure)
-# --------------------------------------------------------------------------------------------
-@dataclass(frozen=True)
-class PartModel:
-    """A part ready for pybullet: pieces in its centroidal principal frame (inset), mass, inertia."""
-
-    part_id: str
-    thickness: float
-    mass: float
-    inertia: tuple[float, float, float]  # principal diagonal (kg m²)
-    alpha: float  # rad: principal frame yaw in the part's own frame
-    radius: float  # m: circumradius about the centroid
-    pieces: tuple[np.ndarray, ...] = field(repr=False)  # (M, 2) inset convex pieces, principal frame
-    hull: np.ndarray = field(repr=False, default=None)  # (H, 2) convex hull of the outline, principal frame
-
-
-def principal_inertia(area, second_moment, thickness, density):
-    """(mass, (Ixx, Iyy, Izz) principal, alpha) of a uniform prism from its area moments.
-
-    ``second_moment = (∫y², ∫x², ∫xy)`` about the centroid (geometry convention). ``alpha`` is the
-    yaw of the principal x axis (largest ∫x'²) in the part frame.
-    """
-    sxx_y, sxx_x, sxy = second_moment  # ∫y², ∫x², ∫xy
-    alpha = 0.5 * math.atan2(2.0 * sxy, sxx_x - sxx_y)
-    mean = 0.5 * (sxx_x + sxx_y)
-    half = math.hypot(0.5 * (sxx_x - sxx_y), sxy)
-    lam1, lam2 = mean + half, mean - half  # ∫x'², ∫y'²
-    rho_t = density * thickness
-    mass = rho_t * area
-    flat = mass * thickness**2 / 12.0
-    return mass, (rho_t * lam2 + flat, rho_t * lam1 + flat, rho_t * (lam1 + lam2)), alpha
-
-
-def merge_pieces(pieces, tolerance: float) -> list[np.ndarray]:
-    """Merge touching convex pieces whose union's convex hull lies within ``tolerance`` of the union.
-
-    Greedy: any pair whose hull adds nothing beyond ``tolerance`` (m) is replaced by that hull,
-    until no pair qualifies. ``tolerance = 0`` merges only pieces whose union is exactly convex.
-    Fewer pieces make fewer contact manifolds (the simulation's cost grows with the piece count);
-    the shape changes by at most ``tolerance`` (concave corners filled).
-    """
-    from shapely.geometry import Polygon
-    from shapely.ops import unary_union
-
-    polys = [Polygon(p) for p in pieces]
-    merged = True
-    while merged:
-        merged = False
-        for i in range(len(polys)):
-            for j in range(i + 1, len(polys)):
-                a, b = polys[i], polys[j]
-                if a.distance(b) > 0.0:
-                    continue
-                union = unary_union([a, b])
-                hull = union.convex_hull
-                if hull.difference(union).area <= 1e-12 * hull.area or (
-                        tolerance > 0 and union.buffer(tolerance, join_style=2).contains(hull)):
-                    polys = [q for k, q in enumerate(polys) if k not in (i, j)] + [hull]
-                    merged = True
-                    break
-            if merged:
-                break
-    return [np.asarray(q.exterior.coords)[:-1] for q in polys]
-
-
-def part_model(geom, scene: dict, merge_tolerance: float = 0.0) -> PartModel:
-    """Pieces (merged within ``merge_tolerance``) in the centroidal principal frame, inset by the margin."""
-    from shapely.geometry import Polygon
-
-    pc = scene["part"]
-    margin = float(pc["collision_margin"])
-    mass, inertia, alpha = principal_inertia(geom.area, geom.second_moment, geom.thickness,
-                                             float(pc["density"]))
-    c, s = math.cos(-alpha), math.sin(-alpha)
-    rot = np.array([[c, -s], [s, c]])
-    centroid = np.asarray(geom.centroid, dtype=np.float64)
-    pieces = []
-    for piece in merge_pieces(geom.convex_pieces, merge_tolerance):
-        local = (np.asarray(piece, np.float64) - centroid) @ rot.T
-        poly = Polygon(local).buffer(-margin, join_style=2)
-        if poly.is_empty or poly.area <= 0 or poly.geom_type != "Polygon":
-            continue  # a sliver thinner than twice the margin: the neighbours' margins cover it
-        pieces.append(np.asarray(poly.exterior.coords)[:-1])
-    if not pieces:
-        raise FeederError(f"part {geom.part_id}: thinner than twice the collision margin")
-    if geom.thickness <= 2 * margin:
-        raise FeederError(f"part {geom.part_id}: thickness {geom.thickness} <= 2 x collision margin")
-    outline = np.asarray(geom.outline, np.float64) - centroid
-    radius = float(np.max(np.hypot(outline[:, 0], outline[:, 1])))
-    hull = np.asarray(Polygon(outline @ rot.T).convex_hull.exterior.coords)[:-1]
-    return PartModel(geom.part_id, float(geom.thickness), mass, inertia, alpha, radius, tuple(pieces), hull)
-
-
-def obj_text(pieces, half_height: float) -> str:
-    """Wavefront OBJ with one object per convex piece extruded to ±half_height (pybullet: compound)."""
-    lines, base = [], 1
-    for k, piece in enumerate(pieces):
-        n = len(piece)
-        lines.append(f"o piece{k}")
-        for z in (-half_height, half_height):
-            lines += [f"v {x:.10g} {y:.10g} {z:.10g}" for x, y in piece]
-        lines += [f"f {base} {base + i + 1} {base + i}" for i in range(1, n - 1)]  # bottom
-        lines += [f"f {base + n} {base + n + i} {base + n + i + 1}" for i in range(1, n - 1)]  # top
-        for i in range(n):
-            j = (i + 1) % n
-            lines.append(f"f {base + i} {base + j} {base + n + j} {base + n + i}")
-        base += 2 * n
-    return "\n".join(lines) + "\n"
-
-
-def quat_yaw(q) -> float:
-    """Yaw (rad) of a quaternion (x, y, z, w) about world z."""
-    x, y, z, w = q
-    return math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
-
-
-def quat_tilt_deg(q) -> float:
-    """Angle between the body z axis and world z (degrees)."""
-    x, y, _, _ = q
-    cz = 1.0 - 2.0 * (x * x + y * y)
-    return math.degrees(math.acos(max(-1.0, min(1.0, cz))))
 
 
 # --------------------------------------------------------------------------------------------
@@ -253,16 +137,8 @@ def get_preset(presets: dict, name: str) -> dict:
 # --------------------------------------------------------------------------------------------
 # Scene plan: what to build and where a part starts (pure)
 # --------------------------------------------------------------------------------------------
-@dataclass
-class Plan:
-    fences: list[FenceGeom]  # fences to build
-    samples: np.ndarray  # (P, 2) outline samples of the built fences (reach queries)
-    start_y: float
-    record_y: float
-    time_limit: float
-
-
 def fence_samples(fences: list[FenceGeom]) -> np.ndarray:
+    """Points every ``_REACH_SAMPLE`` along the outlines of the fences' footprints, (P, 2)."""
     pts = []
     for f in fences:
         fp = f.footprint()
@@ -347,150 +223,269 @@ def make_plan(scene: dict, loc1: Fence, loc2: Fence, model: PartModel, full_path
 
 
 # --------------------------------------------------------------------------------------------
-# The world
+# Drops: the limits, one lane's part and its state checks
 # --------------------------------------------------------------------------------------------
-class World:
-    """One pybullet DIRECT client with ``lanes`` copies of the belt lane (belt, walls, fences).
+@dataclass(frozen=True)
+class Limits:
+    """``scene.status`` and the preset's switches as the state checks use them (built once)."""
 
-    Each lane has its own belt: a fixed-base (mass 0) slab whose velocity is set to the belt speed
-    when a drop starts in that lane, together with its pose; Bullet then carries it along
-    consistently (a mass-0 body keeps its velocity). It is never snapped back while a part rides
-    on it: resetting a moving belt to its start pose every step disturbs the contacts (parts sank
-    into the belt and spun at internal steps >= 1 ms), and the belt's frame (belt still, fences
-    moving at -v) lets parts creep along fences that should hold them. The slab is long enough for
-    one drop's time limit. Walls and fences are static. Lane j's coordinates: ``x - lane_x[j]``, y.
-    Measured (tests/test_sim_physics.py): at internal steps of 2.5 ms a part held by a steep fence
-    still creeps along it (up to ~10 mm/s); at 1.67 ms and below it is held.
-    """
-
-    def __init__(self, scene: dict, preset: dict, plan: Plan, lanes: int, model: PartModel):
-        import pybullet as pb
-
-        self.pb = pb
-        self.scene, self.preset, self.plan, self.model = scene, preset, plan, model
-        self.cid = pb.connect(pb.DIRECT)
-        c = self.cid
-        pb.resetSimulation(physicsClientId=c)
-        pb.setGravity(0, 0, -float(scene["gravity"]), physicsClientId=c)
-        pb.setPhysicsEngineParameter(
-            fixedTimeStep=float(preset["time_step"]), numSubSteps=int(preset["substeps"]),
-            numSolverIterations=int(preset["solver_iterations"]), enableConeFriction=1,
-            deterministicOverlappingPairs=1, enableFileCaching=0, physicsClientId=c)
-        if preset.get("engine"):
-            pb.setPhysicsEngineParameter(**dict(preset["engine"]), physicsClientId=c)
-        belt, walls, fc = scene["belt"], scene["walls"], scene["fences"]
-        self.speed = float(belt["speed"])
-        self.belt_vel = [0.0, self.speed, 0.0]
-        self.pitch = 2.0 * (float(belt["half_width"]) + float(walls["thickness"])) + 0.1
-        self.lane_x = [(j - 0.5 * (lanes - 1)) * self.pitch for j in range(lanes)]
-        travel = self.speed * plan.time_limit  # how far a belt moves during one drop
-        # a lane's belt at drop start: from behind the start (a held part stays while the belt
-        # runs on) to past the record point (parts may be moved forward by shortcuts)
-        bt = float(belt["thickness"])
-        blo, bhi = plan.start_y - travel - 1.0, plan.record_y + 1.0
-        self.belt_start = [0.5 * (blo + bhi), -0.5 * bt]
-        bshape = pb.createCollisionShape(
-            pb.GEOM_BOX, halfExtents=[0.5 * self.pitch, 0.5 * (bhi - blo), 0.5 * bt], physicsClientId=c)
-        wlo, whi = min(blo, plan.start_y - 1.0), bhi + travel
-        wt, wh = float(walls["thickness"]), float(walls["height"])
-        wx = float(belt["half_width"]) + 0.5 * wt
-        fh, fclr = float(fc["height"]), float(fc["clearance"])
-        contact = belt_contact(belt)
-        self.belts = []
-        for x0 in self.lane_x:
-            bb = pb.createMultiBody(0, bshape, basePosition=[x0, *self.belt_start], physicsClientId=c)
-            self._surface(bb, float(belt["friction"]))
-            if contact is not None:  # compliant belt: a spring-damper per contact point (Bullet: ERP/CFM)
-                pb.changeDynamics(bb, -1, contactStiffness=contact[0], contactDamping=contact[1], physicsClientId=c)
-            self.belts.append(bb)
-            ws = pb.createCollisionShapeArray(
-                shapeTypes=[pb.GEOM_BOX, pb.GEOM_BOX], halfExtents=[[0.5 * wt, 0.5 * (whi - wlo), 0.5 * wh]] * 2,
-                collisionFramePositions=[[-wx, 0, 0], [wx, 0, 0]], physicsClientId=c)
-            wb = pb.createMultiBody(0, ws, basePosition=[x0, 0.5 * (wlo + whi), 0.5 * wh], physicsClientId=c)
-            self._surface(wb, float(walls["friction"]))
-            for f in plan.fences:
-                for k in range(0, len(f.boxes), _MAX_COMPOUND):  # pybullet keeps <= 16 shapes per array
-                    chunk = f.boxes[k:k + _MAX_COMPOUND]
-                    fs = pb.createCollisionShapeArray(
-                        shapeTypes=[pb.GEOM_BOX] * len(chunk),
-                        halfExtents=[[b[2], b[3], 0.5 * fh] for b in chunk],
-                        collisionFramePositions=[[b[0], b[1], 0.0] for b in chunk],
-                        collisionFrameOrientations=[pb.getQuaternionFromEuler([0, 0, b[4]]) for b in chunk],
-                        physicsClientId=c)
-                    fb = pb.createMultiBody(0, fs, basePosition=[x0, 0.0, fclr + 0.5 * fh], physicsClientId=c)
-                    self._surface(fb, float(fc["friction"]))
-        # the part's collision shape, shared by every part body
-        self._tmp = tempfile.TemporaryDirectory(prefix="feeder-sim-")
-        obj = Path(self._tmp.name) / "part.obj"
-        margin = float(scene["part"]["collision_margin"])
-        obj.write_text(obj_text(model.pieces, 0.5 * model.thickness - margin))
-        self.part_shape = pb.createCollisionShape(pb.GEOM_MESH, fileName=str(obj), physicsClientId=c)
-        if self.part_shape < 0:
-            raise FeederError(f"part {model.part_id}: pybullet rejected its collision shape")
-
-    def _surface(self, body: int, friction: float) -> None:
-        self.pb.changeDynamics(body, -1, lateralFriction=friction, restitution=float(self.scene["restitution"]),
-                               rollingFriction=0.0, spinningFriction=0.0, physicsClientId=self.cid)
-
-    def reset_belt(self, lane: int) -> None:
-        """Put the lane's belt back at its start pose, moving at the belt speed (no part on it)."""
-        pb, c = self.pb, self.cid
-        pb.resetBasePositionAndOrientation(self.belts[lane], [self.lane_x[lane], *self.belt_start], [0, 0, 0, 1],
-                                          physicsClientId=c)
-        pb.resetBaseVelocity(self.belts[lane], self.belt_vel, [0.0, 0.0, 0.0], physicsClientId=c)
-
-    def add_part(self, lane: int, x: float, y: float, yaw_deg: float) -> int:
-        """A part flat on the lane's belt at (x, y), moving with the belt."""
-        pb, c, m = self.pb, self.cid, self.model
-        yb = math.radians(yaw_deg) + m.alpha
-        body = pb.createMultiBody(
-            m.mass, self.part_shape, basePosition=[self.lane_x[lane] + x, y, 0.5 * m.thickness],
-            baseOrientation=[0.0, 0.0, math.sin(0.5 * yb), math.cos(0.5 * yb)], physicsClientId=c)
-        pb.changeDynamics(body, -1, localInertiaDiagonal=list(m.inertia),
-                          collisionMargin=float(self.scene["part"]["collision_margin"]),
-                          linearDamping=0.0, angularDamping=0.0, physicsClientId=c)
-        self._surface(body, float(self.scene["part"]["friction"]))
-        pb.setCollisionFilterGroupMask(body, -1, _PART_GROUP, _PART_MASK, physicsClientId=c)
-        pb.resetBaseVelocity(body, self.belt_vel, [0.0, 0.0, 0.0], physicsClientId=c)
-        return body
-
-    def move_part(self, body: int, dx: float, dy: float, keep_velocity=None) -> None:
-        """Translate a part (same orientation); velocity: the given (lin, ang) or riding the belt."""
-        pb, c = self.pb, self.cid
-        pos, q = pb.getBasePositionAndOrientation(body, physicsClientId=c)
-        pb.resetBasePositionAndOrientation(body, [pos[0] + dx, pos[1] + dy, pos[2]], q, physicsClientId=c)
-        lin, ang = keep_velocity if keep_velocity is not None else (self.belt_vel, [0.0, 0.0, 0.0])
-        pb.resetBaseVelocity(body, lin, ang, physicsClientId=c)
-
-    def step(self) -> None:
-        self.pb.stepSimulation(physicsClientId=self.cid)
-
-    def close(self) -> None:
-        try:
-            self.pb.disconnect(physicsClientId=self.cid)
-        finally:
-            self._tmp.cleanup()
+    belt_speed: float  # m/s
+    check_steps: int  # stepSimulation calls between two state checks
+    t_check: float  # s between two state checks
+    rest_checks: int  # checks at rest before a part counts as resting
+    rest_speed: float  # m/s off the belt velocity
+    rest_omega: float  # rad/s
+    jam_window: float  # s
+    jam_travel: float  # m
+    flip_tilt: float  # deg
+    fall_z: float  # m
+    lateral: float  # m
+    approach: float  # m: a part starts / is moved this far before its next contact
+    pad: float  # m: clear margin around a part
+    full_path: bool
+    skip_slides: bool  # only without full_path
+    slide_checks: int  # checks of steady sliding before a skip
+    slide_tol: float  # velocity across the fence, as a fraction of the speed
+    slide_yaw: float  # deg
+    slide_min_speed: float  # m/s
+    skip_margin: float  # m before the fence tip
+    skip_min: float  # m: shorter skips and teleports are not made
 
 
-# --------------------------------------------------------------------------------------------
-# Drops
-# --------------------------------------------------------------------------------------------
+def drop_limits(scene: dict, preset: dict) -> Limits:
+    """The limits of one configuration's drops from the scene's ``status`` section and the preset."""
+    st = scene["status"]
+    dt = float(preset["time_step"])
+    check_steps = max(1, int(round(float(st["check_interval_s"]) / dt)))
+    t_check = check_steps * dt
+    full_path = bool(preset["full_path"])
+    return Limits(
+        belt_speed=float(scene["belt"]["speed"]), check_steps=check_steps, t_check=t_check,
+        rest_checks=max(1, int(math.ceil(float(st["rest_window_s"]) / t_check))),
+        rest_speed=float(st["rest_speed"]), rest_omega=math.radians(float(st["rest_omega_deg_s"])),
+        jam_window=float(st["jam_window_s"]), jam_travel=float(st["jam_travel"]),
+        flip_tilt=float(st["flip_tilt_deg"]), fall_z=float(st["fall_z"]), lateral=float(st["lateral_limit"]),
+        approach=float(st["approach_margin"]), pad=float(st["clear_margin"]),
+        full_path=full_path, skip_slides=bool(preset["skip_slides"]) and not full_path,
+        slide_checks=max(1, int(math.ceil(float(st["slide_window_s"]) / t_check))),
+        slide_tol=float(st["slide_tol"]), slide_yaw=float(st["slide_yaw_deg"]),
+        slide_min_speed=float(st["slide_min_speed"]),
+        skip_margin=float(st["skip_margin"]), skip_min=float(st["skip_min"]))
+
+
+@dataclass(frozen=True)
+class Slideway:
+    """A straight fence as a part slides along it (lane coordinates)."""
+
+    wall_end: np.ndarray  # (2,) where the fence leaves the wall
+    along: np.ndarray  # (2,) unit direction from the wall end to the tip
+    normal: np.ndarray  # (2,) unit normal
+    length: float  # m from the wall end to the tip
+    half_thickness: float  # m
+
+
+def slideways(fences: list[FenceGeom]) -> list[Slideway]:
+    """The straight fences among ``fences`` (a straight fence is one box)."""
+    ways = []
+    for f in fences:
+        if f.fence.type == "straight":
+            cx, cy, hl, ht, yaw = f.boxes[0]
+            d = np.array([math.cos(yaw), math.sin(yaw)])
+            ways.append(Slideway(np.array([cx, cy]) - hl * d, d, np.array([-d[1], d[0]]), 2.0 * hl, ht))
+    return ways
+
+
 @dataclass
 class _Lane:
+    """The drop running in one lane: its part body and what the state checks remember of it."""
+
     drop: int
     body: int
     t0: float
     hist: deque  # (elapsed, x, y, yaw rad) of the checks within the jam window; cleared when the part is moved
-    rest: int = 0
+    rest: int = 0  # consecutive checks at rest
     max_speed: float = 0.0
     max_omega: float = 0.0
-    slide: int = 0
-    slide_f: int = -1
-    w_prev: tuple = (0.0, 0.0)
+    slide: int = 0  # consecutive checks of the current steady slide ...
+    slide_way: int = -1  # ... along this slideway ...
+    slide_yaw0: float = 0.0  # ... and the yaw (deg) at its first check
     skips: int = 0
     inside_fence: bool = False
     teleports: int = 0
     probe_yaw: float = math.nan
+
+
+@dataclass(frozen=True)
+class PartState:
+    """A lane's part at one state check, in the lane's coordinates."""
+
+    elapsed: float  # s since its drop started
+    x: float
+    y: float
+    z: float
+    q: tuple  # orientation (x, y, z, w)
+    lin: tuple  # linear velocity (world)
+    ang: tuple  # angular velocity (world)
+    yaw_rad: float  # yaw of the body (the part's principal frame)
+    yaw_deg: float  # yaw of the part's own frame in [0, 360): what a drop records
+
+
+class Probes(NamedTuple):
+    """Diagnostics only: fence boxes to test for tunnelling (None: not tested) and the x where
+    the yaw is probed (None: not probed)."""
+
+    fence_boxes: np.ndarray | None
+    probe_x: float | None
+
+
+@dataclass(frozen=True)
+class DropEnd:
+    """How a drop ended: its status, the final yaw (ok only) and where the part was."""
+
+    status: str
+    yaw_deg: float = math.nan
+    pos: tuple[float, float] | None = None
+
+
+def part_state(world: World, lane: int, body: int, elapsed: float) -> PartState | None:
+    """The part's state now; None when Bullet's state is not finite (status ``nan``)."""
+    pos, q, lin, ang = world.part_motion(body)
+    if not (math.isfinite(pos[0] + pos[1] + pos[2] + q[0] + q[1] + q[2] + q[3])
+            and math.isfinite(lin[0] + lin[1] + lin[2] + ang[0] + ang[1] + ang[2])):
+        return None
+    yaw_rad = quat_yaw(q)
+    return PartState(elapsed, pos[0] - world.lane_x[lane], pos[1], pos[2], q, lin, ang, yaw_rad,
+                     (math.degrees(yaw_rad - world.model.alpha)) % 360.0)
+
+
+def note_diagnostics(ln: _Lane, s: PartState, probes: Probes) -> None:
+    """Peak speeds; whether the centroid entered a fence (tunnelling); the yaw when the centroid
+    first reached ``x <= probe_x``."""
+    ln.max_speed = max(ln.max_speed, math.hypot(s.lin[0], s.lin[1]))
+    ln.max_omega = max(ln.max_omega, abs(s.ang[2]))
+    if probes.fence_boxes is not None and _inside_any_box(probes.fence_boxes, s.x, s.y):
+        ln.inside_fence = True
+    if probes.probe_x is not None and math.isnan(ln.probe_yaw) and s.x <= probes.probe_x:
+        ln.probe_yaw = s.yaw_deg
+
+
+def failure(ln: _Lane, s: PartState, lim: Limits, time_limit: float) -> str | None:
+    """``flipped``, ``fell_off``, ``jammed`` or ``timed_out`` (the first that applies), or None."""
+    if quat_tilt_deg(s.q) > lim.flip_tilt:
+        return "flipped"
+    if s.z < lim.fall_z or abs(s.x) > lim.lateral:
+        return "fell_off"
+    remember(ln.hist, s, lim.jam_window)
+    if jammed(ln.hist, s, lim):
+        return "jammed"
+    if s.elapsed > time_limit:
+        return "timed_out"
+    return None
+
+
+def remember(hist: deque, s: PartState, window: float) -> None:
+    """Add this check to the lane's history, which keeps the checks within the jam window."""
+    hist.append((s.elapsed, s.x, s.y, s.yaw_rad))
+    while hist and s.elapsed - hist[0][0] > window + 1e-9:
+        hist.popleft()
+
+
+def jammed(hist: deque, s: PartState, lim: Limits) -> bool:
+    """Moved less than ``jam_travel`` over a whole jam window."""
+    h0 = hist[0]
+    return s.elapsed - h0[0] >= lim.jam_window - 1e-9 and math.hypot(s.x - h0[1], s.y - h0[2]) < lim.jam_travel
+
+
+def at_rest(hist: deque, s: PartState, lim: Limits) -> bool:
+    """Moving with the belt since the previous check (not since the part was moved), judged from
+    the displacement: Bullet's reported velocity of a part held by a compliant contact can keep a
+    small residual while the part does not move (docs/simulation.md)."""
+    if len(hist) < 2:
+        return False
+    tp, xp, yp, rp = hist[-2]
+    span = s.elapsed - tp
+    turn = (s.yaw_rad - rp + math.pi) % (2.0 * math.pi) - math.pi
+    return (math.hypot((s.x - xp) / span, (s.y - yp) / span - lim.belt_speed) < lim.rest_speed
+            and abs(turn) / span < lim.rest_omega)
+
+
+def sliding_along(ways: list[Slideway], s: PartState, lim: Limits, radius: float) -> int:
+    """The slideway the part slides along (velocity along it and faster than ``slide_min_speed``,
+    centroid within reach of it), or -1."""
+    vx, vy = s.lin[0], s.lin[1]
+    speed = math.hypot(vx, vy)
+    if not speed > lim.slide_min_speed:
+        return -1
+    for k, w in enumerate(ways):
+        d, n, p = w.along, w.normal, w.wall_end
+        if (vx * d[0] + vy * d[1] > 0 and abs(vx * d[1] - vy * d[0]) < lim.slide_tol * speed
+                and abs((s.x - p[0]) * n[0] + (s.y - p[1]) * n[1]) <= radius + w.half_thickness + lim.pad):
+            return k
+    return -1
+
+
+def steady_slide(ln: _Lane, way: int, s: PartState, lim: Limits) -> bool:
+    """Count the checks of a steady slide: along the same slideway throughout, the yaw within
+    ``slide_yaw`` of its first check's. True once it has lasted ``slide_checks`` checks."""
+    dyaw = abs((s.yaw_deg - ln.slide_yaw0 + 180.0) % 360.0 - 180.0)
+    if way >= 0 and way == ln.slide_way and dyaw < lim.slide_yaw:
+        ln.slide += 1
+    else:  # (re)start a run here
+        ln.slide, ln.slide_way, ln.slide_yaw0 = (1 if way >= 0 else 0), way, s.yaw_deg
+    return ln.slide >= lim.slide_checks
+
+
+def skip_slide(world: World, ln: _Lane, s: PartState, way: Slideway, lim: Limits) -> None:
+    """Move a steadily sliding part along its fence until its leading point is ``skip_margin``
+    before the tip, keeping its velocity (the steady slide is translation-invariant)."""
+    d, p = way.along, way.wall_end
+    cb, sb = math.cos(s.yaw_rad), math.sin(s.yaw_rad)
+    dl = (d[0] * cb + d[1] * sb, -d[0] * sb + d[1] * cb)  # d in the body frame
+    lead = (s.x - p[0]) * d[0] + (s.y - p[1]) * d[1] + float(np.max(world.model.hull @ dl))
+    jump = way.length - lead - lim.skip_margin
+    if jump > lim.skip_min:
+        world.move_part(ln.body, jump * d[0], jump * d[1], keep_velocity=(s.lin, s.ang))
+        ln.skips += 1
+        ln.hist.clear()
+    ln.slide = 0
+
+
+def arrived(world: World, ln: _Lane, s: PartState, lim: Limits) -> bool:
+    """A resting part is done at the record point (full path) or with no fence ahead of it; with a
+    fence ahead it is moved to just before that fence (free transport: a pure translation)."""
+    if lim.full_path:
+        return s.y >= world.plan.record_y
+    gap = gap_ahead(hull_at(world.model.hull, s.yaw_rad, s.x, s.y), world.plan.samples, lim.pad)
+    if gap is None:
+        return True
+    if gap - lim.approach > lim.skip_min:
+        world.move_part(ln.body, 0.0, gap - lim.approach)
+        ln.teleports += 1
+        ln.hist.clear()
+        ln.rest = 0
+    return False
+
+
+def check_lane(world: World, lane: int, ln: _Lane, t: float, lim: Limits, ways: list[Slideway],
+               probes: Probes) -> DropEnd | None:
+    """One state check of the lane's part: how its drop ended, or None while it goes on (the part
+    may have been moved ahead: a slide skipped, free transport)."""
+    s = part_state(world, lane, ln.body, t - ln.t0)
+    if s is None:
+        return DropEnd("nan")
+    note_diagnostics(ln, s, probes)
+    status = failure(ln, s, lim, world.plan.time_limit)
+    if status is not None:
+        return DropEnd(status, pos=(s.x, s.y))
+    resting = at_rest(ln.hist, s, lim)
+    if lim.skip_slides and ways and not resting:
+        way = sliding_along(ways, s, lim, world.model.radius)
+        if steady_slide(ln, way, s, lim):
+            skip_slide(world, ln, s, ways[way], lim)
+    ln.rest = ln.rest + 1 if resting else 0
+    if ln.rest >= lim.rest_checks and arrived(world, ln, s, lim):
+        return DropEnd("ok", s.yaw_deg, (s.x, s.y))
+    return None
 
 
 def _fence_boxes_array(fences: list[FenceGeom]) -> np.ndarray:
@@ -507,6 +502,79 @@ def _inside_any_box(boxes: np.ndarray, x: float, y: float) -> bool:
     return bool(np.any((np.abs(u) < boxes[:, 2]) & (np.abs(v) < boxes[:, 3])))
 
 
+# --------------------------------------------------------------------------------------------
+# Drops: scheduling them over the lanes
+# --------------------------------------------------------------------------------------------
+def start_y(plan: Plan, model: PartModel, yaw_deg: float, lim: Limits) -> float:
+    """Where a drop starts along the belt: the plan's start, or (not full path) ``approach``
+    before the part's own first contact, its hull carried straight along the belt."""
+    y0 = plan.start_y
+    if not lim.full_path:
+        gap = gap_ahead(hull_at(model.hull, math.radians(yaw_deg) + model.alpha, 0.0, y0), plan.samples, lim.pad)
+        if gap is not None and gap - lim.approach > 0:
+            y0 += gap - lim.approach
+    return y0
+
+
+def start_drop(world: World, lane: int, queue: deque, yaws0: np.ndarray, t: float, lim: Limits) -> _Lane:
+    """The next drop of the queue in this lane: its belt reset, the part placed on it."""
+    i = queue.popleft()
+    yaw = float(yaws0[i])
+    world.reset_belt(lane)
+    body = world.add_part(lane, 0.0, start_y(world.plan, world.model, yaw, lim), yaw)
+    return _Lane(i, body, t, deque())
+
+
+def empty_results(drops: int) -> dict:
+    """``final_yaw_deg`` (NaN), ``status`` (ok) and the per-drop diagnostics, to be filled in."""
+    diag = {k: np.zeros(drops) for k in ("sim_time", "max_speed", "max_omega", "teleports", "skips")}
+    diag["inside_fence"] = np.zeros(drops, dtype=bool)
+    diag["probe_yaw"] = np.full(drops, np.nan)
+    diag["final_x"] = np.full(drops, np.nan)
+    diag["final_y"] = np.full(drops, np.nan)
+    return {"final_yaw_deg": np.full(drops, np.nan), "status": np.array(["ok"] * drops, dtype="<U9"), "diag": diag}
+
+
+def record_drop(out: dict, ln: _Lane, end: DropEnd, t: float) -> None:
+    """Write an ended drop's status, final yaw (NaN unless ok) and diagnostics into ``out``."""
+    i, diag = ln.drop, out["diag"]
+    out["status"][i] = end.status
+    out["final_yaw_deg"][i] = end.yaw_deg if end.status == "ok" else math.nan
+    diag["sim_time"][i] = t - ln.t0
+    diag["max_speed"][i], diag["max_omega"][i] = ln.max_speed, ln.max_omega
+    diag["inside_fence"][i], diag["teleports"][i] = ln.inside_fence, ln.teleports
+    diag["skips"][i] = ln.skips
+    diag["probe_yaw"][i] = ln.probe_yaw
+    if end.pos is not None:
+        diag["final_x"][i], diag["final_y"][i] = end.pos
+
+
+def run_lanes(world: World, yaws0: np.ndarray, lim: Limits, ways: list[Slideway], probes: Probes,
+              out: dict, bar=None) -> None:
+    """Every drop, over the world's lanes: step the world from one state check to the next; a lane
+    whose drop has ended takes the next one in the queue, until every drop has ended."""
+    queue = deque(range(len(yaws0)))
+    t = 0.0
+    lanes: list[_Lane | None] = [start_drop(world, j, queue, yaws0, t, lim) for j in range(len(world.lane_x))]
+    while any(ln is not None for ln in lanes):
+        for _ in range(lim.check_steps):
+            world.step()
+        t += lim.t_check
+        for j, ln in enumerate(lanes):
+            if ln is None:
+                continue
+            end = check_lane(world, j, ln, t, lim, ways, probes)
+            if end is None:
+                continue
+            record_drop(out, ln, end, t)
+            world.remove_part(ln.body)
+            lanes[j] = None
+            if bar is not None:
+                bar.update(1)
+            if queue:
+                lanes[j] = start_drop(world, j, queue, yaws0, t, lim)
+
+
 def run_drops(geom, loc1: Fence, loc2: Fence, yaws0: np.ndarray, scene: dict, preset: dict,
               progress: bool = False, probe_x: float | None = None, check_fences: bool = False,
               prune: bool = True) -> dict:
@@ -517,218 +585,126 @@ def run_drops(geom, loc1: Fence, loc2: Fence, yaws0: np.ndarray, scene: dict, pr
     fence-frame ``x <= probe_x`` (e.g. while a part is pushed along a fence).
     """
     drops = len(yaws0)
-    final = np.full(drops, np.nan)
-    status = np.array(["ok"] * drops, dtype="<U9")
-    diag = {k: np.zeros(drops) for k in ("sim_time", "max_speed", "max_omega", "teleports", "skips")}
-    diag["inside_fence"] = np.zeros(drops, dtype=bool)
-    diag["probe_yaw"] = np.full(drops, np.nan)
-    diag["final_x"] = np.full(drops, np.nan)
-    diag["final_y"] = np.full(drops, np.nan)
+    out = empty_results(drops)
     model = part_model(geom, scene, float(preset["merge_tolerance"]))
     plan = make_plan(scene, loc1, loc2, model, bool(preset["full_path"]), prune=prune)
-    diag["plan_fences"] = [f.location for f in plan.fences]
-    if not plan.fences:
-        final[:] = np.mod(yaws0, 360.0)
-        return {"final_yaw_deg": final, "status": status, "diag": diag}
-
-    st = scene["status"]
-    v = float(scene["belt"]["speed"])
-    dt = float(preset["time_step"])
-    check_steps = max(1, int(round(float(st["check_interval_s"]) / dt)))
-    t_check = check_steps * dt
-    rest_checks = max(1, int(math.ceil(float(st["rest_window_s"]) / t_check)))
-    jam_window, jam_travel = float(st["jam_window_s"]), float(st["jam_travel"])
-    rest_speed, rest_omega = float(st["rest_speed"]), math.radians(float(st["rest_omega_deg_s"]))
-    flip, fall_z, lat = float(st["flip_tilt_deg"]), float(st["fall_z"]), float(st["lateral_limit"])
-    approach, pad = float(st["approach_margin"]), float(st["clear_margin"])
-    full_path = bool(preset["full_path"])
-    half = model.radius + pad
-    boxes = _fence_boxes_array(plan.fences)
-    skip_slides = bool(preset["skip_slides"]) and not full_path
-    straight = []  # (wall end P, unit direction d to the tip, normal n, length to the tip)
-    for f in plan.fences:
-        if f.fence.type == "straight":
-            cx, cy, hl, ht_, yaw_f = f.boxes[0]
-            d = np.array([math.cos(yaw_f), math.sin(yaw_f)])
-            pw = np.array([cx, cy]) - hl * d
-            straight.append((pw, d, np.array([-d[1], d[0]]), 2.0 * hl, ht_))
-    slide_checks = max(1, int(math.ceil(float(st["slide_window_s"]) / t_check)))
-    slide_tol, slide_yaw = float(st["slide_tol"]), float(st["slide_yaw_deg"])
-    slide_min_speed = float(st["slide_min_speed"])
-    skip_margin, skip_min = float(st["skip_margin"]), float(st["skip_min"])
-
-    n_lanes = int(min(int(preset["lanes"]), drops))
-    world = World(scene, preset, plan, n_lanes, model)
-    pb, c = world.pb, world.cid
+    out["diag"]["plan_fences"] = [f.location for f in plan.fences]
+    if not plan.fences:  # nothing in reach: a part at rest on the belt is carried without turning
+        out["final_yaw_deg"][:] = np.mod(yaws0, 360.0)
+        return out
+    lim = drop_limits(scene, preset)
+    probes = Probes(_fence_boxes_array(plan.fences) if check_fences else None, probe_x)
+    world = World(scene, preset, plan, int(min(int(preset["lanes"]), drops)), model)
     bar = None
     if progress:
         from tqdm import tqdm
 
         bar = tqdm(total=drops, unit="drop", file=sys.stderr, leave=False)
     try:
-        queue = deque(range(drops))
-        lanes: list[_Lane | None] = [None] * n_lanes
-        t = 0.0
-
-        def start(j: int) -> None:
-            i = queue.popleft()
-            world.reset_belt(j)
-            y0 = plan.start_y
-            if not full_path:  # start just before the part's own first contact
-                gap = gap_ahead(hull_at(model.hull, math.radians(float(yaws0[i])) + model.alpha, 0.0, y0),
-                                plan.samples, pad)
-                if gap is not None and gap - approach > 0:
-                    y0 += gap - approach
-            body = world.add_part(j, 0.0, y0, float(yaws0[i]))
-            lanes[j] = _Lane(i, body, t, deque())
-
-        def finish(j: int, code: str, yaw: float = math.nan, pos=None) -> None:
-            ln = lanes[j]
-            i = ln.drop
-            status[i] = code
-            final[i] = yaw if code == "ok" else math.nan
-            diag["sim_time"][i] = t - ln.t0
-            diag["max_speed"][i], diag["max_omega"][i] = ln.max_speed, ln.max_omega
-            diag["inside_fence"][i], diag["teleports"][i] = ln.inside_fence, ln.teleports
-            diag["skips"][i] = ln.skips
-            diag["probe_yaw"][i] = ln.probe_yaw
-            if pos is not None:
-                diag["final_x"][i], diag["final_y"][i] = pos[0], pos[1]
-            pb.removeBody(ln.body, physicsClientId=c)
-            lanes[j] = None
-            if bar is not None:
-                bar.update(1)
-            if queue:
-                start(j)
-
-        for j in range(n_lanes):
-            start(j)
-        while any(ln is not None for ln in lanes):
-            for _ in range(check_steps):
-                world.step()
-            t += t_check
-            for j, ln in enumerate(lanes):
-                if ln is None:
-                    continue
-                pos, q = pb.getBasePositionAndOrientation(ln.body, physicsClientId=c)
-                lin, ang = pb.getBaseVelocity(ln.body, physicsClientId=c)
-                if not (math.isfinite(pos[0] + pos[1] + pos[2] + q[0] + q[1] + q[2] + q[3])
-                        and math.isfinite(lin[0] + lin[1] + lin[2] + ang[0] + ang[1] + ang[2])):
-                    finish(j, "nan")
-                    continue
-                x, y, z = pos[0] - world.lane_x[j], pos[1], pos[2]
-                speed = math.hypot(lin[0], lin[1])
-                ln.max_speed = max(ln.max_speed, speed)
-                ln.max_omega = max(ln.max_omega, abs(ang[2]))
-                if check_fences and _inside_any_box(boxes, x, y):
-                    ln.inside_fence = True
-                yaw = (math.degrees(quat_yaw(q) - world.model.alpha)) % 360.0
-                if probe_x is not None and math.isnan(ln.probe_yaw) and x <= probe_x:
-                    ln.probe_yaw = yaw
-                elapsed = t - ln.t0
-                if _TRACE is not None:
-                    _TRACE.append((ln.drop, elapsed, x, y, yaw, lin[0], lin[1], ang[2], ln.slide, ln.rest))
-                if quat_tilt_deg(q) > flip:
-                    finish(j, "flipped", pos=(x, y))
-                    continue
-                if z < fall_z or abs(x) > lat:
-                    finish(j, "fell_off", pos=(x, y))
-                    continue
-                yr = quat_yaw(q)
-                ln.hist.append((elapsed, x, y, yr))
-                while ln.hist and elapsed - ln.hist[0][0] > jam_window + 1e-9:
-                    ln.hist.popleft()
-                h0 = ln.hist[0]
-                if elapsed - h0[0] >= jam_window - 1e-9 and math.hypot(x - h0[1], y - h0[2]) < jam_travel:
-                    finish(j, "jammed", pos=(x, y))
-                    continue
-                if elapsed > plan.time_limit:
-                    finish(j, "timed_out", pos=(x, y))
-                    continue
-                # at rest: moving with the belt since the previous check, judged from the displacement
-                # (Bullet's reported velocity of a part held by a compliant contact can keep a small
-                # residual while the part does not move: docs/simulation.md)
-                at_rest = False
-                if len(ln.hist) >= 2:  # the previous check, unless the part was moved since
-                    tp, xp, yp, rp = ln.hist[-2]
-                    span = elapsed - tp
-                    turn = (yr - rp + math.pi) % (2.0 * math.pi) - math.pi
-                    at_rest = (math.hypot((x - xp) / span, (y - yp) / span - v) < rest_speed
-                               and abs(turn) / span < rest_omega)
-                if skip_slides and straight and not at_rest:
-                    # steady sliding along a straight fence is translation-invariant: skip ahead
-                    wx_, wy_ = lin[0], lin[1]
-                    sp = math.hypot(wx_, wy_)
-                    match = -1
-                    if sp > slide_min_speed:
-                        for k, (pw, d, nrm, flen, fht) in enumerate(straight):
-                            if (wx_ * d[0] + wy_ * d[1] > 0 and abs(wx_ * d[1] - wy_ * d[0]) < slide_tol * sp
-                                    and abs((x - pw[0]) * nrm[0] + (y - pw[1]) * nrm[1]) <= model.radius + fht + pad):
-                                match = k
-                                break
-                    # steady: the same fence throughout, yaw within slide_yaw of the run's first check
-                    dyaw = abs((yaw - ln.w_prev[0] + 180.0) % 360.0 - 180.0)
-                    if match >= 0 and match == ln.slide_f and dyaw < slide_yaw:
-                        ln.slide += 1
-                    else:  # (re)start a run here
-                        ln.slide, ln.slide_f, ln.w_prev = (1 if match >= 0 else 0), match, (yaw, 0.0)
-                    if ln.slide >= slide_checks:
-                        pw, d, nrm, flen, fht = straight[match]
-                        yb = quat_yaw(q)
-                        cb, sb = math.cos(yb), math.sin(yb)
-                        dl = (d[0] * cb + d[1] * sb, -d[0] * sb + d[1] * cb)  # d in the body frame
-                        lead = (x - pw[0]) * d[0] + (y - pw[1]) * d[1] + float(np.max(model.hull @ dl))
-                        jump = flen - lead - skip_margin
-                        if jump > skip_min:
-                            world.move_part(ln.body, jump * d[0], jump * d[1], keep_velocity=(lin, ang))
-                            ln.skips += 1
-                            ln.hist.clear()
-                        ln.slide = 0
-                ln.rest = ln.rest + 1 if at_rest else 0
-                if ln.rest < rest_checks:
-                    continue
-                if full_path:
-                    if y >= plan.record_y:
-                        finish(j, "ok", yaw, pos=(x, y))
-                    continue
-                gap = gap_ahead(hull_at(model.hull, quat_yaw(q), x, y), plan.samples, pad)
-                if gap is None:
-                    finish(j, "ok", yaw, pos=(x, y))
-                    continue
-                if gap - approach > skip_min:
-                    # free transport to just before the next fence: a pure translation
-                    world.move_part(ln.body, 0.0, gap - approach)
-                    ln.teleports += 1
-                    ln.hist.clear()
-                    ln.rest = 0
+        run_lanes(world, yaws0, lim, slideways(plan.fences), probes, out, bar)
     finally:
         if bar is not None:
             bar.close()
         world.close()
-    return {"final_yaw_deg": final, "status": status, "diag": diag}
+    return out
+
+
+def symmetry_order(geom, setting) -> int:
+    """The rotational order an adaptive design may fold over: ``auto`` computes it from the
+    part's outline (:func:`feeder.parts.symmetry.rotational_order`); a number is checked
+    against the geometry (a part without that symmetry is refused)."""
+    if setting == "auto":
+        return rotational_order(geom.outline)
+    try:
+        order = int(setting)
+    except (TypeError, ValueError):
+        raise FeederError(f"symmetry must be auto or a positive integer, got {setting!r}") from None
+    if order < 1 or order != float(setting):
+        raise FeederError(f"symmetry must be auto or a positive integer, got {setting!r}")
+    if order > 1:
+        check_order(geom.outline, order)
+    return order
+
+
+def run_design(evaluate, seed: int, budget: int, adaptive: dict, order: int) -> Design:
+    """The adaptive design: evenly spaced ``n0`` yaws over one symmetry period with a random
+    offset from ``seed``, refined where the drop map jumps, at most ``budget`` simulations
+    (:func:`feeder.labels.pushforward.refine`). ``adaptive``: ``n0``, ``tolerance_deg``,
+    ``min_width_deg`` (``sim.adaptive``)."""
+    period = 360.0 / order
+    n0 = int(adaptive["n0"])
+    if n0 < 2:
+        raise FeederError(f"sim.adaptive.n0 must be at least 2, got {n0}")
+    offset = float(np.random.default_rng(seed).uniform(0.0, period / n0))
+    return refine(evaluate, n0=n0, tolerance_deg=float(adaptive["tolerance_deg"]),
+                  min_width_deg=float(adaptive["min_width_deg"]), budget=int(budget), offset_deg=offset,
+                  period_deg=period)
+
+
+def design_record(design: Design, order: int) -> tuple[dict, dict]:
+    """What a simulation file keeps of an adaptive design: arrays and a JSON-able summary."""
+    arrays = {"unresolved_deg": np.asarray(design.unresolved, dtype=np.float64).reshape(-1, 2),
+              "unchecked_deg": np.asarray(design.unchecked, dtype=np.float64).reshape(-1, 2),
+              "label_bound": np.float64(design.label_bound)}
+    summary = {"symmetry_order": int(order), "period_deg": design.period_deg, "offset_deg": design.offset_deg,
+               "tolerance_deg": design.tolerance_deg, "min_width_deg": design.min_width_deg,
+               "max_width_deg": design.max_width_deg, "band_gap_deg": design.band_gap_deg,
+               "edge_check_deg": design.edge_check_deg, "evaluations": int(design.evaluations),
+               "calls": int(design.calls), "label_bound": float(design.label_bound)}
+    return arrays, summary
 
 
 def simulate(geom, loc1: Fence, loc2: Fence, drops: int, seed: int, scene: dict, preset: dict,
              preset_name: str = "custom", progress: bool = False, probe_x: float | None = None,
-             check_fences: bool = False, prune: bool = True, yaw_sampling: str = "random") -> dict:
-    """One configuration: the npz payload (docs/data.md) plus ``diag`` (not written)."""
+             check_fences: bool = False, prune: bool = True, yaw_sampling: str = "random",
+             adaptive: dict | None = None) -> dict:
+    """One configuration: the npz payload (docs/data.md) plus ``diag`` (not written).
+
+    ``drops`` is the number of simulations; for ``adaptive`` it is the budget (at most that many),
+    and ``adaptive`` holds the design's settings (``sim.adaptive``: n0, tolerance_deg,
+    min_width_deg, symmetry). The adaptive design needs one part per world (``lanes: 1``): only
+    then is a drop's outcome a function of its initial yaw alone.
+    """
     if int(drops) != drops or drops < 1:
         raise FeederError(f"drops must be a positive integer, got {drops!r}")
+    if yaw_sampling not in YAW_SAMPLINGS:
+        raise FeederError(f"yaw sampling must be one of {', '.join(YAW_SAMPLINGS)}, got {yaw_sampling!r}")
     cfg = config_id(loc1, loc2)
     s = drop_seed(geom.part_id, cfg, seed)
-    y0 = initial_yaws(s, int(drops), yaw_sampling)
     t0, c0 = time.perf_counter(), time.process_time()
-    out = run_drops(geom, loc1, loc2, y0, scene, preset, progress=progress, probe_x=probe_x,
-                    check_fences=check_fences, prune=prune)
+    extra, design_meta = {}, None
+    if yaw_sampling == "adaptive":
+        if adaptive is None:
+            raise FeederError("the adaptive design needs its settings (sim.adaptive)")
+        if int(preset["lanes"]) != 1:
+            raise FeederError(f"the adaptive design needs lanes: 1 (one part per world), the preset has {preset['lanes']}")
+        order = symmetry_order(geom, adaptive.get("symmetry", "auto"))
+        diags = []
+
+        def evaluate(yaws):
+            res = run_drops(geom, loc1, loc2, yaws, scene, preset, probe_x=probe_x,
+                            check_fences=check_fences, prune=prune)
+            diags.append(res["diag"])
+            return res["final_yaw_deg"], res["status"]
+
+        design = run_design(evaluate, s, int(drops), adaptive, order)
+        y0, out = design.yaws, {"final_yaw_deg": design.final, "status": design.status, "diag": diags}
+        extra, design_meta = design_record(design, order)
+    else:
+        y0 = initial_yaws(s, int(drops), yaw_sampling)
+        out = run_drops(geom, loc1, loc2, y0, scene, preset, progress=progress, probe_x=probe_x,
+                        check_fences=check_fences, prune=prune)
     wall, cpu = time.perf_counter() - t0, time.process_time() - c0
     meta = {"part": geom.part_id, "loc1": loc1.spec, "loc2": loc2.spec, "config_id": cfg,
             "preset": preset_name, "seed": int(seed), "drops": int(drops), "yaw_sampling": yaw_sampling,
-            "settings": {"scene": scene, "preset": preset},
+            "simulations": int(len(y0)), "settings": {"scene": scene, "preset": preset},
             "status_counts": {k: int(np.sum(out["status"] == k)) for k in STATUSES}}
-    return {"final_yaw_deg": out["final_yaw_deg"].astype(np.float64), "initial_yaw_deg": y0,
-            "status": out["status"].astype(str), "wall_s": np.float64(wall),
+    if design_meta is not None:
+        meta["design"] = design_meta
+    return {"final_yaw_deg": np.asarray(out["final_yaw_deg"], dtype=np.float64), "initial_yaw_deg": y0,
+            "status": np.asarray(out["status"]).astype(str), "wall_s": np.float64(wall),
             "cpu_s": np.float64(cpu),
-            "meta": json.dumps(meta, sort_keys=True), "diag": out["diag"]}
+            "meta": json.dumps(meta, sort_keys=True), "diag": out["diag"], **extra}
 
 
 # --------------------------------------------------------------------------------------------
@@ -739,11 +715,21 @@ def main(argv: list[str]) -> int:
     parser.add_argument("--part", required=True, help="parts/<id>.stl")
     parser.add_argument("--loc1", required=True, help="none | straight:ANGLE | curved:ANGLE (downstream)")
     parser.add_argument("--loc2", required=True, help="none | straight:ANGLE | curved:ANGLE (upstream)")
-    parser.add_argument("--drops", type=int, required=True)
+    parser.add_argument("--drops", type=int, required=True,
+                        help="simulations; for --yaw-sampling adaptive the budget (at most this many)")
     parser.add_argument("--seed", type=int, default=0, help="base seed")
     parser.add_argument("--preset", default="fast")
     parser.add_argument("--yaw-sampling", default="random", choices=YAW_SAMPLINGS,
-                        help="initial yaws: random (independent, the paper) or golden (even prefixes)")
+                        help="initial yaws: random (independent, the paper), golden (even prefixes), grid "
+                             "(evenly spaced, random offset) or adaptive (refined where the outcome jumps)")
+    adaptive = parser.add_argument_group("adaptive design (--yaw-sampling adaptive; sim.adaptive)")
+    adaptive.add_argument("--n0", type=int, default=DEFAULT_N0, help="evenly spaced start yaws per period")
+    adaptive.add_argument("--tolerance-deg", type=float, default=DEFAULT_TOLERANCE_DEG,
+                          help="final yaws further apart than this mark a jump to bisect")
+    adaptive.add_argument("--min-width-deg", type=float, default=DEFAULT_MIN_WIDTH_DEG,
+                          help="intervals are not bisected below this width")
+    adaptive.add_argument("--symmetry", default="auto",
+                          help="rotational order to fold over: auto (from the outline) or N (checked)")
     parser.add_argument("--settings", default=None, help="JSON {scene, presets}; default config/config.yaml")
     parser.add_argument("--out", required=True, help="output .npz")
     args = parser.parse_args(argv)
@@ -760,14 +746,16 @@ def main(argv: list[str]) -> int:
         raise FeederError(f"part file {path} not found")
     geom = load_part(path)
     try:
+        design = {"n0": args.n0, "tolerance_deg": args.tolerance_deg, "min_width_deg": args.min_width_deg,
+                  "symmetry": args.symmetry}
         res = simulate(geom, loc1, loc2, args.drops, args.seed, scene, preset, args.preset,
-                       progress=sys.stderr.isatty(), yaw_sampling=args.yaw_sampling)
+                       progress=sys.stderr.isatty(), yaw_sampling=args.yaw_sampling, adaptive=design)
     except KeyError as err:
         raise FeederError(f"scene settings lack key {err}") from None
-    from feeder.io import write_npz
+    from feeder.sim.record import write_sim
 
-    write_npz(args.out, **{k: v for k, v in res.items() if k != "diag"})
+    write_sim(args.out, res)
     counts = json.loads(res["meta"])["status_counts"]
-    print(f"{geom.part_id} {config_id(loc1, loc2)}: {args.drops} drops in {float(res['wall_s']):.1f} s; "
+    print(f"{geom.part_id} {config_id(loc1, loc2)}: {len(res['status'])} drops in {float(res['wall_s']):.1f} s; "
           + ", ".join(f"{k} {n}" for k, n in counts.items() if n), file=sys.stderr)
     return 0

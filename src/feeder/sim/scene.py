@@ -54,7 +54,7 @@ def load_settings(settings_json: str | None = None, config_path: str | Path = CO
     ...}}``: the config sections as they are).
     """
     if settings_json is not None:
-        from feeder.io import parse_settings
+        from feeder.config import parse_settings
 
         data = parse_settings(settings_json)
     else:
@@ -249,17 +249,6 @@ def scene_fences(scene: dict, loc1: Fence, loc2: Fence) -> list[FenceGeom]:
         if not up.boxes:
             up = None
     return [f for f in (up, down) if f is not None]
-
-
-def lane_reach_y(footprint, x_lo: float, x_hi: float, y_from: float = -math.inf) -> float | None:
-    """Smallest y of ``footprint`` inside the band x_lo ≤ x ≤ x_hi and y ≥ y_from (None: no overlap)."""
-    from shapely.geometry import box
-
-    lo = max(y_from, -1e3)
-    inter = footprint.intersection(box(x_lo, lo, x_hi, 1e3))
-    if inter.is_empty:
-        return None
-    return float(inter.bounds[1])
 
 
 # --------------------------------------------------------------------------------------------

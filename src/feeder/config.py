@@ -1,0 +1,118 @@
+"""Every settings loader of the package, one of each.
+
+Two kinds of settings:
+
+* the study settings (``config/config.yaml`` and the overlays ``smoke.yaml``, ``dense.yaml`` …),
+  which the workflow reads with Snakemake's ``--configfile`` and hands to each command as a
+  ``--settings`` JSON of the sections it needs: :func:`load_study_config` (what
+  ``snakemake --configfile <overlays>`` sees, for commands run outside the workflow) and
+  :func:`parse_settings` (a command's ``--settings``);
+* the model settings, Hydra files under ``config/hydra/`` (``train.yaml`` with the groups
+  ``model/``, ``trainer/``, ``hparams_search/``; ``vae.yaml``; ``delta.yaml``):
+  :func:`hydra_config_dir` (where they are), :func:`compose_config` (one composed config) and
+  :func:`resolved_yaml` (its resolved text, a workflow rule param).
+
+Every problem is a :class:`~feeder.errors.FeederError` with a one-line message. Importing this
+module is cheap (yaml, Hydra and OmegaConf are imported where used): the workflow calls it at
+parse time.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from collections.abc import Sequence
+from pathlib import Path
+
+from feeder.errors import FeederError
+
+HYDRA_SUBDIR = Path("config") / "hydra"  # relative to a study directory (or the repository)
+
+
+# ----------------------------------------------------------------------------------------------
+# Study settings
+# ----------------------------------------------------------------------------------------------
+def parse_settings(text: str, *sections: str) -> dict:
+    """The ``--settings`` JSON of a command (config sections, as the workflow passes them), with
+    the named top-level sections required; a one-line :class:`FeederError` otherwise."""
+    try:
+        obj = json.loads(text)
+    except json.JSONDecodeError as err:
+        raise FeederError(f"--settings is not valid JSON: {err.msg}") from None
+    if not isinstance(obj, dict):
+        raise FeederError("--settings must be a JSON object of config sections")
+    missing = [s for s in sections if s not in obj]
+    if missing:
+        raise FeederError(f"--settings lacks the config section(s): {', '.join(missing)}")
+    return obj
+
+
+def overlay_config(base: dict, over: dict) -> dict:
+    """``base`` with ``over`` laid on top, nested sections merged key by key (the way Snakemake
+    merges ``--configfile`` files). Modifies and returns ``base``."""
+    for key, value in over.items():
+        if isinstance(value, dict) and isinstance(base.get(key), dict):
+            overlay_config(base[key], value)
+        else:
+            base[key] = value
+    return base
+
+
+def load_study_config(*overlays: str | os.PathLike, root: str | os.PathLike = ".") -> dict:
+    """config/config.yaml of the study in ``root`` overlaid by the given files (paths relative to
+    ``root`` unless absolute), as ``snakemake --configfile <overlays>`` sees it."""
+    import yaml
+
+    merged: dict = {}
+    for name in ("config/config.yaml", *overlays):
+        path = Path(root) / name
+        if not path.is_file():
+            raise FeederError(f"config file {path} not found (run from the project root or pass --settings)")
+        overlay_config(merged, yaml.safe_load(path.read_text()) or {})
+    return merged
+
+
+# ----------------------------------------------------------------------------------------------
+# Model settings (Hydra)
+# ----------------------------------------------------------------------------------------------
+def hydra_config_dir(cwd: str | os.PathLike | None = None) -> str:
+    """Where the Hydra model settings live: ``config/hydra/`` of the directory the study runs in
+    (the workflow's working directory, like ``config/config.yaml``), else the repository's own
+    ``config/hydra/`` next to the package. Parse-time params and the jobs both read this one place."""
+    local = Path(cwd or os.getcwd()) / HYDRA_SUBDIR
+    if local.is_dir():
+        return str(local.resolve())
+    return str(Path(__file__).resolve().parents[2] / HYDRA_SUBDIR)
+
+
+def compose_config(name: str, overrides: Sequence[str] = (), config_dir: str | os.PathLike | None = None):
+    """Compose ``<name>.yaml`` of the Hydra directory (default :func:`hydra_config_dir`) with
+    Hydra overrides: Hydra's compose API, version_base 1.3, no output directory, no logging
+    setup. A bad override or file is a one-line :class:`FeederError`."""
+    from hydra import compose, initialize_config_dir
+    from hydra.core.global_hydra import GlobalHydra
+    from hydra.errors import HydraException
+    from omegaconf.errors import OmegaConfBaseException
+
+    config_dir = Path(config_dir or hydra_config_dir()).resolve()
+    overrides = [str(o) for o in overrides]
+    if GlobalHydra.instance().is_initialized():
+        GlobalHydra.instance().clear()
+    try:
+        with initialize_config_dir(version_base="1.3", config_dir=str(config_dir), job_name=f"feeder_{name}"):
+            return compose(config_name=name, overrides=overrides)
+    except (HydraException, OmegaConfBaseException) as err:
+        first = str(err).strip().splitlines()[0] if str(err).strip() else type(err).__name__
+        raise FeederError(f"{config_dir / name}.yaml with overrides {overrides}: {first}") from None
+
+
+def resolved_yaml(name: str, overrides: Sequence[str] = (), drop: Sequence[str] = (),
+                  config_dir: str | os.PathLike | None = None) -> str:
+    """The composed config, fully resolved, as YAML text, without the top-level keys ``drop``
+    (settings that do not change a result, like output paths). As a Snakemake ``params:`` value
+    it reruns a job exactly when one of its settings changes."""
+    from omegaconf import OmegaConf
+
+    cfg = compose_config(name, overrides, config_dir)
+    keep = OmegaConf.create({k: cfg[k] for k in cfg if k not in drop})
+    return OmegaConf.to_yaml(OmegaConf.create(OmegaConf.to_container(keep, resolve=True)))

@@ -1,0 +1,546 @@
+"""Labels as the exact push-forward of the uniform initial yaw through the drop map.
+
+With one part per world the simulator is deterministic in the initial yaw β, so a configuration
+is a map ``f(β) = (final yaw, status)`` and its label is the push-forward of the uniform measure
+on β through ``f``. ``f`` is piecewise smooth (basins that map an interval of β to a narrow,
+slowly drifting range of final yaws; jumps between basins; arcs of failed drops) and sometimes
+has chaotic bands. :func:`refine` samples ``f`` adaptively where it jumps; :func:`pushforward_pmf`
+turns the samples into a label by interpolating ``f`` linearly inside every resolved interval.
+
+Everything is a pure numpy function. Conventions:
+
+* Angles are in degrees. Final yaws are reduced to ``[0, 360)`` (:func:`metrics.normalize_yaw`);
+  a non-ok drop's final yaw is NaN. The *circular distance* of two yaws is
+  ``|((a − b + 180) mod 360) − 180|`` ∈ [0, 180].
+* A design covers one *period* ``[offset, offset + period)`` of initial yaws; the stored
+  ``Design.yaws`` are sorted and *not* reduced mod 360 (so intervals increase); the yaws handed to
+  ``evaluate`` are reduced to ``[0, 360)``. Sample ``i`` starts the interval
+  ``[β_i, β_{i+1})``; the last one wraps to ``β_0 + period``, whose outcome is that of ``β_0``
+  with the final yaw turned by ``period`` (``f(β + P) = f(β) + P``: exact for ``P = 360``, and
+  for ``P = 360 / n`` when the part has n-fold rotational symmetry, see
+  :mod:`feeder.parts.symmetry` and :func:`unfold`).
+* Two ends of an interval *agree* when they have the same status and, if that status is ``ok``,
+  their final yaws are at most ``tolerance_deg`` apart on the circle. Inside an agreeing ok
+  interval ``f`` is taken to be linear in β along the shorter arc between the two final yaws;
+  inside an agreeing failed interval every drop has that status. A *disagreeing* interval is
+  unresolved: its mass is split half to each end's outcome (the left half of the interval takes
+  the left end's outcome) — the stratified treatment of a jump or a chaotic band.
+* ``label_bound`` is the measure of the unresolved intervals divided by the period: the most
+  probability mass the label can have misplaced (interpolation error inside agreeing intervals
+  is not counted; it is zero for maps that are linear in every basin). Unresolved are:
+
+  - the disagreeing intervals (each jump leaves one, at most ``min_width_deg`` wide once
+    bisected), and agreeing stretches of total width ≤ ``band_gap_deg`` between two of them;
+  - *chaotic bands*: a run of such closed-up intervals holding at least ``CHAOS_MIN_JUMPS`` = 2
+    jumps, merged with agreeing stretches ≤ ``max_width_deg`` between two bands. Inside a band
+    two ends may agree by chance, so the whole band counts. Refinement samples a band, and the
+    intervals within ``band_gap_deg`` of its ends, down to ``min_width_deg``: while the outcome
+    keeps switching the band grows, so a band is explored until ``band_gap_deg`` of agreement
+    on each side. Agreeing intervals in that neighbourhood still wider than ``min_width_deg``
+    when the budget runs out count as unresolved too. A basin narrower than ``band_gap_deg``
+    looks like the start of a band at this resolution and is treated as one (a few extra
+    simulations; its mass, < band_gap / period, is counted). To find bands whose edges look
+    clean, refinement also samples ``edge_check_deg`` on both sides of every jump bisected down
+    to ``min_width_deg`` at that width: a band's first switches show up there.
+
+  The bound holds for the map as sampled: a basin or band that no sample touched is not in it
+  (the midpoint checks of ``max_width_deg`` limit how wide such a thing can be). See
+  :func:`label_cdf_bound` for the bound on the normalised, smoothed label's CDF.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from feeder.errors import FeederError
+from feeder.labels.metrics import FULL_TURN_DEG, normalize_yaw, wrapped_gaussian_smooth
+
+OK = "ok"  # the status of a drop that made it (feeder.sim.drops.STATUSES[0]); kept here: no pybullet import
+
+# Defaults of :func:`refine` (the reasoning is in its docstring).
+DEFAULT_N0 = 16                 # initial grid samples per period (22.5° apart over a full turn)
+DEFAULT_TOLERANCE_DEG = 2.0     # two 1° label bins: ends closer than this are one basin
+DEFAULT_MIN_WIDTH_DEG = 0.5     # half a 1° label bin: an unresolved jump misplaces ≤ 0.5/360 ≈ 0.0014
+DEFAULT_BUDGET = 64             # simulations per period; 40–70 reached sup|ΔCDF| 0.002–0.009
+DEFAULT_UNSEEN_BASIN_FRACTION = 1.0 / 32.0  # max_width = period / 32 (11.25° over a full turn)
+DEFAULT_BAND_GAP_FACTOR = 4.0   # band_gap = 4 · min_width (2° at the default min_width)
+DEFAULT_EDGE_CHECK_FACTOR = 2.0 # edge_check = 2 · min_width (1°): both sides of a jump sampled finely
+CHAOS_MIN_JUMPS = 2             # jumps within band_gap of each other that make a chaotic band (a
+                                # basin narrower than band_gap looks the same and is treated alike)
+DEFAULT_BINS = 360
+DEFAULT_SIGMA = 1.0             # bins, as the workflow's labels
+
+_PERIOD_REL_TOL = 1e-9          # |n · period − 360| allowed, relative to 360
+_POINT_IMAGE_DEG = 1e-12        # a linear segment shorter than this is a point mass
+_ALL_OK_SLACK = 1e-12           # ok mass this close to 1 means every sampled drop was ok
+_WIDTH_SLACK = 1e-9             # relative: a width within round-off of a threshold is not "wider"
+
+
+Evaluate = Callable[[np.ndarray], "tuple[np.ndarray, np.ndarray]"]
+
+
+# ----------------------------------------------------------------------------------------------
+# Small circular helpers
+# ----------------------------------------------------------------------------------------------
+def wrap180(x) -> np.ndarray:
+    """Angle differences (degrees) reduced to ``[-180, 180)``."""
+    return np.mod(np.asarray(x, dtype=np.float64) + 180.0, FULL_TURN_DEG) - 180.0
+
+
+def circular_distance(a, b) -> np.ndarray:
+    """Circular distance of yaws in degrees, in [0, 180]; NaN if either is NaN."""
+    return np.abs(wrap180(np.asarray(a, dtype=np.float64) - np.asarray(b, dtype=np.float64)))
+
+
+def _turns(period_deg: float) -> int:
+    """n = 360 / period as an integer, or FeederError when the period does not divide 360."""
+    if not (math.isfinite(period_deg) and 0 < period_deg <= FULL_TURN_DEG):
+        raise FeederError(f"period_deg must be in (0, 360], got {period_deg!r}")
+    n = round(FULL_TURN_DEG / period_deg)
+    if abs(n * period_deg - FULL_TURN_DEG) > _PERIOD_REL_TOL * FULL_TURN_DEG:
+        raise FeederError(f"period_deg {period_deg:g} does not divide 360 "
+                          f"(360 / period = {FULL_TURN_DEG / period_deg:g})")
+    return int(n)
+
+
+def grid_yaws(n: int, offset_deg: float = 0.0, period_deg: float = FULL_TURN_DEG) -> np.ndarray:
+    """The ``grid`` design: ``offset + period · i / n`` for i = 0..n−1, reduced to [0, 360).
+
+    Returned in that order (ascending from the offset, so it wraps past 360 once at most).
+    """
+    if int(n) != n or n < 1:
+        raise FeederError(f"grid_yaws: n must be a positive integer, got {n!r}")
+    if not math.isfinite(offset_deg):
+        raise FeederError(f"grid_yaws: offset_deg must be finite, got {offset_deg!r}")
+    _turns(period_deg)
+    return normalize_yaw(_grid(int(n), float(offset_deg), float(period_deg)))
+
+
+def _grid(n: int, offset: float, period: float) -> np.ndarray:
+    return offset + period * np.arange(n, dtype=np.float64) / n
+
+
+# ----------------------------------------------------------------------------------------------
+# Design
+# ----------------------------------------------------------------------------------------------
+@dataclass(frozen=True, eq=False)
+class Design:
+    """Samples of the drop map over one period, and what they leave unresolved.
+
+    ``yaws``: sorted initial yaws in ``[offset_deg, offset_deg + period_deg)`` (degrees, not
+    reduced mod 360). ``final``: final yaws in [0, 360), NaN where the status is not ok.
+    ``status``: one status string per sample. ``evaluations``: simulations run (``len(yaws)``);
+    ``calls``: batches handed to ``evaluate``. ``unresolved``: (k, 2) intervals ``(start, end)``
+    (``end`` may pass ``offset + period`` for the wrapping interval) counted in ``label_bound``
+    = their total width / period. ``unchecked``: agreeing intervals still wider than
+    ``max_width_deg`` because the budget ran out (not in ``label_bound``: they may hide a basin).
+    """
+
+    yaws: np.ndarray
+    final: np.ndarray
+    status: np.ndarray
+    evaluations: int
+    calls: int
+    unresolved: np.ndarray
+    label_bound: float
+    unchecked: np.ndarray
+    period_deg: float
+    offset_deg: float
+    tolerance_deg: float
+    min_width_deg: float
+    max_width_deg: float
+    band_gap_deg: float
+    edge_check_deg: float
+
+
+@dataclass(frozen=True)
+class _Intervals:
+    start: np.ndarray
+    end: np.ndarray
+    final_a: np.ndarray
+    final_b: np.ndarray  # end's final yaw, continued by the period for the wrapping interval
+    status_a: np.ndarray
+    status_b: np.ndarray
+    agree: np.ndarray
+
+    @property
+    def width(self) -> np.ndarray:
+        return self.end - self.start
+
+
+def _intervals(yaws, final, status, period: float, tolerance: float) -> _Intervals:
+    """The circular intervals between consecutive samples and whether their ends agree."""
+    end = np.append(yaws[1:], yaws[0] + period)
+    final_b = np.append(final[1:], normalize_yaw(final[0] + period))
+    status_b = np.append(status[1:], status[0])
+    same = status == status_b
+    ok = status == OK
+    with np.errstate(invalid="ignore"):
+        close = circular_distance(final, final_b) <= tolerance
+    agree = same & (~ok | close)
+    return _Intervals(yaws, end, final, final_b, status, status_b, agree)
+
+
+def _runs(mask: np.ndarray) -> list[np.ndarray]:
+    """Maximal circular runs of True in ``mask`` as index arrays (one run if all True)."""
+    m = mask.size
+    if not mask.any():
+        return []
+    if mask.all():
+        return [np.arange(m)]
+    first_false = int(np.flatnonzero(~mask)[0])
+    runs, cur = [], []
+    for step in range(1, m + 1):
+        j = (first_false + step) % m
+        if mask[j]:
+            cur.append(j)
+        elif cur:
+            runs.append(np.asarray(cur))
+            cur = []
+    if cur:
+        runs.append(np.asarray(cur))
+    return runs
+
+
+def _close_gaps(flag: np.ndarray, width: np.ndarray, gap: float) -> np.ndarray:
+    """``flag`` plus every run of unflagged intervals, lying between two flagged ones, whose
+    total width is ≤ ``gap`` (on a circle every unflagged run lies between flagged ones)."""
+    out = flag.copy()
+    if flag.any():
+        for run in _runs(~flag):
+            if width[run].sum() <= gap:
+                out[run] = True
+    return out
+
+
+def _neighbourhood(band: np.ndarray, width: np.ndarray, reach: float) -> np.ndarray:
+    """Intervals outside the band runs that start or end less than ``reach`` away from one."""
+    near = np.zeros_like(band)
+    m = band.size
+    for run in _runs(band):
+        if run.size == m:
+            break
+        for direction, edge in ((1, run[-1]), (-1, run[0])):
+            dist, j = 0.0, (edge + direction) % m
+            while not band[j] and dist < reach:
+                near[j] = True
+                dist += width[j]
+                j = (j + direction) % m
+    return near & ~band
+
+
+@dataclass(frozen=True)
+class _Classes:
+    unresolved: np.ndarray  # counted in label_bound
+    fine: np.ndarray        # to be bisected down to min_width: jumps, bands and their surroundings
+
+
+def _classify(iv: _Intervals, min_width: float, max_width: float, band_gap: float,
+              edge_check: float = 0.0) -> _Classes:
+    """Jumps, chaotic bands and their neighbourhoods (see the module docstring)."""
+    width = iv.width
+    jump = ~iv.agree
+    closed = _close_gaps(jump, width, band_gap)
+    band = np.zeros_like(jump)
+    for run in _runs(closed):
+        if jump[run].sum() >= CHAOS_MIN_JUMPS:
+            band[run] = True
+    band = _close_gaps(band, width, max_width) if band.any() else band
+    near = _neighbourhood(band, width, band_gap)
+    coarse = width > min_width * (1.0 + _WIDTH_SLACK)
+    # both sides of every jump bisected to the end: a band's first switch shows up there
+    done = jump & ~coarse
+    edge = _neighbourhood(done, width, edge_check) if edge_check > 0 else np.zeros_like(jump)
+    return _Classes(unresolved=closed | band | (near & coarse), fine=jump | band | near | edge)
+
+
+def _check_evaluation(yaws: np.ndarray, result) -> tuple[np.ndarray, np.ndarray]:
+    try:
+        final, status = result
+    except (TypeError, ValueError):
+        raise FeederError("refine: evaluate must return (final_deg, status) arrays") from None
+    final = np.ravel(np.asarray(final, dtype=np.float64))
+    status = np.ravel(np.asarray(status)).astype(str)
+    if final.shape != yaws.shape or status.shape != yaws.shape:
+        raise FeederError(f"refine: evaluate returned {final.size} final yaws and {status.size} statuses "
+                          f"for {yaws.size} yaws")
+    ok = status == OK
+    if not np.isfinite(final[ok]).all():
+        raise FeederError("refine: evaluate returned a non-finite final yaw for an ok drop")
+    return np.where(ok, normalize_yaw(np.where(ok, final, 0.0)), np.nan), status
+
+
+def refine(evaluate: Evaluate, n0: int = DEFAULT_N0, tolerance_deg: float = DEFAULT_TOLERANCE_DEG,
+           min_width_deg: float = DEFAULT_MIN_WIDTH_DEG, budget: int = DEFAULT_BUDGET,
+           offset_deg: float = 0.0, period_deg: float = FULL_TURN_DEG, *,
+           max_width_deg: float | None = None, band_gap_deg: float | None = None,
+           edge_check_deg: float | None = None) -> Design:
+    """Sample the drop map over one period, bisecting where it jumps, within a budget.
+
+    Starts from the grid ``offset + period · i / n0`` and then runs *rounds*: each round
+    collects every interval that needs its midpoint simulated and hands all those midpoints to
+    ``evaluate`` in one batch (one call per round, so the caller can run a batch in one world).
+    ``evaluate(yaws)`` gets initial yaws in [0, 360) and returns ``(final_deg, status)``; final
+    yaws of non-ok drops are ignored.
+
+    An interval (circular: the last sample's runs to the first + period) needs its midpoint when
+
+    * its ends disagree (different status, or both ok and more than ``tolerance_deg`` apart on
+      the circle) and it is wider than ``min_width_deg`` (bisection of a jump);
+    * it belongs to a chaotic band or lies within ``band_gap_deg`` of one (see the module
+      docstring) and is wider than ``min_width_deg`` (ends agreeing by chance prove nothing
+      there);
+    * it lies within ``edge_check_deg`` of a jump already bisected down to ``min_width_deg`` and
+      is wider than ``min_width_deg`` (the edge check: where a chaotic band begins, its first
+      switches are right next to the jump into it), or
+    * its ends agree but it is wider than ``max_width_deg`` (a midpoint check: an agreeing
+      interval can hide a whole basin; after the checks no agreeing interval is wider than
+      ``max_width_deg``, so no basin wider than that can be missed entirely).
+
+    It stops when no interval needs a midpoint or the evaluations reach ``budget`` (never
+    exceeded); every round adds at least one sample, so it always ends. When a round's
+    candidates exceed the remaining budget the widest go first (ties: disagreeing before
+    agreeing, then by position) — the widest interval can misplace or hide the most mass.
+
+    Defaults (per period): ``n0 = 16``; ``tolerance_deg = 2`` (two label bins: basins drift a
+    few degrees over tens of degrees of β, so neighbours in one basin differ by well under 2°,
+    while jumps between basins are tens of degrees); ``min_width_deg = 0.5`` (half a label bin;
+    each unresolved jump then misplaces at most 0.5/360 ≈ 0.0014 of the mass, an order below the
+    ~0.017 of 1,000 random drops); ``budget = 64`` (40–70 simulations reached sup|ΔCDF|
+    0.002–0.009 on simple scenes); ``max_width_deg = max(period / 32, min_width)`` (11.25° over
+    a full turn: with n0 = 16 every grid interval gets its midpoint, checks and bisections
+    together in the first round, and a basin carrying more than 1/32 of the mass cannot be
+    missed; ``max_width_deg ≥ period / n0`` turns the checks off); ``band_gap_deg = 4 · min_width``
+    (jumps this close make a chaotic band; at 2° the chance that a band of two outcomes hides
+    its switching over a whole gap, about six samples at the resolution reached, is 2⁻⁶);
+    ``edge_check_deg = 2 · min_width`` (1°). Measured on an analytic map with a 20° band of two
+    outcomes switching at random (tests/test_pushforward.py) over 45 grid offsets: with the edge
+    check the band was found at all 45 (about 105 simulations), without it at 35; the edge check
+    costs about 5 simulations per jump on clean maps (a two-jump map: 53 instead of 42).
+    ``edge_check_deg = 0`` turns it off.
+
+    Raises FeederError for n0 < 2, budget < n0, tolerance ≤ 0, min_width ≤ 0,
+    max_width < min_width, band_gap < 0, edge_check < 0, a period that does not divide 360,
+    or a malformed evaluation.
+    """
+    if int(n0) != n0 or n0 < 2:
+        raise FeederError(f"refine: n0 must be an integer >= 2, got {n0!r}")
+    if int(budget) != budget or budget < n0:
+        raise FeederError(f"refine: budget ({budget!r}) must be an integer >= n0 ({n0})")
+    if not (math.isfinite(tolerance_deg) and tolerance_deg > 0):
+        raise FeederError(f"refine: tolerance_deg must be > 0, got {tolerance_deg!r}")
+    if not (math.isfinite(min_width_deg) and min_width_deg > 0):
+        raise FeederError(f"refine: min_width_deg must be > 0, got {min_width_deg!r}")
+    if not math.isfinite(offset_deg):
+        raise FeederError(f"refine: offset_deg must be finite, got {offset_deg!r}")
+    _turns(period_deg)
+    n0, budget, period = int(n0), int(budget), float(period_deg)
+    if max_width_deg is None:
+        max_width = max(period * DEFAULT_UNSEEN_BASIN_FRACTION, float(min_width_deg))
+    else:
+        max_width = float(max_width_deg)
+    if not (math.isfinite(max_width) and max_width >= min_width_deg):
+        raise FeederError(f"refine: max_width_deg ({max_width!r}) must be >= min_width_deg ({min_width_deg!r})")
+    band_gap = DEFAULT_BAND_GAP_FACTOR * min_width_deg if band_gap_deg is None else float(band_gap_deg)
+    if not (math.isfinite(band_gap) and band_gap >= 0):
+        raise FeederError(f"refine: band_gap_deg must be >= 0, got {band_gap!r}")
+    edge_check = DEFAULT_EDGE_CHECK_FACTOR * min_width_deg if edge_check_deg is None else float(edge_check_deg)
+    if not (math.isfinite(edge_check) and edge_check >= 0):
+        raise FeederError(f"refine: edge_check_deg must be >= 0, got {edge_check!r}")
+    offset = float(normalize_yaw(offset_deg))
+
+    yaws = _grid(n0, offset, period)
+    final, status = _check_evaluation(yaws, evaluate(normalize_yaw(yaws)))
+    evaluations, calls = n0, 1
+
+    while evaluations < budget:
+        iv = _intervals(yaws, final, status, period, tolerance_deg)
+        fine = _classify(iv, min_width_deg, max_width, band_gap, edge_check).fine
+        width = iv.width
+        mid = 0.5 * (iv.start + iv.end)
+        inside = (mid > iv.start) & (mid < iv.end)  # float guard for absurdly narrow intervals
+        limit = np.where(fine, min_width_deg, max_width) * (1.0 + _WIDTH_SLACK)
+        want = inside & (width > limit)
+        if not want.any():
+            break
+        idx = np.flatnonzero(want)
+        order = np.lexsort((iv.start[idx], iv.agree[idx], -width[idx]))  # last key is primary
+        take = idx[order[: budget - evaluations]]
+        new = mid[take]
+        new = np.where(new >= offset + period, new - period, new)
+        f_new, s_new = _check_evaluation(new, evaluate(normalize_yaw(new)))
+        evaluations += new.size
+        calls += 1
+        yaws = np.concatenate([yaws, new])
+        final = np.concatenate([final, f_new])
+        status = np.concatenate([status, s_new])
+        perm = np.argsort(yaws, kind="stable")
+        yaws, final, status = yaws[perm], final[perm], status[perm]
+
+    return _finish(yaws, final, status, evaluations, calls, period, offset, float(tolerance_deg),
+                   float(min_width_deg), max_width, band_gap, edge_check)
+
+
+def _finish(yaws, final, status, evaluations, calls, period, offset, tolerance, min_width,
+            max_width, band_gap, edge_check) -> Design:
+    iv = _intervals(yaws, final, status, period, tolerance)
+    bad = _classify(iv, min_width, max_width, band_gap).unresolved
+    unresolved = np.column_stack([iv.start[bad], iv.end[bad]]).reshape(-1, 2)
+    unchecked_mask = iv.agree & ~bad & (iv.width > max_width * (1.0 + _WIDTH_SLACK))
+    unchecked = np.column_stack([iv.start[unchecked_mask], iv.end[unchecked_mask]]).reshape(-1, 2)
+    return Design(yaws=yaws, final=final, status=status, evaluations=int(evaluations), calls=int(calls),
+                  unresolved=unresolved, label_bound=float(iv.width[bad].sum() / period),
+                  unchecked=unchecked, period_deg=period, offset_deg=offset, tolerance_deg=tolerance,
+                  min_width_deg=min_width, max_width_deg=max_width, band_gap_deg=band_gap,
+                  edge_check_deg=edge_check)
+
+
+def unfold(design: Design, n: int | None = None) -> Design:
+    """Map a design over one period ``360 / n`` to the full circle by the n-fold symmetry.
+
+    Copy ``k`` (k = 0..n−1) has initial yaws ``β + k·P`` and final yaws ``f(β) + k·P`` reduced
+    to [0, 360) (statuses repeat); unresolved and unchecked intervals are copied the same way.
+    ``label_bound`` (a fraction of the period) and ``evaluations`` are unchanged. ``n`` defaults
+    to 360 / period; a full-turn design is returned as is.
+    """
+    turns = _turns(design.period_deg)
+    n = turns if n is None else n
+    if int(n) != n or n != turns:
+        raise FeederError(f"unfold: n = {n!r} does not match the design's period {design.period_deg:g}° "
+                          f"(360 / period = {turns})")
+    if turns == 1:
+        return design
+    P = design.period_deg
+    shifts = P * np.arange(turns, dtype=np.float64)
+    yaws = (design.yaws[None, :] + shifts[:, None]).ravel()
+    final = normalize_yaw((design.final[None, :] + shifts[:, None]).ravel())
+    status = np.tile(design.status, turns)
+    unres = (design.unresolved[None, :, :] + shifts[:, None, None]).reshape(-1, 2)
+    unchk = (design.unchecked[None, :, :] + shifts[:, None, None]).reshape(-1, 2)
+    return replace(design, yaws=yaws, final=final, status=status, unresolved=unres, unchecked=unchk,
+                   period_deg=FULL_TURN_DEG)
+
+
+# ----------------------------------------------------------------------------------------------
+# The push-forward
+# ----------------------------------------------------------------------------------------------
+def _segment_hist(lo: np.ndarray, length: np.ndarray, mass: np.ndarray, bins: int) -> np.ndarray:
+    """Exact bin masses of uniform distributions on arcs ``[lo, lo + length]`` (lo in [0, 360),
+    0 ≤ length ≤ 180), each carrying ``mass``; arcs shorter than a numeric floor are points."""
+    hist = np.zeros(bins)
+    w = FULL_TURN_DEG / bins
+    point = length <= _POINT_IMAGE_DEG
+    if point.any():
+        idx = np.clip(np.floor(lo[point] / w).astype(np.int64), 0, bins - 1)
+        np.add.at(hist, idx, mass[point])
+    seg = ~point
+    if seg.any():
+        edges = w * np.arange(2 * bins + 1, dtype=np.float64)  # two turns: lo + length < 540
+        lo_s, len_s, m_s = lo[seg], length[seg], mass[seg]
+        chunk = max(1, int(2**22 // edges.size))  # bound the (k, edges) work array
+        for s in range(0, lo_s.size, chunk):
+            frac = np.clip((edges[None, :] - lo_s[s:s + chunk, None]) / len_s[s:s + chunk, None], 0.0, 1.0)
+            per_bin = np.diff(frac, axis=1) * m_s[s:s + chunk, None]
+            hist += per_bin.sum(axis=0).reshape(2, bins).sum(axis=0)
+    return hist
+
+
+def _check_sigma_bins(bins: int, sigma: float) -> None:
+    if int(bins) != bins or bins < 1:
+        raise FeederError(f"pushforward_pmf: bins must be a positive integer, got {bins!r}")
+    if not (math.isfinite(sigma) and sigma >= 0):
+        raise FeederError(f"pushforward_pmf: sigma must be a finite number of bins >= 0, got {sigma!r}")
+
+
+def pushforward_pmf(design: Design, bins: int = DEFAULT_BINS, sigma: float = DEFAULT_SIGMA
+                    ) -> tuple[np.ndarray, dict[str, float]]:
+    """The label of a design: the push-forward of the uniform β through the interpolated map.
+
+    A design over a period ``360 / n`` is :func:`unfold`-ed first. Every interval carries
+    ``width / 360`` of the probability:
+
+    * agreeing ok ends: the final yaw runs linearly in β from one end's final yaw to the other's
+      along the shorter arc (wrapping at 0/360); the mass is spread over the final-yaw bins in
+      proportion to the overlap of that arc with each bin (all in one bin for a point image);
+    * agreeing failed ends: all the mass goes to that status;
+    * disagreeing ends: half the mass goes to each end's outcome (a point mass at an ok end's
+      final yaw, or that end's failed status).
+
+    Returns ``(pmf, masses)``: ``pmf`` is the histogram of the ok mass normalised to 1 and smoothed
+    with :func:`metrics.wrapped_gaussian_smooth` (``sigma`` bins, 0 = none), as the workflow's
+    labels; ``masses`` maps every status seen (``"ok"`` included, the ok mass) to its probability
+    (they sum to 1). FeederError when there is no ok mass.
+    """
+    _check_sigma_bins(bins, sigma)
+    bins = int(bins)
+    d = unfold(design)
+    iv = _intervals(d.yaws, d.final, d.status, FULL_TURN_DEG, d.tolerance_deg)
+    mass = iv.width / FULL_TURN_DEG
+    masses: dict[str, float] = {}
+
+    def add(status_arr, m):
+        for s in np.unique(status_arr):
+            masses[str(s)] = masses.get(str(s), 0.0) + float(m[status_arr == s].sum())
+
+    good = iv.agree & (iv.status_a == OK)
+    lin_a = iv.final_a[good]
+    delta = wrap180(iv.final_b[good] - lin_a)
+    lo = normalize_yaw(np.minimum(lin_a, lin_a + delta))
+    hist = _segment_hist(lo, np.abs(delta), mass[good], bins)
+    failed = iv.agree & (iv.status_a != OK)
+    add(iv.status_a[failed], mass[failed])
+    add(iv.status_a[good], mass[good])
+    split = ~iv.agree
+    for fin, st in ((iv.final_a[split], iv.status_a[split]), (iv.final_b[split], iv.status_b[split])):
+        half = 0.5 * mass[split]
+        add(st, half)
+        ok_end = st == OK
+        hist += _segment_hist(fin[ok_end], np.zeros(int(ok_end.sum())), half[ok_end], bins)
+    if masses.get(OK, 0.0) <= 0.0 or hist.sum() <= 0.0:
+        raise FeederError("pushforward_pmf: the design has no ok drop mass (every sampled drop failed)")
+    return wrapped_gaussian_smooth(hist / hist.sum(), sigma), masses
+
+
+def label_cdf_bound(design: Design, ok_mass: float) -> float:
+    """A bound on sup|ΔCDF| between the design's label and the exact push-forward label.
+
+    Only the unresolved mass U = ``label_bound`` is misplaced (interpolation error aside). The
+    labels are normalised over the ok mass m̂ (``masses["ok"]``); the total-variation distance
+    of the normalised labels is at most 1.5 · U / m̂ (U when m̂ = 1: every sample ok), and TV bounds
+    sup|ΔCDF| from any origin and does not grow under smoothing. Capped at 1.
+    """
+    if not ok_mass > 0:
+        raise FeederError(f"label_cdf_bound: ok mass must be > 0, got {ok_mass!r}")
+    u = design.label_bound
+    all_ok = ok_mass >= 1.0 - _ALL_OK_SLACK
+    return float(min(1.0, u if all_ok else 1.5 * u / ok_mass))
+
+
+def emulate_drops(design: Design, n: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    """``n`` i.i.d. drops through the interpolated map, for studies that need i.i.d. drops.
+
+    Initial yaws are uniform on [0, 360) from ``numpy.random.default_rng(seed)``; each is mapped
+    by the rule of :func:`pushforward_pmf` (linear along the shorter arc inside agreeing ok
+    intervals; the nearer end's outcome inside disagreeing ones). Returns ``(final_deg, status)``
+    in drop order; final yaws are in [0, 360), NaN for failed drops.
+    """
+    if int(n) != n or n < 0:
+        raise FeederError(f"emulate_drops: n must be a non-negative integer, got {n!r}")
+    d = unfold(design)
+    iv = _intervals(d.yaws, d.final, d.status, FULL_TURN_DEG, d.tolerance_deg)
+    beta = np.random.default_rng(seed).uniform(0.0, FULL_TURN_DEG, int(n))
+    # position relative to the first sample, in [0, 360): intervals tile [y0, y0 + 360)
+    rel = np.mod(beta - d.yaws[0], FULL_TURN_DEG) + d.yaws[0]
+    k = np.clip(np.searchsorted(d.yaws, rel, side="right") - 1, 0, d.yaws.size - 1)
+    t = (rel - iv.start[k]) / iv.width[k]
+    agree = iv.agree[k]
+    right = ~agree & (t >= 0.5)
+    status = np.where(right, iv.status_b[k], iv.status_a[k])
+    lin = normalize_yaw(iv.final_a[k] + t * wrap180(iv.final_b[k] - iv.final_a[k]))
+    final = np.where(agree, lin, np.where(right, iv.final_b[k], iv.final_a[k]))
+    final = np.where(status == OK, final, np.nan)
+    return final, status

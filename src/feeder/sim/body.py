@@ -1,0 +1,327 @@
+"""The simulated part and the pybullet world it rides in (used by :mod:`feeder.sim.drops`).
+
+The part body is a compound of the exact convex pieces of its outline, each inset by the
+collision margin and extruded (so the margin-inflated shape is the true part), in the part's
+centroidal principal frame; mass, centre of mass and the inertia diagonal are set from the
+polygon (:func:`part_model`, pure). :class:`World` is one pybullet client holding one or more
+copies of the belt lane (belt, containment walls, fences) and the part's collision shape.
+
+Bullet combines friction coefficients by multiplication: part-belt 0.8 x 1.0, part-fence
+0.8 x 0.5 = 0.4 (a straight fence holds parts for θ > atan(1/0.4) = 68.2°).
+"""
+
+from __future__ import annotations
+
+import math
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from feeder.errors import FeederError
+from feeder.sim.scene import FenceGeom, belt_contact
+
+# Part collision filter: group bit 1 (dynamic) colliding only with static bodies (group bit 2).
+_PART_GROUP, _PART_MASK = 1, 2
+_MAX_COMPOUND = 16  # pybullet's createCollisionShapeArray silently drops shapes beyond 16
+
+
+# --------------------------------------------------------------------------------------------
+# Part model (pure)
+# --------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class PartModel:
+    """A part ready for pybullet: pieces in its centroidal principal frame (inset), mass, inertia."""
+
+    part_id: str
+    thickness: float
+    mass: float
+    inertia: tuple[float, float, float]  # principal diagonal (kg m²)
+    alpha: float  # rad: principal frame yaw in the part's own frame
+    radius: float  # m: circumradius about the centroid
+    pieces: tuple[np.ndarray, ...] = field(repr=False)  # (M, 2) inset convex pieces, principal frame
+    hull: np.ndarray = field(repr=False, default=None)  # (H, 2) convex hull of the outline, principal frame
+
+
+def principal_inertia(area, second_moment, thickness, density):
+    """(mass, (Ixx, Iyy, Izz) principal, alpha) of a uniform prism from its area moments.
+
+    ``second_moment = (∫y², ∫x², ∫xy)`` about the centroid (geometry convention). ``alpha`` is the
+    yaw of the principal x axis (largest ∫x'²) in the part frame.
+    """
+    sxx_y, sxx_x, sxy = second_moment  # ∫y², ∫x², ∫xy
+    alpha = 0.5 * math.atan2(2.0 * sxy, sxx_x - sxx_y)
+    mean = 0.5 * (sxx_x + sxx_y)
+    half = math.hypot(0.5 * (sxx_x - sxx_y), sxy)
+    lam1, lam2 = mean + half, mean - half  # ∫x'², ∫y'²
+    rho_t = density * thickness
+    mass = rho_t * area
+    flat = mass * thickness**2 / 12.0
+    return mass, (rho_t * lam2 + flat, rho_t * lam1 + flat, rho_t * (lam1 + lam2)), alpha
+
+
+def merge_pieces(pieces, tolerance: float) -> list[np.ndarray]:
+    """Merge touching convex pieces whose union's convex hull lies within ``tolerance`` of the union.
+
+    Greedy: any pair whose hull adds nothing beyond ``tolerance`` (m) is replaced by that hull,
+    until no pair qualifies. ``tolerance = 0`` merges only pieces whose union is exactly convex.
+    Fewer pieces make fewer contact manifolds (the simulation's cost grows with the piece count);
+    the shape changes by at most ``tolerance`` (concave corners filled).
+    """
+    from shapely.geometry import Polygon
+
+    polys = [Polygon(p) for p in pieces]
+    while (pair := _mergeable_pair(polys, tolerance)) is not None:
+        i, j, hull = pair
+        polys = [q for k, q in enumerate(polys) if k not in (i, j)] + [hull]
+    return [np.asarray(q.exterior.coords)[:-1] for q in polys]
+
+
+def _mergeable_pair(polys, tolerance: float):
+    """The first pair (i, j, hull of their union) of touching polygons whose hull adds nothing
+    beyond ``tolerance``, or None."""
+    from shapely.ops import unary_union
+
+    for i in range(len(polys)):
+        for j in range(i + 1, len(polys)):
+            a, b = polys[i], polys[j]
+            if a.distance(b) > 0.0:
+                continue
+            union = unary_union([a, b])
+            hull = union.convex_hull
+            if hull.difference(union).area <= 1e-12 * hull.area or (
+                    tolerance > 0 and union.buffer(tolerance, join_style=2).contains(hull)):
+                return i, j, hull
+    return None
+
+
+def part_model(geom, scene: dict, merge_tolerance: float = 0.0) -> PartModel:
+    """Pieces (merged within ``merge_tolerance``) in the centroidal principal frame, inset by the margin."""
+    from shapely.geometry import Polygon
+
+    pc = scene["part"]
+    margin = float(pc["collision_margin"])
+    mass, inertia, alpha = principal_inertia(geom.area, geom.second_moment, geom.thickness,
+                                             float(pc["density"]))
+    c, s = math.cos(-alpha), math.sin(-alpha)
+    rot = np.array([[c, -s], [s, c]])
+    centroid = np.asarray(geom.centroid, dtype=np.float64)
+    pieces = []
+    for piece in merge_pieces(geom.convex_pieces, merge_tolerance):
+        local = (np.asarray(piece, np.float64) - centroid) @ rot.T
+        poly = Polygon(local).buffer(-margin, join_style=2)
+        if poly.is_empty or poly.area <= 0 or poly.geom_type != "Polygon":
+            continue  # a sliver thinner than twice the margin: the neighbours' margins cover it
+        pieces.append(np.asarray(poly.exterior.coords)[:-1])
+    if not pieces:
+        raise FeederError(f"part {geom.part_id}: thinner than twice the collision margin")
+    if geom.thickness <= 2 * margin:
+        raise FeederError(f"part {geom.part_id}: thickness {geom.thickness} <= 2 x collision margin")
+    outline = np.asarray(geom.outline, np.float64) - centroid
+    radius = float(np.max(np.hypot(outline[:, 0], outline[:, 1])))
+    hull = np.asarray(Polygon(outline @ rot.T).convex_hull.exterior.coords)[:-1]
+    return PartModel(geom.part_id, float(geom.thickness), mass, inertia, alpha, radius, tuple(pieces), hull)
+
+
+def obj_text(pieces, half_height: float) -> str:
+    """Wavefront OBJ with one object per convex piece extruded to ±half_height (pybullet: compound)."""
+    lines, base = [], 1
+    for k, piece in enumerate(pieces):
+        n = len(piece)
+        lines.append(f"o piece{k}")
+        for z in (-half_height, half_height):
+            lines += [f"v {x:.10g} {y:.10g} {z:.10g}" for x, y in piece]
+        lines += [f"f {base} {base + i + 1} {base + i}" for i in range(1, n - 1)]  # bottom
+        lines += [f"f {base + n} {base + n + i} {base + n + i + 1}" for i in range(1, n - 1)]  # top
+        for i in range(n):
+            j = (i + 1) % n
+            lines.append(f"f {base + i} {base + j} {base + n + j} {base + n + i}")
+        base += 2 * n
+    return "\n".join(lines) + "\n"
+
+
+def quat_yaw(q) -> float:
+    """Yaw (rad) of a quaternion (x, y, z, w) about world z."""
+    x, y, z, w = q
+    return math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+
+
+def quat_tilt_deg(q) -> float:
+    """Angle between the body z axis and world z (degrees)."""
+    x, y, _, _ = q
+    cz = 1.0 - 2.0 * (x * x + y * y)
+    return math.degrees(math.acos(max(-1.0, min(1.0, cz))))
+
+
+# --------------------------------------------------------------------------------------------
+# The world
+# --------------------------------------------------------------------------------------------
+@dataclass
+class Plan:
+    """What a world holds and where its drops run (made by :func:`feeder.sim.drops.make_plan`)."""
+
+    fences: list[FenceGeom]  # fences to build
+    samples: np.ndarray  # (P, 2) outline samples of the built fences (reach queries)
+    start_y: float
+    record_y: float
+    time_limit: float
+
+
+class World:
+    """One pybullet DIRECT client with ``lanes`` copies of the belt lane (belt, walls, fences).
+
+    Each lane has its own belt: a fixed-base (mass 0) slab whose velocity is set to the belt speed
+    when a drop starts in that lane, together with its pose; Bullet then carries it along
+    consistently (a mass-0 body keeps its velocity). It is never snapped back while a part rides
+    on it: resetting a moving belt to its start pose every step disturbs the contacts (parts sank
+    into the belt and spun at internal steps >= 1 ms), and the belt's frame (belt still, fences
+    moving at -v) lets parts creep along fences that should hold them. The slab is long enough for
+    one drop's time limit. Walls and fences are static. Lane j's coordinates: ``x - lane_x[j]``, y.
+    Measured (tests/test_sim_physics.py): at internal steps of 2.5 ms a part held by a steep fence
+    still creeps along it (up to ~10 mm/s); at 1.67 ms and below it is held.
+    """
+
+    def __init__(self, scene: dict, preset: dict, plan: Plan, lanes: int, model: PartModel):
+        import pybullet as pb
+
+        self.pb = pb
+        self.scene, self.preset, self.plan, self.model = scene, preset, plan, model
+        self.cid = self._connect()
+        belt = scene["belt"]
+        self.speed = float(belt["speed"])
+        self.belt_vel = [0.0, self.speed, 0.0]
+        self.pitch = 2.0 * (float(belt["half_width"]) + float(scene["walls"]["thickness"])) + 0.1
+        self.lane_x = [(j - 0.5 * (lanes - 1)) * self.pitch for j in range(lanes)]
+        travel = self.speed * plan.time_limit  # how far a belt moves during one drop
+        # a lane's belt at drop start: from behind the start (a held part stays while the belt
+        # runs on) to past the record point (parts may be moved forward by shortcuts)
+        bt = float(belt["thickness"])
+        blo, bhi = plan.start_y - travel - 1.0, plan.record_y + 1.0
+        self.belt_start = [0.5 * (blo + bhi), -0.5 * bt]
+        belt_shape = pb.createCollisionShape(
+            pb.GEOM_BOX, halfExtents=[0.5 * self.pitch, 0.5 * (bhi - blo), 0.5 * bt], physicsClientId=self.cid)
+        walls_y = (min(blo, plan.start_y - 1.0), bhi + travel)
+        self.belts = []
+        for x0 in self.lane_x:
+            self.belts.append(self._add_belt(x0, belt_shape))
+            self._add_walls(x0, *walls_y)
+            self._add_fences(x0)
+        self.part_shape = self._add_part_shape()
+
+    def _connect(self) -> int:
+        """A fresh DIRECT client with gravity and the preset's solver settings."""
+        pb, scene, preset = self.pb, self.scene, self.preset
+        c = pb.connect(pb.DIRECT)
+        pb.resetSimulation(physicsClientId=c)
+        pb.setGravity(0, 0, -float(scene["gravity"]), physicsClientId=c)
+        pb.setPhysicsEngineParameter(
+            fixedTimeStep=float(preset["time_step"]), numSubSteps=int(preset["substeps"]),
+            numSolverIterations=int(preset["solver_iterations"]), enableConeFriction=1,
+            deterministicOverlappingPairs=1, enableFileCaching=0, physicsClientId=c)
+        if preset.get("engine"):
+            pb.setPhysicsEngineParameter(**dict(preset["engine"]), physicsClientId=c)
+        return c
+
+    def _add_belt(self, x0: float, shape: int) -> int:
+        """The lane's belt slab at its start pose (compliant contact when the scene asks for it)."""
+        pb, c, belt = self.pb, self.cid, self.scene["belt"]
+        body = pb.createMultiBody(0, shape, basePosition=[x0, *self.belt_start], physicsClientId=c)
+        self._surface(body, float(belt["friction"]))
+        contact = belt_contact(belt)
+        if contact is not None:  # compliant belt: a spring-damper per contact point (Bullet: ERP/CFM)
+            pb.changeDynamics(body, -1, contactStiffness=contact[0], contactDamping=contact[1], physicsClientId=c)
+        return body
+
+    def _add_walls(self, x0: float, wlo: float, whi: float) -> None:
+        """The two containment walls of the lane, from ``wlo`` to ``whi`` along the belt."""
+        pb, c = self.pb, self.cid
+        belt, walls = self.scene["belt"], self.scene["walls"]
+        wt, wh = float(walls["thickness"]), float(walls["height"])
+        wx = float(belt["half_width"]) + 0.5 * wt
+        shape = pb.createCollisionShapeArray(
+            shapeTypes=[pb.GEOM_BOX, pb.GEOM_BOX], halfExtents=[[0.5 * wt, 0.5 * (whi - wlo), 0.5 * wh]] * 2,
+            collisionFramePositions=[[-wx, 0, 0], [wx, 0, 0]], physicsClientId=c)
+        body = pb.createMultiBody(0, shape, basePosition=[x0, 0.5 * (wlo + whi), 0.5 * wh], physicsClientId=c)
+        self._surface(body, float(walls["friction"]))
+
+    def _add_fences(self, x0: float) -> None:
+        """The plan's fences in the lane: static compounds of their boxes (at most 16 per body)."""
+        pb, c, fc = self.pb, self.cid, self.scene["fences"]
+        fh, fclr = float(fc["height"]), float(fc["clearance"])
+        for f in self.plan.fences:
+            for k in range(0, len(f.boxes), _MAX_COMPOUND):  # pybullet keeps <= 16 shapes per array
+                chunk = f.boxes[k:k + _MAX_COMPOUND]
+                shape = pb.createCollisionShapeArray(
+                    shapeTypes=[pb.GEOM_BOX] * len(chunk),
+                    halfExtents=[[b[2], b[3], 0.5 * fh] for b in chunk],
+                    collisionFramePositions=[[b[0], b[1], 0.0] for b in chunk],
+                    collisionFrameOrientations=[pb.getQuaternionFromEuler([0, 0, b[4]]) for b in chunk],
+                    physicsClientId=c)
+                body = pb.createMultiBody(0, shape, basePosition=[x0, 0.0, fclr + 0.5 * fh], physicsClientId=c)
+                self._surface(body, float(fc["friction"]))
+
+    def _add_part_shape(self) -> int:
+        """The part's collision shape (its pieces as one OBJ compound), shared by every part body."""
+        model = self.model
+        self._tmp = tempfile.TemporaryDirectory(prefix="feeder-sim-")
+        obj = Path(self._tmp.name) / "part.obj"
+        margin = float(self.scene["part"]["collision_margin"])
+        obj.write_text(obj_text(model.pieces, 0.5 * model.thickness - margin))
+        shape = self.pb.createCollisionShape(self.pb.GEOM_MESH, fileName=str(obj), physicsClientId=self.cid)
+        if shape < 0:
+            raise FeederError(f"part {model.part_id}: pybullet rejected its collision shape")
+        return shape
+
+    def _surface(self, body: int, friction: float) -> None:
+        self.pb.changeDynamics(body, -1, lateralFriction=friction, restitution=float(self.scene["restitution"]),
+                               rollingFriction=0.0, spinningFriction=0.0, physicsClientId=self.cid)
+
+    def reset_belt(self, lane: int) -> None:
+        """Put the lane's belt back at its start pose, moving at the belt speed (no part on it)."""
+        pb, c = self.pb, self.cid
+        pb.resetBasePositionAndOrientation(self.belts[lane], [self.lane_x[lane], *self.belt_start], [0, 0, 0, 1],
+                                          physicsClientId=c)
+        pb.resetBaseVelocity(self.belts[lane], self.belt_vel, [0.0, 0.0, 0.0], physicsClientId=c)
+
+    def add_part(self, lane: int, x: float, y: float, yaw_deg: float) -> int:
+        """A part flat on the lane's belt at (x, y), moving with the belt."""
+        pb, c, m = self.pb, self.cid, self.model
+        yb = math.radians(yaw_deg) + m.alpha
+        body = pb.createMultiBody(
+            m.mass, self.part_shape, basePosition=[self.lane_x[lane] + x, y, 0.5 * m.thickness],
+            baseOrientation=[0.0, 0.0, math.sin(0.5 * yb), math.cos(0.5 * yb)], physicsClientId=c)
+        pb.changeDynamics(body, -1, localInertiaDiagonal=list(m.inertia),
+                          collisionMargin=float(self.scene["part"]["collision_margin"]),
+                          linearDamping=0.0, angularDamping=0.0, physicsClientId=c)
+        self._surface(body, float(self.scene["part"]["friction"]))
+        pb.setCollisionFilterGroupMask(body, -1, _PART_GROUP, _PART_MASK, physicsClientId=c)
+        pb.resetBaseVelocity(body, self.belt_vel, [0.0, 0.0, 0.0], physicsClientId=c)
+        return body
+
+    def part_motion(self, body: int):
+        """``(position, orientation, linear velocity, angular velocity)`` of a part, world frame."""
+        pb, c = self.pb, self.cid
+        pos, q = pb.getBasePositionAndOrientation(body, physicsClientId=c)
+        lin, ang = pb.getBaseVelocity(body, physicsClientId=c)
+        return pos, q, lin, ang
+
+    def move_part(self, body: int, dx: float, dy: float, keep_velocity=None) -> None:
+        """Translate a part (same orientation); velocity: the given (lin, ang) or riding the belt."""
+        pb, c = self.pb, self.cid
+        pos, q = pb.getBasePositionAndOrientation(body, physicsClientId=c)
+        pb.resetBasePositionAndOrientation(body, [pos[0] + dx, pos[1] + dy, pos[2]], q, physicsClientId=c)
+        lin, ang = keep_velocity if keep_velocity is not None else (self.belt_vel, [0.0, 0.0, 0.0])
+        pb.resetBaseVelocity(body, lin, ang, physicsClientId=c)
+
+    def remove_part(self, body: int) -> None:
+        self.pb.removeBody(body, physicsClientId=self.cid)
+
+    def step(self) -> None:
+        self.pb.stepSimulation(physicsClientId=self.cid)
+
+    def close(self) -> None:
+        try:
+            self.pb.disconnect(physicsClientId=self.cid)
+        finally:
+            self._tmp.cleanup()

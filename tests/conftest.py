@@ -1,0 +1,26 @@
+"""Shared fixtures: the default synthetic datasets of ``factories.py``, built once per session.
+
+They are read-only; a test that needs other arguments calls the factory itself
+(``from factories import make_regression_dataset, make_level_dataset``).
+"""
+
+from __future__ import annotations
+
+import pytest
+from factories import make_level_dataset, make_regression_dataset
+
+
+@pytest.fixture(scope="session")
+def regression_dataset(tmp_path_factory):
+    """dataset.npz of :func:`factories.make_regression_dataset` with its defaults."""
+    path = tmp_path_factory.mktemp("regression") / "dataset.npz"
+    make_regression_dataset(path)
+    return path
+
+
+@pytest.fixture(scope="session")
+def level_dataset(tmp_path_factory):
+    """dataset.npz of :func:`factories.make_level_dataset` with its defaults."""
+    path = tmp_path_factory.mktemp("levels") / "dataset.npz"
+    make_level_dataset(path)
+    return path

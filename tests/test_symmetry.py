@@ -1,0 +1,86 @@
+"""Rotational order of part outlines."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from feeder.errors import FeederError
+from feeder.parts import symmetry as S
+
+
+def ngon(n, r=1.0, phase=0.3, centre=(5.0, -2.0)):
+    t = phase + 2 * np.pi * np.arange(n) / n
+    return np.column_stack([centre[0] + r * np.cos(t), centre[1] + r * np.sin(t)])
+
+
+SQUARE = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], dtype=float)
+RECT = np.array([[0, 0], [2, 0], [2, 1], [0, 1]], dtype=float)
+TRIANGLE = np.array([[0, 0], [1, 0], [0.5, np.sqrt(3) / 2]])
+LSHAPE = np.array([[0, 0], [3, 0], [3, 1], [1, 1], [1, 3], [0, 3]], dtype=float)
+
+
+@pytest.mark.parametrize("outline, order", [
+    (SQUARE, 4),
+    (SQUARE * 0.02 + 7.0, 4),                 # any unit and frame
+    (TRIANGLE, 3),
+    (RECT, 2),
+    (ngon(6), 6),
+    (LSHAPE, 1),
+    (ngon(64), S.DEFAULT_MAX_ORDER),          # round: capped
+    (ngon(8), 8),
+    (ngon(16), 8),                            # 16-fold, but 360/12 is not a multiple of 22.5°
+    (ngon(5)[::-1], 5),                       # clockwise
+    (np.vstack([SQUARE, SQUARE[:1]]), 4),     # closing duplicate
+])
+def test_rotational_order(outline, order):
+    assert S.rotational_order(outline) == order
+
+
+def test_max_order_caps_and_symmetric_star():
+    assert S.rotational_order(ngon(64), max_order=6) == 6
+    star_t = np.pi / 2 + np.pi * np.arange(10) / 5
+    star = np.column_stack([np.where(np.arange(10) % 2 == 0, 1.0, 0.4) * np.cos(star_t),
+                            np.where(np.arange(10) % 2 == 0, 1.0, 0.4) * np.sin(star_t)])
+    assert S.rotational_order(star) == 5
+
+
+def test_small_defect_breaks_symmetry():
+    square = np.array([[0, 0], [1, 0], [1, 1], [0.51, 1], [0.5, 0.98], [0.49, 1], [0, 1]], dtype=float)
+    assert S.rotational_order(square) == 1       # a 2 % notch in one side
+    assert S.rotational_order(square, tolerance=0.05) == 4
+
+
+def test_check_order():
+    S.check_order(SQUARE, 4)
+    S.check_order(SQUARE, 2)
+    S.check_order(LSHAPE, 1)
+    with pytest.raises(FeederError, match="no 4-fold symmetry"):
+        S.check_order(RECT, 4)
+    with pytest.raises(FeederError, match="no 2-fold symmetry"):
+        S.check_order(LSHAPE, 2)
+    with pytest.raises(FeederError, match="no 3-fold"):
+        S.check_order(SQUARE, 3)
+
+
+def test_symmetry_error_values():
+    assert S.symmetry_error(SQUARE, 4) == pytest.approx(0.0, abs=1e-12)
+    assert S.symmetry_error(SQUARE, 1) == 0.0
+    assert S.symmetry_error(RECT, 4) > 0.1
+
+
+@pytest.mark.parametrize("bad", [np.zeros((2, 2)), np.zeros((4, 3)),
+                                 np.array([[0, 0], [1, 1], [1, 0], [0, 1]], dtype=float),  # bow tie
+                                 np.array([[0, 0], [1, 0], [np.nan, 1]])])
+def test_bad_outlines_raise(bad):
+    with pytest.raises(FeederError):
+        S.rotational_order(bad)
+
+
+def test_bad_settings_raise():
+    with pytest.raises(FeederError):
+        S.rotational_order(SQUARE, tolerance=0.0)
+    with pytest.raises(FeederError):
+        S.rotational_order(SQUARE, max_order=0)
+    with pytest.raises(FeederError):
+        S.check_order(SQUARE, 0)
