@@ -29,7 +29,11 @@ bench: $(STAMP)
 smoke: $(STAMP)
 	$(BIN)/snakemake --cores 2 --configfile config/smoke.yaml
 
+# Also run by `make test` (tests/test_lint.py for the code style, tests/test_workflow.py for snakemake --lint).
 lint: $(STAMP)
+	$(BIN)/ruff check src tests
+	$(BIN)/ruff format --check src tests
+	$(BIN)/snakefmt --check Snakefile workflow
 	$(BIN)/snakemake --lint
 	$(BIN)/snakemake --lint --configfile config/smoke.yaml
 

@@ -2,6 +2,11 @@
 # All logic lives in the `feeder` package (src/feeder); rules only wire files to `feeder` commands.
 # Default: the paper-scale study (config/config.yaml). Tiny version: --configfile config/smoke.yaml.
 
+from snakemake.utils import min_version
+
+min_version("9.0")
+
+
 configfile: "config/config.yaml"
 
 
@@ -33,6 +38,6 @@ onstart:
 
 
 rule all:
+    default_target: True
     input:
         ALL_TARGETS,
-    default_target: True

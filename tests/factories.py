@@ -96,8 +96,14 @@ def small_overrides(dataset, out, model="m3", epochs=3, extra=()):
     for key in ("part_hidden",):
         if key in cfg.model:
             shrink.append(f"model.{key}=[16]")
-    return [f"model={model}", f"paths.dataset={dataset}", f"paths.out={out}",
-            f"trainer.max_epochs={epochs}", *shrink, *extra]
+    return [
+        f"model={model}",
+        f"paths.dataset={dataset}",
+        f"paths.out={out}",
+        f"trainer.max_epochs={epochs}",
+        *shrink,
+        *extra,
+    ]
 
 
 def make_level_dataset(path, n_parts=6, n_configs=10, drops=200, seed=0):
@@ -122,8 +128,15 @@ def make_level_dataset(path, n_parts=6, n_configs=10, drops=200, seed=0):
                 split = "parts"
             else:
                 split = ["train", "train", "train", "train", "train", "test", "fences"][c % 7]
-            for key, val in (("part", p), ("config_id", f"cfg{c}"), ("split", split), ("group_fold", pi % 3),
-                             ("part_raw", part_vec[p]), ("feeder_raw", feeder), ("pmf_levels", pl)):
+            for key, val in (
+                ("part", p),
+                ("config_id", f"cfg{c}"),
+                ("split", split),
+                ("group_fold", pi % 3),
+                ("part_raw", part_vec[p]),
+                ("feeder_raw", feeder),
+                ("pmf_levels", pl),
+            ):
                 rows[key].append(val)
     arrays = {k: np.asarray(v) for k, v in rows.items()}
     arrays["pmf"] = arrays["pmf_levels"][:, -1]

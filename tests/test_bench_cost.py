@@ -10,8 +10,8 @@ import pytest
 
 from feeder.bench import cost as bench_cost
 from feeder.cli import main as cli
-from feeder.errors import FeederError
 from feeder.config import load_study_config
+from feeder.errors import FeederError
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -67,8 +67,20 @@ def test_bench_cost_runs_real_jobs_and_projects_them(tmp_path):
     cfg["sim"]["drops"] = 500
     cfg["sim"]["cost_bench"] = {"configurations": 3, "drops": 2, "seed": 1, "workers": 2, "cores": 2}
     sample_csv, summary_csv = tmp_path / "sample.csv", tmp_path / "summary.csv"
-    assert cli(["bench-cost", "--settings", json.dumps(cfg), "--out-csv", str(sample_csv),
-                "--out-summary", str(summary_csv)]) == 0
+    assert (
+        cli(
+            [
+                "bench-cost",
+                "--settings",
+                json.dumps(cfg),
+                "--out-csv",
+                str(sample_csv),
+                "--out-summary",
+                str(summary_csv),
+            ]
+        )
+        == 0
+    )
     sample, summary = pd.read_csv(sample_csv), pd.read_csv(summary_csv)
     assert list(sample.columns) == bench_cost.SAMPLE_COLUMNS and len(sample) == 3
     assert set(sample["part"]) <= {"rect-a2", "ellipse-a2", "tshape-a"} and (sample["drops"] == 2).all()
@@ -85,15 +97,32 @@ def test_bench_cost_runs_real_jobs_and_projects_them(tmp_path):
 def test_bench_cost_names_a_missing_section(tmp_path, capsys):
     cfg = load_study_config(root=ROOT)
     del cfg["sim"]["cost_bench"]
-    assert cli(["bench-cost", "--settings", json.dumps(cfg), "--out-csv", str(tmp_path / "a.csv"),
-                "--out-summary", str(tmp_path / "b.csv")]) == 2
+    assert (
+        cli(
+            [
+                "bench-cost",
+                "--settings",
+                json.dumps(cfg),
+                "--out-csv",
+                str(tmp_path / "a.csv"),
+                "--out-summary",
+                str(tmp_path / "b.csv"),
+            ]
+        )
+        == 2
+    )
     assert "sim.cost_bench" in capsys.readouterr().err
     assert not list(tmp_path.iterdir())
 
 
 def test_check_projection_compares_the_jobs_that_ran(tmp_path, capsys):
-    sample = pd.DataFrame({"part": ["a", "b", "c"], "config_id": ["straight30_none", "none_curved0", "x_y"],
-                           "ms_per_drop": [100.0, 40.0, 10.0]})
+    sample = pd.DataFrame(
+        {
+            "part": ["a", "b", "c"],
+            "config_id": ["straight30_none", "none_curved0", "x_y"],
+            "ms_per_drop": [100.0, 40.0, 10.0],
+        }
+    )
     sim, bench = tmp_path / "sim", tmp_path / "bench"
     for part, cid, drops, cpu in (("a", "straight30_none", 50, 6.0), ("b", "none_curved0", 100, 3.0)):
         (sim / part).mkdir(parents=True)
@@ -109,10 +138,36 @@ def test_check_projection_compares_the_jobs_that_ran(tmp_path, capsys):
 
     csv = tmp_path / "sample.csv"
     sample.to_csv(csv, index=False)
-    assert cli(["bench-cost", "--check", str(csv), "--sim-dir", str(sim), "--benchmarks", str(bench),
-                "--out-csv", str(tmp_path / "check.csv")]) == 0
+    assert (
+        cli(
+            [
+                "bench-cost",
+                "--check",
+                str(csv),
+                "--sim-dir",
+                str(sim),
+                "--benchmarks",
+                str(bench),
+                "--out-csv",
+                str(tmp_path / "check.csv"),
+            ]
+        )
+        == 0
+    )
     assert "2 sampled jobs have run" in capsys.readouterr().err
-    assert cli(["bench-cost", "--check", str(csv), "--sim-dir", str(tmp_path / "none"),
-                "--out-csv", str(tmp_path / "check2.csv")]) == 2
+    assert (
+        cli(
+            [
+                "bench-cost",
+                "--check",
+                str(csv),
+                "--sim-dir",
+                str(tmp_path / "none"),
+                "--out-csv",
+                str(tmp_path / "check2.csv"),
+            ]
+        )
+        == 2
+    )
     assert "none of the 3 sampled jobs" in capsys.readouterr().err
     assert not (tmp_path / "check2.csv").exists()

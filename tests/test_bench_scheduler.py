@@ -8,9 +8,9 @@ import sys
 
 import pandas as pd
 import pytest
+from workflow_helpers import ROOT
 
 from feeder.bench.scheduler import proc_cpu_seconds, spread
-from workflow_helpers import ROOT
 
 
 def test_proc_cpu_seconds_reads_own_utime_and_stime_not_childrens():
@@ -36,9 +36,25 @@ def test_spread_is_even_and_keeps_all_when_few():
 def test_bench_runs_both_variants_and_the_hook_removes_the_timer_threads(tmp_path):
     out = tmp_path / "bench.csv"
     proc = subprocess.run(
-        [sys.executable, "-m", "feeder", "bench-scheduler", "--study", str(ROOT), "--configfile",
-         "config/smoke.yaml", "--jobs", "4", "--drops", "2", "--out", str(out)],
-        capture_output=True, text=True, timeout=900,
+        [
+            sys.executable,
+            "-m",
+            "feeder",
+            "bench-scheduler",
+            "--study",
+            str(ROOT),
+            "--configfile",
+            "config/smoke.yaml",
+            "--jobs",
+            "4",
+            "--drops",
+            "2",
+            "--out",
+            str(out),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=900,
     )
     assert proc.returncode == 0, proc.stderr[-3000:]
     frame = pd.read_csv(out).set_index("local_rate_limit")
@@ -49,6 +65,9 @@ def test_bench_runs_both_variants_and_the_hook_removes_the_timer_threads(tmp_pat
 
 
 def test_bad_arguments_are_one_line_errors(tmp_path):
-    proc = subprocess.run([sys.executable, "-m", "feeder", "bench-scheduler", "--jobs", "0", "--out",
-                           str(tmp_path / "x.csv")], capture_output=True, text=True)
+    proc = subprocess.run(
+        [sys.executable, "-m", "feeder", "bench-scheduler", "--jobs", "0", "--out", str(tmp_path / "x.csv")],
+        capture_output=True,
+        text=True,
+    )
     assert proc.returncode == 2 and "must be positive" in proc.stderr and not (tmp_path / "x.csv").exists()

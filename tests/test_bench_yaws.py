@@ -31,7 +31,10 @@ def test_summary_counts_the_drops_a_design_saves():
     """Two designs on a two-mode process: 'golden' made from evenly spread quantiles is closer."""
     rng = np.random.default_rng(0)
     levels, n_cfg = [20, 40, 80, 160], 40
-    quant = lambda u: np.where(u < 0.7, 90.0 + 10 * u, 270.0 + 10 * u)  # noqa: E731: yaw from a uniform u
+
+    def quant(u):  # yaw from a uniform u
+        return np.where(u < 0.7, 90.0 + 10 * u, 270.0 + 10 * u)
+
     ref = {i: quant((np.arange(20000) + 0.5) / 20000) for i in range(n_cfg)}  # the exact distribution
     u_even = [np.mod(rng.uniform() + np.arange(160) * (math.sqrt(5) - 1) / 2, 1.0) for _ in range(n_cfg)]
     results = {("random", i): (quant(rng.uniform(size=160)), 1.6) for i in range(n_cfg)}
@@ -57,19 +60,41 @@ def test_summary_counts_the_drops_a_design_saves():
 def test_bench_yaws_cli_tiny_panel(tmp_path):
     cfg = {"scene": CFG["scene"], "labels": CFG["labels"], "sim": dict(CFG["sim"])}
     cfg["sim"]["bench"] = dict(CFG["sim"]["bench"], panel=[["rect-40x20", "straight:45", "none"]])
-    cfg["sim"]["yaw_bench"] = dict(CFG["sim"]["yaw_bench"], preset="coarse", reference_drops=6,
-                                   drop_levels=[2, 4], workers=1)
+    cfg["sim"]["yaw_bench"] = dict(
+        CFG["sim"]["yaw_bench"], preset="coarse", reference_drops=6, drop_levels=[2, 4], workers=1
+    )
     csv, png = tmp_path / "y.csv", tmp_path / "y.png"
-    r = subprocess.run([sys.executable, "-m", "feeder", "bench-yaws", "--settings", json.dumps(cfg),
-                        "--out-csv", str(csv)], cwd=ROOT, capture_output=True, text=True)
+    r = subprocess.run(
+        [sys.executable, "-m", "feeder", "bench-yaws", "--settings", json.dumps(cfg), "--out-csv", str(csv)],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+    )
     assert r.returncode == 0, r.stderr
     df = pd.read_csv(csv)
     assert set(df["design"]) == {"random", "golden"} and set(df["drops"]) == {2, 4}
     assert (df["reference_drops"] == 6).all() and df["js"].notna().all()
-    r = subprocess.run([sys.executable, "-m", "feeder", "figure", "yaw_sampling", "--data", str(csv), "--out", str(png)],
-                       cwd=ROOT, capture_output=True, text=True)
+    r = subprocess.run(
+        [sys.executable, "-m", "feeder", "figure", "yaw_sampling", "--data", str(csv), "--out", str(png)],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+    )
     assert r.returncode == 0, r.stderr
     cfg["sim"]["yaw_bench"]["drop_levels"] = [2, 40]
-    r = subprocess.run([sys.executable, "-m", "feeder", "bench-yaws", "--settings", json.dumps(cfg),
-                        "--out-csv", str(tmp_path / "z.csv")], cwd=ROOT, capture_output=True, text=True)
+    r = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "feeder",
+            "bench-yaws",
+            "--settings",
+            json.dumps(cfg),
+            "--out-csv",
+            str(tmp_path / "z.csv"),
+        ],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+    )
     assert r.returncode != 0 and "reference_drops" in r.stderr and not (tmp_path / "z.csv").exists()

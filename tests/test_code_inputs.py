@@ -16,7 +16,6 @@ import sys
 from pathlib import Path
 
 import pytest
-
 from workflow_helpers import ROOT, snakemake
 
 _RULE = re.compile(r"^(?:local)?rule (\w+):$")

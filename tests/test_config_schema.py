@@ -41,16 +41,16 @@ def _set(config, dotted, value):
 _DELETE = object()
 
 BAD = [
-    ("sim.drops", -5, "drops"),                  # out of range
-    ("sim.drops", "many", "drops"),              # wrong type
-    ("sim.dorps", 10, "dorps"),                  # unknown key (typo)
-    ("labels.on_bad", "ignore", "on_bad"),       # not in enum
+    ("sim.drops", -5, "drops"),  # out of range
+    ("sim.drops", "many", "drops"),  # wrong type
+    ("sim.dorps", 10, "dorps"),  # unknown key (typo)
+    ("labels.on_bad", "ignore", "on_bad"),  # not in enum
     ("datasets.test_fraction", 1.5, "test_fraction"),
     ("labels.levels_pct", [0, 50], "levels_pct"),
     ("parts.include", ["bad_id"], "include"),
     ("models.regression", ["m9"], "regression"),
     ("bogus_section", {}, "bogus_section"),
-    ("sim.preset", _DELETE, "preset"),           # missing required key
+    ("sim.preset", _DELETE, "preset"),  # missing required key
 ]
 
 

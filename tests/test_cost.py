@@ -1,8 +1,7 @@
-import pandas as pd
 import pytest
 
-from feeder.report import cost_by_stage, read_benchmarks
 from feeder.errors import FeederError
+from feeder.report import cost_by_stage, read_benchmarks
 
 HEADER = "s\th:m:s\tmax_rss\tmax_vms\tmax_uss\tmax_pss\tio_in\tio_out\tmean_load\tcpu_time\n"
 

@@ -20,7 +20,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 def small_config(**datasets_overrides):
     cfg = {
-        "sim": {"drops": 60, "min_ok_drops": 30},
+        "sim": {"drops": 60, "min_ok_mass": 0.5},
         "fences": {
             "straight_angles": [20, 40, 60],
             "curved_angles": [0, 45, 90],
@@ -29,12 +29,33 @@ def small_config(**datasets_overrides):
             "reserved_combos": ["straight_curved", "curved_straight"],
             "seed": 0,
         },
-        "labels": {"bins": 360, "sigma_bins": 1.0, "levels_pct": [10, 50, 100], "on_bad": "error", "frame": "part"},
+        "labels": {
+            "bins": 360,
+            "sigma_bins": 1.0,
+            "levels_pct": [10, 50, 100],
+            "on_bad": "error",
+            "frame": "part",
+            "emulated_drops": 200,
+        },
         "datasets": {
-            "test_fraction": 0.15, "split_seed": 42, "group_folds": 3, "holdout_parts": [], "n_holdout": 1,
-            "parts_per_part": 4, "fences_parts": 2, "fences_samples": 3,
-            "convergence": {"compare_pct": 10, "bootstrap": 5, "noise_quantile": 0.95, "js_threshold": 0.001,
-                            "fig4_configurations": 4, "dkw_alpha": 0.05, "peak_prominence": 0.2, "seed": 0},
+            "test_fraction": 0.15,
+            "split_seed": 42,
+            "group_folds": 3,
+            "holdout_parts": [],
+            "n_holdout": 1,
+            "parts_per_part": 4,
+            "fences_parts": 2,
+            "fences_samples": 3,
+            "convergence": {
+                "compare_pct": 10,
+                "bootstrap": 5,
+                "noise_quantile": 0.95,
+                "js_threshold": 0.001,
+                "fig4_configurations": 4,
+                "dkw_alpha": 0.05,
+                "peak_prominence": 0.2,
+                "seed": 0,
+            },
         },
     }
     cfg["datasets"].update(datasets_overrides)
@@ -186,8 +207,14 @@ def write_sim(path, part, cid, rng, drops=60, ok_frac=0.95, centers=(30.0, 200.0
     status = np.where(rng.random(drops) < ok_frac, "ok", "jammed")
     yaw = np.mod(rng.choice(centers, size=drops) + rng.normal(0, 5, drops), 360)
     yaw[status != "ok"] = np.nan
-    np.savez(path, final_yaw_deg=yaw, initial_yaw_deg=rng.uniform(0, 360, drops), status=status,
-             wall_s=np.float64(1.0), meta=np.array(json.dumps({"part": part, "config": cid})))
+    np.savez(
+        path,
+        final_yaw_deg=yaw,
+        initial_yaw_deg=rng.uniform(0, 360, drops),
+        status=status,
+        wall_s=np.float64(1.0),
+        meta=np.array(json.dumps({"part": part, "config": cid})),
+    )
 
 
 def make_world(tmp_path, cfg, parts=PARTS):
@@ -197,19 +224,37 @@ def make_world(tmp_path, cfg, parts=PARTS):
     rng = np.random.default_rng(1)
     for p in parts:
         (tmp_path / "features").mkdir(exist_ok=True)
-        (tmp_path / "features" / f"{p}.json").write_text(json.dumps(
-            {"k": rng.integers(-10, 10, 15).tolist(), "magnitude": rng.random(15).tolist(),
-             "phase": rng.uniform(-3, 3, 15).tolist()}))
+        (tmp_path / "features" / f"{p}.json").write_text(
+            json.dumps(
+                {
+                    "k": rng.integers(-10, 10, 15).tolist(),
+                    "magnitude": rng.random(15).tolist(),
+                    "phase": rng.uniform(-3, 3, 15).tolist(),
+                }
+            )
+        )
     for r in df.itertuples():
-        write_sim(tmp_path / "sim" / r.part / f"{r.config_id}.npz", r.part, r.config_id, rng,
-                  drops=cfg["sim"]["drops"])
+        write_sim(tmp_path / "sim" / r.part / f"{r.config_id}.npz", r.part, r.config_id, rng, drops=cfg["sim"]["drops"])
     return df, csv
 
 
 def run_build(tmp_path, csv, cfg, out="dataset.npz"):
     settings = json.dumps({k: cfg[k] for k in ("sim", "labels", "datasets")})
-    return D.main(["build", "--configurations", str(csv), "--features-dir", str(tmp_path / "features"),
-                   "--sim-dir", str(tmp_path / "sim"), "--settings", settings, "--out", str(tmp_path / out)])
+    return D.main(
+        [
+            "build",
+            "--configurations",
+            str(csv),
+            "--features-dir",
+            str(tmp_path / "features"),
+            "--sim-dir",
+            str(tmp_path / "sim"),
+            "--settings",
+            settings,
+            "--out",
+            str(tmp_path / out),
+        ]
+    )
 
 
 def test_build_end_to_end_and_tables(tmp_path):
@@ -238,8 +283,20 @@ def test_build_end_to_end_and_tables(tmp_path):
     assert ds["excluded_part"].size == 0
 
     tables = tmp_path / "tables"
-    assert D.main(["table4", "--dataset", str(tmp_path / "dataset.npz"), "--out-csv", str(tables / "t4.csv"),
-                   "--out-md", str(tables / "t4.md")]) == 0
+    assert (
+        D.main(
+            [
+                "table4",
+                "--dataset",
+                str(tmp_path / "dataset.npz"),
+                "--out-csv",
+                str(tables / "t4.csv"),
+                "--out-md",
+                str(tables / "t4.md"),
+            ]
+        )
+        == 0
+    )
     t4 = pd.read_csv(tables / "t4.csv")
     assert list(t4.columns[:5]) == ["dataset", "samples", "unique_parts", "purpose", "protocol"]
     assert t4.set_index("dataset").loc["Total (All)", "samples"] == n
@@ -247,9 +304,19 @@ def test_build_end_to_end_and_tables(tmp_path):
 
     figdata = tmp_path / "figdata"
     settings = json.dumps({k: cfg[k] for k in ("labels", "datasets")})
-    args = ["convergence", "--dataset", str(tmp_path / "dataset.npz"), "--settings", settings,
-            "--dkw-csv", str(tables / "dkw.csv"), "--js-csv", str(tables / "js.csv"),
-            "--fig4-data", str(figdata / "fig4.csv")]
+    args = [
+        "convergence",
+        "--dataset",
+        str(tmp_path / "dataset.npz"),
+        "--settings",
+        settings,
+        "--dkw-csv",
+        str(tables / "dkw.csv"),
+        "--js-csv",
+        str(tables / "js.csv"),
+        "--fig4-data",
+        str(figdata / "fig4.csv"),
+    ]
     for name in ("fig5", "fig9", "dkw"):
         args += [f"--{name}-data", str(figdata / f"{name}.npz")]
     assert D.main(args) == 0
@@ -265,8 +332,12 @@ def test_build_end_to_end_and_tables(tmp_path):
         assert list(z["n_drops"]) == [6, 30, 60] and z["median_sup"][-1] == 0.0
         assert np.all(z["q10_sup"] <= z["median_sup"]) and np.all(z["median_sup"] <= z["q90_sup"])
     figs = tmp_path / "figs"
-    for name, data in (("fig4_js_vs_drops", "fig4.csv"), ("fig5_js_hist", "fig5.npz"),
-                       ("fig9_example_pmfs", "fig9.npz"), ("convergence_dkw", "dkw.npz")):
+    for name, data in (
+        ("fig4_js_vs_drops", "fig4.csv"),
+        ("fig5_js_hist", "fig5.npz"),
+        ("fig9_example_pmfs", "fig9.npz"),
+        ("convergence_dkw", "dkw.npz"),
+    ):
         assert cli(["figure", name, "--data", str(figdata / data), "--out", str(figs / f"{name}.png")]) == 0
         assert (figs / f"{name}.png").stat().st_size > 1000
     dkw = pd.read_csv(tables / "dkw.csv")
@@ -284,8 +355,13 @@ def test_dkw_inside_band_for_exchangeable_drops():
     n, drops = 200, 400
     y = rng.uniform(0, 360, (n, drops))
     levels = np.array([10, 25, 50, 100])
-    ds = {"part": np.array(["p"] * n), "final_yaw_deg": y, "n_drops": np.full(n, drops), "levels_pct": levels,
-          "n_ok_levels": np.tile(drops * levels // 100, (n, 1))}
+    ds = {
+        "part": np.array(["p"] * n),
+        "final_yaw_deg": y,
+        "n_drops": np.full(n, drops),
+        "levels_pct": levels,
+        "n_ok_levels": np.tile(drops * levels // 100, (n, 1)),
+    }
     table, sup = C.dkw_table(ds, 0.05)
     assert (table.fraction_inside_band >= 0.9).all()
     # a drifting sequence (first half all near 0 deg) falls outside
@@ -377,12 +453,32 @@ def test_principal_frame_without_frame_deg_is_an_error_naming_the_file(tmp_path,
     cfg = small_config()
     _, csv = make_world(tmp_path, cfg)  # feature files without frame_deg
     cfg["labels"]["frame"] = "principal"
-    assert cli(["datasets", "build", "--configurations", str(csv), "--features-dir", str(tmp_path / "features"),
-                "--sim-dir", str(tmp_path / "sim"), "--out", str(tmp_path / "d.npz"),
-                "--settings", json.dumps({k: cfg[k] for k in ("sim", "labels", "datasets")})]) != 0
+    assert (
+        cli(
+            [
+                "datasets",
+                "build",
+                "--configurations",
+                str(csv),
+                "--features-dir",
+                str(tmp_path / "features"),
+                "--sim-dir",
+                str(tmp_path / "sim"),
+                "--out",
+                str(tmp_path / "d.npz"),
+                "--settings",
+                json.dumps({k: cfg[k] for k in ("sim", "labels", "datasets")}),
+            ]
+        )
+        != 0
+    )
     err = capsys.readouterr().err
     assert "frame_deg" in err and ".json" in err and not (tmp_path / "d.npz").exists()
     cfg["labels"]["frame"] = "sideways"
     with pytest.raises(FeederError, match="labels.frame"):
-        D.build_dataset(pd.read_csv(csv), tmp_path / "features", tmp_path / "sim",
-                        {k: cfg[k] for k in ("sim", "labels", "datasets")})
+        D.build_dataset(
+            pd.read_csv(csv),
+            tmp_path / "features",
+            tmp_path / "sim",
+            {k: cfg[k] for k in ("sim", "labels", "datasets")},
+        )

@@ -63,14 +63,15 @@ def test_inputs_layout():
     ck = np.random.default_rng(1).dirichlet(np.ones(BINS), size=(2, 3))
     x = delta.delta_inputs(np.zeros((2, 53)), ck, np.ones(3, dtype=bool))
     assert x.shape == (2, 53 + 5 * BINS + 14)
-    np.testing.assert_allclose(x[:, 53:53 + BINS], BINS * ck[:, 0])
-    np.testing.assert_allclose(x[:, 53 + 3 * BINS:53 + 4 * BINS], BINS * (ck[:, 0] - ck[:, 1]))
+    np.testing.assert_allclose(x[:, 53 : 53 + BINS], BINS * ck[:, 0])
+    np.testing.assert_allclose(x[:, 53 + 3 * BINS : 53 + 4 * BINS], BINS * (ck[:, 0] - ck[:, 1]))
 
 
 def test_corrected_pmf_is_valid_by_construction():
     torch.manual_seed(0)
-    pmf_k = torch.cat([torch.eye(BINS)[[0, 359]], torch.full((1, BINS), 1.0 / BINS),
-                       torch.softmax(torch.randn(1, BINS) * 5, -1)])
+    pmf_k = torch.cat(
+        [torch.eye(BINS)[[0, 359]], torch.full((1, BINS), 1.0 / BINS), torch.softmax(torch.randn(1, BINS) * 5, -1)]
+    )
     for scale in (0.0, 1.0, 1e4):
         out = torch.randn(4, BINS + 1) * scale
         out[:, -1] = torch.tensor([-1e4, 0.0, 3.0, 1e4]) if scale else 0.0
@@ -137,9 +138,11 @@ def test_cli_sweep_and_table(dataset, tmp_path):
 
 def test_errors_write_nothing(dataset, tmp_path):
     out = tmp_path / "x.json"
-    for args in (["sweep", "--level", "12", "--out", str(out), f"dataset={dataset}", *TINY],
-                 ["sweep", "--level", "5", "--out", str(out), f"dataset={dataset}", *TINY, "+loss.nonsense=1"],
-                 ["sweep", "--level", "5", "--out", str(out), f"dataset={dataset}", *TINY, "random_folds=1"]):
+    for args in (
+        ["sweep", "--level", "12", "--out", str(out), f"dataset={dataset}", *TINY],
+        ["sweep", "--level", "5", "--out", str(out), f"dataset={dataset}", *TINY, "+loss.nonsense=1"],
+        ["sweep", "--level", "5", "--out", str(out), f"dataset={dataset}", *TINY, "random_folds=1"],
+    ):
         with pytest.raises(FeederError) as err:
             delta.main(args)
         assert "\n" not in str(err.value)
@@ -149,8 +152,9 @@ def test_errors_write_nothing(dataset, tmp_path):
 def test_model_beats_the_partial_pmf_at_five_percent(dataset):
     """At 5 % (10 of 200 drops) the fixture's partial PMFs are noisy while the full PMFs follow
     the part and fences: the learned correction must beat the partial PMF under both splits."""
-    res = delta.sweep_level(compose_config("delta", [f"dataset={dataset}", "train.max_epochs=20",
-                                                     "train.batch_size=16"]), 5)
+    res = delta.sweep_level(
+        compose_config("delta", [f"dataset={dataset}", "train.max_epochs=20", "train.batch_size=16"]), 5
+    )
     for mode in delta.MODES:
         m = res["modes"][mode]
         assert m["r2_mean"] > m["baseline_mean"] + 0.02

@@ -25,7 +25,16 @@ def trained(tmp_path_factory, regression_dataset):
 
 
 def test_summarise_uses_population_sd():
-    m = {"r2": np.array([1.0, 0.5]), "w1": np.array([10.0, 20.0, ]), "mse": np.array([0.1, 0.3])}
+    m = {
+        "r2": np.array([1.0, 0.5]),
+        "w1": np.array(
+            [
+                10.0,
+                20.0,
+            ]
+        ),
+        "mse": np.array([0.1, 0.3]),
+    }
     s = E.summarise(m)
     assert s == pytest.approx({"n": 2, "r2_mean": 0.75, "r2_sd": 0.25, "w1_mean": 15.0, "w1_sd": 5.0, "mse_mean": 0.2})
 
@@ -114,8 +123,22 @@ def test_figure_data_and_figures(trained, tmp_path):
 
     root, ds, dirs = trained
     f12, f13 = tmp_path / "f12.npz", tmp_path / "f13.npz"
-    assert E.main(["figure-data", "--dataset", str(ds), "--model", str(dirs[0]), "--fig12-data", str(f12),
-                   "--fig13-data", str(f13)]) == 0
+    assert (
+        E.main(
+            [
+                "figure-data",
+                "--dataset",
+                str(ds),
+                "--model",
+                str(dirs[0]),
+                "--fig12-data",
+                str(f12),
+                "--fig13-data",
+                str(f13),
+            ]
+        )
+        == 0
+    )
     for data_file, split in ((f12, "Test"), (f13, "Parts")):
         with np.load(data_file) as z:
             assert str(z["split"]) == split and z["cdf_true"].shape == z["cdf_pred"].shape

@@ -14,10 +14,10 @@ from feeder.parts.features import (
     as_vector,
     dft_features,
     features_of_file,
+    frame_deg,
     frequencies,
     outline_samples,
     planar_points,
-    frame_deg,
     principal_align,
     read_xyz,
     reconstruct,
@@ -83,8 +83,7 @@ def test_rotated_translated_copy_gives_same_sorted_magnitudes(part):
         np.testing.assert_allclose(mags, base, rtol=0.02)
 
 
-@pytest.mark.parametrize("part", ["lshape-a", "keyhole-a", "tshape-a", "blob-b", "rect-sq",
-                                  "hex-a", "circle-a"])
+@pytest.mark.parametrize("part", ["lshape-a", "keyhole-a", "tshape-a", "blob-b", "rect-sq", "hex-a", "circle-a"])
 def test_resampled_rotated_face_gives_same_magnitudes(part):
     """A face sampled afresh in a rotated pose (a different lattice): within 2 % of |a|max."""
     outline = load_part(PARTS / f"{part}.stl").outline * 1000.0
@@ -139,8 +138,7 @@ def test_units_and_stl_agree_with_xyz(tmp_path):
     assert np.max(np.abs(np.array(stl["magnitude"]) - mm["magnitude"])) < 0.02 * mm["magnitude"][0]
     outline = load_part(PARTS / "keyhole-a.stl").outline
     (tmp_path / "mm.stl").write_bytes(stl_bytes(outline * 1000.0, 8.0))
-    assert features_of_file(tmp_path / "mm.stl")["magnitude"] == pytest.approx(stl["magnitude"],
-                                                                              rel=0.01)
+    assert features_of_file(tmp_path / "mm.stl")["magnitude"] == pytest.approx(stl["magnitude"], rel=0.01)
 
 
 def test_constant_axis_other_than_z_is_dropped(tmp_path):
@@ -183,12 +181,13 @@ def _bad_inputs(tmp_path):
         "text.xyz": ("0 0 0\nhello world again\n", "not numbers"),
         "cols.xyz": ("0 0\n1 0\n0 1\n", "expected 'x y z'"),
         "line.xyz": ("".join(f"{i} {2 * i} 5\n" for i in range(50)), "collinear"),
-        "bumpy.xyz": ("".join(f"{x} {y} {z}\n" for x, y, z in rng.uniform(0, 10, (200, 3))),
-                      "not planar"),
+        "bumpy.xyz": ("".join(f"{x} {y} {z}\n" for x, y, z in rng.uniform(0, 10, (200, 3))), "not planar"),
         "empty.stl": (b"", "empty STL"),
         "cut.stl": (good[:-7], "truncated"),
-        "open.stl": (good[:84 - 4] + (len(good[84:]) // 50 - 1).to_bytes(4, "little")
-                     + good[84:-50], "not watertight"),
+        "open.stl": (
+            good[: 84 - 4] + (len(good[84:]) // 50 - 1).to_bytes(4, "little") + good[84:-50],
+            "not watertight",
+        ),
         "shape.obj": ("v 0 0 0\n", "unknown file type"),
     }
     out = {}
@@ -221,13 +220,13 @@ def test_bad_input_via_subprocess(tmp_path):
     for name in ["nan.xyz", "open.stl"]:
         path, msg = cases[name]
         out = tmp_path / "x.json"
-        proc = subprocess.run([FEEDER, "features", str(path), "--out", str(out)],
-                              capture_output=True, text=True, timeout=120)
+        proc = subprocess.run(
+            [FEEDER, "features", str(path), "--out", str(out)], capture_output=True, text=True, timeout=120
+        )
         assert proc.returncode == 2
         assert len(proc.stderr.strip().splitlines()) == 1 and msg in proc.stderr
         assert not out.exists()
-    proc = subprocess.run([FEEDER, "features", str(PARTS / "blob-a.xyz")],
-                          capture_output=True, text=True, timeout=120)
+    proc = subprocess.run([FEEDER, "features", str(PARTS / "blob-a.xyz")], capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0
     assert len(json.loads(proc.stdout)["k"]) == 15
 
@@ -287,9 +286,22 @@ def test_figure_data_and_s1_table(tmp_path):
 def test_figure_data_rejects_a_bad_count(tmp_path):
     out = tmp_path / "fig6.npz"
     assert cli(["parts", "fig6-data", str(PARTS / "rect-a2.xyz"), "--out", str(out), "--coefficients", "0"]) == 2
-    assert cli(["parts", "s1", str(PARTS / "rect-a2.xyz"), "--table", str(tmp_path / "s1.csv"),
-                "--max-coefficients", "101"]) == 2
+    assert (
+        cli(
+            [
+                "parts",
+                "s1",
+                str(PARTS / "rect-a2.xyz"),
+                "--table",
+                str(tmp_path / "s1.csv"),
+                "--max-coefficients",
+                "101",
+            ]
+        )
+        == 2
+    )
     assert not out.exists() and not (tmp_path / "s1.csv").exists()
+
 
 # ---------------------------------------------------------------- the feature frame in the part frame
 @pytest.mark.parametrize("part", ["lshape-a", "tri-right", "keyhole-a", "rect-a2"])

@@ -16,8 +16,17 @@ def test_round_trip_tokens_and_specs():
 
 @pytest.mark.parametrize(
     "bad",
-    ["straight:0", "straight:90", "curved:-1", "curved:90.5", "wavy:10", "straight", "straight:abc",
-     "straight:nan", "none:5"],
+    [
+        "straight:0",
+        "straight:90",
+        "curved:-1",
+        "curved:90.5",
+        "wavy:10",
+        "straight",
+        "straight:abc",
+        "straight:nan",
+        "none:5",
+    ],
 )
 def test_bad_locations_are_one_line_errors(bad):
     with pytest.raises(FeederError) as err:
@@ -29,4 +38,3 @@ def test_bad_tokens():
     for bad in ["straight", "none30", "curved95", "x_y_z"]:
         with pytest.raises(FeederError):
             parse_config_id(bad) if "_" in bad else parse_token(bad)
-

@@ -24,55 +24,111 @@ LEVELS = np.array([10, 50, 100])
 def _fig6(path):
     t = np.linspace(0, 2 * np.pi, 100, endpoint=False)
     outline = np.stack([0.5 * np.cos(t) + 0.25j * np.sin(t), 0.4 * np.cos(t) + 0.4j * np.sin(t)])
-    np.savez(path, name=np.array(["ellipse", "circle"]), outline=outline, reconstruction=outline * 0.98,
-             mse=np.array([1.5e-2, 2.0e-3]), coefficients=np.int64(15))
+    np.savez(
+        path,
+        name=np.array(["ellipse", "circle"]),
+        outline=outline,
+        reconstruction=outline * 0.98,
+        mse=np.array([1.5e-2, 2.0e-3]),
+        coefficients=np.int64(15),
+    )
 
 
 def _s1(path):
     n = np.arange(1, 21)
     mse = 10.0 / n**2
-    pd.DataFrame({"n_coefficients": n, "mean_mse": mse, "std_mse": mse / 3, "q25_mse": mse / 2,
-                  "median_mse": mse * 0.9, "q75_mse": mse * 1.5, "max_mse": mse * 3, "n_parts": 5}).to_csv(path, index=False)
+    pd.DataFrame(
+        {
+            "n_coefficients": n,
+            "mean_mse": mse,
+            "std_mse": mse / 3,
+            "q25_mse": mse / 2,
+            "median_mse": mse * 0.9,
+            "q75_mse": mse * 1.5,
+            "max_mse": mse * 3,
+            "n_parts": 5,
+        }
+    ).to_csv(path, index=False)
 
 
 def _fig4(path):
-    pd.DataFrame({"level_pct": LEVELS, "n_drops": LEVELS * 10, "mean_js": [0.2, 0.05, 0.0],
-                  "sd_js": [0.05, 0.01, 0.0], "configurations": 7}).to_csv(path, index=False)
+    pd.DataFrame(
+        {
+            "level_pct": LEVELS,
+            "n_drops": LEVELS * 10,
+            "mean_js": [0.2, 0.05, 0.0],
+            "sd_js": [0.05, 0.01, 0.0],
+            "configurations": 7,
+        }
+    ).to_csv(path, index=False)
 
 
 def _fig5(path):
     rng = np.random.default_rng(0)
-    np.savez(path, js=rng.gamma(2.0, 0.01, size=50), noise_floor=np.float64(0.03),
-             noise_quantile=np.float64(0.95), n_drops=np.int64(500), n_drops_full=np.int64(1000))
+    np.savez(
+        path,
+        js=rng.gamma(2.0, 0.01, size=50),
+        noise_floor=np.float64(0.03),
+        noise_quantile=np.float64(0.95),
+        n_drops=np.int64(500),
+        n_drops_full=np.int64(1000),
+    )
 
 
 def _fig9(path):
     yaw = (np.arange(36) + 0.5) * 10.0
-    pmf = np.stack([np.exp(-((yaw - c) / 20.0) ** 2) for c in (90.0, 180.0, 270.0)])
-    np.savez(path, part=np.array(["a", "b", "c"]), config_id=np.array(["straight30_none"] * 3),
-             label=np.array(["1 peak", "most concentrated", "most spread"]), pmf=pmf / pmf.sum(axis=1, keepdims=True),
-             yaw_deg=yaw)
+    pmf = np.stack([np.exp(-(((yaw - c) / 20.0) ** 2)) for c in (90.0, 180.0, 270.0)])
+    np.savez(
+        path,
+        part=np.array(["a", "b", "c"]),
+        config_id=np.array(["straight30_none"] * 3),
+        label=np.array(["1 peak", "most concentrated", "most spread"]),
+        pmf=pmf / pmf.sum(axis=1, keepdims=True),
+        yaw_deg=yaw,
+    )
 
 
 def _dkw(path):
     n = LEVELS * 10
     eps = np.sqrt(np.log(2 / 0.05) / (2 * n))
-    np.savez(path, level_pct=LEVELS, n_drops=n, q10_sup=np.array([0.02, 0.01, 0.0]),
-             median_sup=np.array([0.05, 0.02, 0.0]), q90_sup=np.array([0.1, 0.04, 0.0]), dkw_epsilon=eps,
-             fraction_inside_band=np.array([0.9, 0.97, 1.0]), alpha=np.float64(0.05), n_drops_full=np.int64(1000))
+    np.savez(
+        path,
+        level_pct=LEVELS,
+        n_drops=n,
+        q10_sup=np.array([0.02, 0.01, 0.0]),
+        median_sup=np.array([0.05, 0.02, 0.0]),
+        q90_sup=np.array([0.1, 0.04, 0.0]),
+        dkw_epsilon=eps,
+        fraction_inside_band=np.array([0.9, 0.97, 1.0]),
+        alpha=np.float64(0.05),
+        n_drops_full=np.int64(1000),
+    )
 
 
 def _p2(path):
-    pd.DataFrame({"level_pct": LEVELS, "within_r2_mean": [0.8, 0.9, 0.95], "within_r2_sd": [0.1, 0.05, 0.02],
-                  "cross_r2_mean": [0.6, 0.85, 0.95], "cross_r2_sd": [0.2, 0.1, 0.02],
-                  "partial_baseline_r2_mean": [0.3, 0.8, 1.0]}).to_csv(path, index=False)
+    pd.DataFrame(
+        {
+            "level_pct": LEVELS,
+            "within_r2_mean": [0.8, 0.9, 0.95],
+            "within_r2_sd": [0.1, 0.05, 0.02],
+            "cross_r2_mean": [0.6, 0.85, 0.95],
+            "cross_r2_sd": [0.2, 0.1, 0.02],
+            "partial_baseline_r2_mean": [0.3, 0.8, 1.0],
+        }
+    ).to_csv(path, index=False)
 
 
 def _table10(path):
     frame = {"level_pct": LEVELS, "cost_saved_pct": 100.0 - LEVELS}
     for mode in ("part", "config"):
-        frame.update({f"{mode}_r2_mean": [0.7, 0.9, 0.99], f"{mode}_r2_sd": [0.2, 0.05, 0.01],
-                      f"{mode}_baseline_mean": [0.2, 0.8, 1.0], f"{mode}_baseline_sd": [0.3, 0.1, 0.0]})
+        frame.update(
+            {
+                f"{mode}_r2_mean": [0.7, 0.9, 0.99],
+                f"{mode}_r2_sd": [0.2, 0.05, 0.01],
+                f"{mode}_baseline_mean": [0.2, 0.8, 1.0],
+                f"{mode}_baseline_sd": [0.3, 0.1, 0.0],
+            }
+        )
     pd.DataFrame(frame).to_csv(path, index=False)
 
 
@@ -80,44 +136,89 @@ def _predictions(path):
     yaw = np.arange(36) * 10.0
     true = np.stack([np.clip((yaw - 60.0 * i) / 180.0, 0, 1) for i in range(4)])
     pred = np.clip(true + 0.03, 0, 1)
-    np.savez(path, part=np.array(["a", "b", "c", "d"]), config_id=np.array(["straight30_none"] * 4), yaw_deg=yaw,
-             cdf_true=true, cdf_pred=pred, r2=np.array([0.99, 0.9, 0.7, 0.4]), model=np.array("m3"),
-             split=np.array("Test"))
+    np.savez(
+        path,
+        part=np.array(["a", "b", "c", "d"]),
+        config_id=np.array(["straight30_none"] * 4),
+        yaw_deg=yaw,
+        cdf_true=true,
+        cdf_pred=pred,
+        r2=np.array([0.99, 0.9, 0.7, 0.4]),
+        model=np.array("m3"),
+        split=np.array("Test"),
+    )
 
 
 def _bench(path):
     rows = []
     for setting, ms, js, w1 in (("faithful", 40.0, 0.02, 1.0), ("fast", 4.0, 0.03, 1.5), ("coarse", 1.0, 0.2, 9.0)):
         for drops in (10, 50):
-            rows.append({"setting": setting, "drops": drops, "config": "mean", "ms_per_drop": ms, "js": js * 50 / drops,
-                         "js_floor": 0.025, "w1_deg": w1, "w1_floor_deg": 1.2, "within_floor": js <= 0.025})
+            rows.append(
+                {
+                    "setting": setting,
+                    "drops": drops,
+                    "config": "mean",
+                    "ms_per_drop": ms,
+                    "js": js * 50 / drops,
+                    "js_floor": 0.025,
+                    "w1_deg": w1,
+                    "w1_floor_deg": 1.2,
+                    "within_floor": js <= 0.025,
+                }
+            )
             rows.append({**rows[-1], "config": "rect|straight:45|none"})
     pd.DataFrame(rows).to_csv(path, index=False)
 
 
 def _cost(path):
-    pd.DataFrame({"stage": ["simulate", "train", "figures", "TOTAL"], "jobs": [30, 2, 9, 41],
-                  "wall_s": [120.0, 40.0, 9.0, 169.0], "cpu_s": [110.0, 70.0, 8.0, 188.0],
-                  "max_rss_mb": [300.0, 900.0, 120.0, 900.0]}).to_csv(path, index=False)
+    pd.DataFrame(
+        {
+            "stage": ["simulate", "train", "figures", "TOTAL"],
+            "jobs": [30, 2, 9, 41],
+            "wall_s": [120.0, 40.0, 9.0, 169.0],
+            "cpu_s": [110.0, 70.0, 8.0, 188.0],
+            "max_rss_mb": [300.0, 900.0, 120.0, 900.0],
+        }
+    ).to_csv(path, index=False)
 
 
 def _jams(path):
-    rows = [{"fence": f, "angle_deg": a, "location": loc, "part": p, "ok_rate": r}
-            for f, a, r in (("straight", 30.0, 1.0), ("straight", 65.0, 0.4), ("curved", 60.0, 0.2))
-            for loc in ("loc1", "loc2") for p in ("a", "b", "mean")]
+    rows = [
+        {"fence": f, "angle_deg": a, "location": loc, "part": p, "ok_rate": r}
+        for f, a, r in (("straight", 30.0, 1.0), ("straight", 65.0, 0.4), ("curved", 60.0, 0.2))
+        for loc in ("loc1", "loc2")
+        for p in ("a", "b", "mean")
+    ]
     pd.DataFrame(rows).to_csv(path, index=False)
 
 
 def _yaws(path):
-    rows = [{"design": d, "drops": n, "config": c, "js": 0.5 / n ** e, "w1_deg": 30.0 / n ** e,
-             "random_drops_same_w1": n ** (2 * e), "reference_drops": 1000}
-            for d, e in (("random", 0.5), ("golden", 0.8)) for n in (25, 50, 100) for c in ("a|straight:30|none", "mean")]
+    rows = [
+        {
+            "design": d,
+            "drops": n,
+            "config": c,
+            "js": 0.5 / n**e,
+            "w1_deg": 30.0 / n**e,
+            "random_drops_same_w1": n ** (2 * e),
+            "reference_drops": 1000,
+        }
+        for d, e in (("random", 0.5), ("golden", 0.8))
+        for n in (25, 50, 100)
+        for c in ("a|straight:30|none", "mean")
+    ]
     pd.DataFrame(rows).to_csv(path, index=False)
 
 
 def _sim_cost(path):
-    pd.DataFrame({"part": ["rect", "rect", "crescent"], "config_id": ["straight30_none", "none_curved60", "straight30_none"],
-                  "drops": [20, 20, 20], "ms_per_drop": [80.0, 120.0, 1500.0]}).to_csv(path, index=False)
+    pd.DataFrame(
+        {
+            "part": ["rect", "rect", "crescent"],
+            "config_id": ["straight30_none", "none_curved60", "straight30_none"],
+            "drops": [20, 20, 20],
+            "ms_per_drop": [80.0, 120.0, 1500.0],
+        }
+    ).to_csv(path, index=False)
 
 
 # figure -> (data file name, writer, extra CLI options)
@@ -249,5 +350,9 @@ def test_style_edit_reruns_only_that_figure(tmp_path):
     edit("src/feeder/figures/style.py")
     assert planned_rules(work, *targets, *smoke) == {"draw_s1_dft_mse", "draw_fig6_dft_reconstruction"}
     edit("src/feeder/parts/features.py")
-    assert planned_rules(work, *targets, *smoke) == {"parts_s1", "parts_fig6_data", "draw_s1_dft_mse",
-                                                      "draw_fig6_dft_reconstruction"}
+    assert planned_rules(work, *targets, *smoke) == {
+        "parts_s1",
+        "parts_fig6_data",
+        "draw_s1_dft_mse",
+        "draw_fig6_dft_reconstruction",
+    }

@@ -89,8 +89,27 @@ def _star(n, ro, ri, phase=0.0):
         _star(5, 3.0, 1.0),
         _star(12, 2.0, 1.6, 0.3),
         # comb: many reflex vertices
-        np.array([(0, 0), (7, 0), (7, 3), (6, 3), (6, 1), (5, 1), (5, 3), (4, 3), (4, 1), (3, 1),
-                  (3, 3), (2, 3), (2, 1), (1, 1), (1, 3), (0, 3)], float),
+        np.array(
+            [
+                (0, 0),
+                (7, 0),
+                (7, 3),
+                (6, 3),
+                (6, 1),
+                (5, 1),
+                (5, 3),
+                (4, 3),
+                (4, 1),
+                (3, 1),
+                (3, 3),
+                (2, 3),
+                (2, 1),
+                (1, 1),
+                (1, 3),
+                (0, 3),
+            ],
+            float,
+        ),
     ],
 )
 def test_convex_decomposition_is_exact(outline):
@@ -167,8 +186,9 @@ def _write_bad(tmp_path, kind):
         t[top, 0] += 0.003  # shear: top face shifted in x
         path.write_text(_ascii_stl(t))
     elif kind == "ring":  # square with a square hole: not simply connected
-        outer = shapely.Polygon([(0, 0), (0.04, 0), (0.04, 0.04), (0, 0.04)],
-                                [[(0.01, 0.01), (0.01, 0.03), (0.03, 0.03), (0.03, 0.01)]])
+        outer = shapely.Polygon(
+            [(0, 0), (0.04, 0), (0.04, 0.04), (0, 0.04)], [[(0.01, 0.01), (0.01, 0.03), (0.03, 0.03), (0.03, 0.01)]]
+        )
         caps = shapely.constrained_delaunay_triangles(outer)
         out = []
         for tri in shapely.get_parts(caps):
@@ -177,8 +197,10 @@ def _write_bad(tmp_path, kind):
                 c = c[::-1]
             out.append([[*c[0], 0.01], [*c[1], 0.01], [*c[2], 0.01]])
             out.append([[*c[0], 0.0], [*c[2], 0.0], [*c[1], 0.0]])
-        for ring, sign in [(np.asarray(outer.exterior.coords)[:-1], 1),
-                           (np.asarray(outer.interiors[0].coords)[:-1], -1)]:
+        for ring, sign in [
+            (np.asarray(outer.exterior.coords)[:-1], 1),
+            (np.asarray(outer.interiors[0].coords)[:-1], -1),
+        ]:
             if signed_area(ring) * sign < 0:
                 ring = ring[::-1]
             for p, q in zip(ring, np.roll(ring, -1, axis=0)):
@@ -235,6 +257,5 @@ def test_library_parts_load_with_exact_decomposition():
         g = load_part(path)
         assert all(is_convex(p) for p in g.convex_pieces)
         assert sum(signed_area(p) for p in g.convex_pieces) == pytest.approx(g.area, rel=1e-9)
-        ev = np.linalg.eigvalsh([[g.second_moment[0], g.second_moment[2]],
-                                 [g.second_moment[2], g.second_moment[1]]])
+        ev = np.linalg.eigvalsh([[g.second_moment[0], g.second_moment[2]], [g.second_moment[2], g.second_moment[1]]])
         assert ev.min() > 0 and math.isfinite(ev.max())

@@ -25,8 +25,8 @@ def test_npz_and_json_round_trip(tmp_path):
 
 
 def test_parse_settings_requires_an_object_with_the_named_sections():
-    from feeder.errors import FeederError
     from feeder.config import parse_settings
+    from feeder.errors import FeederError
 
     assert parse_settings('{"sim": {"drops": 3}, "labels": {}}', "sim") == {"sim": {"drops": 3}, "labels": {}}
     for text, needle in (("{", "not valid JSON"), ("[1, 2]", "JSON object"), ('{"sim": {}}', "labels")):

@@ -25,9 +25,11 @@ def test_survey_jobs_cover_every_angle_at_both_locations():
 
 def test_summarize_means_over_parts():
     zero = {"ok": 0.0, "jammed": 0.0, "fell_off": 0.0, "timed_out": 0.0, "flipped": 0.0, "nan": 0.0}
-    rows = [("curved:60", "none", "a", dict(zero, ok=0.25, jammed=0.75)),
-            ("curved:60", "none", "b", dict(zero, ok=0.75, jammed=0.25)),
-            ("none", "curved:60", "a", dict(zero, ok=1.0))]
+    rows = [
+        ("curved:60", "none", "a", dict(zero, ok=0.25, jammed=0.75)),
+        ("curved:60", "none", "b", dict(zero, ok=0.75, jammed=0.25)),
+        ("none", "curved:60", "a", dict(zero, ok=1.0)),
+    ]
     df = jams.summarize(rows)
     mean = df[df["part"] == "mean"].set_index("location")
     assert mean.loc["loc1", "ok_rate"] == pytest.approx(0.5)
@@ -39,11 +41,24 @@ def test_summarize_means_over_parts():
 @pytest.mark.slow
 def test_cli_tiny_survey(tmp_path):
     cfg = {k: CFG[k] for k in ("scene", "sim", "parts")}
-    cfg["sim"] = dict(CFG["sim"], jam_survey={"parts": ["rect-a2"], "drops": 2, "preset": "coarse", "workers": 1,
-                                              "straight_angles": [45], "curved_angles": [90]})
+    cfg["sim"] = dict(
+        CFG["sim"],
+        jam_survey={
+            "parts": ["rect-a2"],
+            "drops": 2,
+            "preset": "coarse",
+            "workers": 1,
+            "straight_angles": [45],
+            "curved_angles": [90],
+        },
+    )
     out = tmp_path / "jams.csv"
-    r = subprocess.run([sys.executable, "-m", "feeder", "bench-jams", "--settings", json.dumps(cfg),
-                        "--out-csv", str(out)], cwd=ROOT, capture_output=True, text=True)
+    r = subprocess.run(
+        [sys.executable, "-m", "feeder", "bench-jams", "--settings", json.dumps(cfg), "--out-csv", str(out)],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+    )
     assert r.returncode == 0, r.stderr
     df = pd.read_csv(out)
     assert len(df) == 4 + 4  # 2 fences x 2 locations x 1 part, plus the mean rows
@@ -51,7 +66,11 @@ def test_cli_tiny_survey(tmp_path):
 
 
 def test_cli_bad_settings_one_line_error(tmp_path):
-    r = subprocess.run([sys.executable, "-m", "feeder", "bench-jams", "--settings", "{", "--out-csv",
-                        str(tmp_path / "x.csv")], cwd=ROOT, capture_output=True, text=True)
+    r = subprocess.run(
+        [sys.executable, "-m", "feeder", "bench-jams", "--settings", "{", "--out-csv", str(tmp_path / "x.csv")],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+    )
     assert r.returncode != 0 and "not valid JSON" in r.stderr
     assert not (tmp_path / "x.csv").exists()

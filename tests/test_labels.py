@@ -3,9 +3,9 @@ import math
 import numpy as np
 import pytest
 
+from feeder.errors import FeederError
 from feeder.labels import metrics as L
 from feeder.labels import pmf as pmf_cli
-from feeder.errors import FeederError
 
 # Z = sum over all integer offsets d of exp(-d^2 / 2) (sigma = 1 bin), written out by hand
 Z = 1 + 2 * sum(math.exp(-d * d / 2) for d in range(1, 40))
@@ -162,11 +162,18 @@ def test_labels_cli_summarises_a_sim_file(tmp_path, capsys):
 
     path = tmp_path / "s.npz"
     status = np.array(["ok", "ok", "jammed", "ok"])
-    np.savez(path, final_yaw_deg=np.array([10.2, 10.7, np.nan, 350.0]), status=status,
-             initial_yaw_deg=np.zeros(4), wall_s=np.float64(1.0), meta=np.array("{}"))
+    np.savez(
+        path,
+        final_yaw_deg=np.array([10.2, 10.7, np.nan, 350.0]),
+        status=status,
+        initial_yaw_deg=np.zeros(4),
+        wall_s=np.float64(1.0),
+        meta=np.array("{}"),
+    )
     assert pmf_cli.main(["pmf", str(path), "--bins", "360", "--sigma", "1"]) == 0
     out = json.loads(capsys.readouterr().out)
-    assert out["drops"] == 4 and out["ok"] == 3 and out["mode_deg"] == 10.5
+    assert out["simulations"] == 4 and out["masses"] == {"jammed": 0.25, "ok": 0.75} and out["mode_deg"] == 10.5
+    assert out["design"] == "random" and out["cdf_bound"] is None  # a file from before the key: random
 
 
 # ---------------------------------------------------------------- shifting a PMF between frames
@@ -189,8 +196,9 @@ def test_shift_pmf_matches_shifting_the_yaws_and_conserves_mass():
     yaws = rng.uniform(0, 360, 500)
     p = L.pmf_from_yaws(yaws, 360, 1.0)
     for delta in (17.0, -123.0, 359.0, 720.0):
-        np.testing.assert_allclose(L.shift_pmf(p, delta), L.pmf_from_yaws(L.normalize_yaw(yaws + delta), 360, 1.0),
-                                   atol=1e-12)
+        np.testing.assert_allclose(
+            L.shift_pmf(p, delta), L.pmf_from_yaws(L.normalize_yaw(yaws + delta), 360, 1.0), atol=1e-12
+        )
     batch = rng.dirichlet(np.ones(360), size=4)
     for delta in (0.3, 200.7, -45.9):
         out = L.shift_pmf(batch, delta)

@@ -62,8 +62,9 @@ def _all_terms_grad(logits, target_pmf):
     log_pmf = torch.log_softmax(logits, dim=-1)
     pmf = torch.exp(log_pmf)
     weights = {name: 1.0 for name in losses.TERMS}
-    total, parts = losses.composite(weights, pmf, log_pmf, torch.cumsum(pmf, -1), target_pmf,
-                                    torch.cumsum(target_pmf, -1))
+    total, parts = losses.composite(
+        weights, pmf, log_pmf, torch.cumsum(pmf, -1), target_pmf, torch.cumsum(target_pmf, -1)
+    )
     total.backward()
     return total, parts, logits.grad
 

@@ -12,8 +12,9 @@ BINS = 360
 
 
 def spec(**kw):
-    base = dict(name="mx", label="pmf", repr="full", arch="standard", output_activation="softmax",
-                bins=BINS, hidden=(16,))
+    base = dict(
+        name="mx", label="pmf", repr="full", arch="standard", output_activation="softmax", bins=BINS, hidden=(16,)
+    )
     base.update(kw)
     return ModelSpec(**base)
 
@@ -65,21 +66,35 @@ def test_fit_pca_reconstructs_and_caps():
     assert np.all(np.diff(small.explained_variance_ratio) <= 0)
 
 
-@pytest.mark.parametrize("label,repr_,act", [("pmf", "full", "softmax"), ("pmf", "pca", "linear"),
-                                             ("cdf", "pca", "linear"), ("cdf", "full", "sigmoid"),
-                                             ("cdf", "full", "linear")])
+@pytest.mark.parametrize(
+    "label,repr_,act",
+    [
+        ("pmf", "full", "softmax"),
+        ("pmf", "pca", "linear"),
+        ("cdf", "pca", "linear"),
+        ("cdf", "full", "sigmoid"),
+        ("cdf", "full", "linear"),
+    ],
+)
 @pytest.mark.parametrize("arch", ["standard", "branched"])
 def test_forward_shapes_and_mean_start(label, repr_, act, arch):
     rng = np.random.default_rng(2)
     y_pmf = rng.dirichlet(np.ones(BINS), size=20)
     y_cdf = np.cumsum(y_pmf, axis=1)
-    kw = dict(label=label, repr=repr_, output_activation=act, arch=arch,
-              components=5 if repr_ == "pca" else None,
-              part_hidden=(8,), feeder_hidden=(4,), shared_hidden=(8,))
+    kw = dict(
+        label=label,
+        repr=repr_,
+        output_activation=act,
+        arch=arch,
+        components=5 if repr_ == "pca" else None,
+        part_hidden=(8,),
+        feeder_hidden=(4,),
+        shared_hidden=(8,),
+    )
     s = spec(**kw)
     pca = models.fit_pca(y_pmf if label == "pmf" else y_cdf, 5) if repr_ == "pca" else None
     torch.manual_seed(0)
-    net = RegressionModel(s, 5 if pca else BINS, *( (pca.mean, pca.components) if pca else (None, None)))
+    net = RegressionModel(s, 5 if pca else BINS, *((pca.mean, pca.components) if pca else (None, None)))
     net.init_output_to_mean(y_pmf.mean(0), y_cdf.mean(0))
     # all-zero scaled input: hidden activations are ReLU(bias) -> still finite outputs
     x = torch.zeros(3, models.INPUT_DIM)
@@ -101,7 +116,7 @@ def test_branched_branches_see_their_features_only():
     x = torch.randn(2, models.INPUT_DIM, requires_grad=True)
     h_part = net.body.part(x[:, : models.PART_DIM])
     h_part.sum().backward()
-    assert x.grad[:, models.PART_DIM:].abs().sum() == 0
+    assert x.grad[:, models.PART_DIM :].abs().sum() == 0
     assert net.body.part[0].in_features == 45 and net.body.feeder[0].in_features == 8
 
 

@@ -65,9 +65,11 @@ def test_family_outlines_by_hand():
     # crescent: disc minus lens; analytic area of the bite (circle-circle intersection)
     big, r, d = 30.0, 24.0, 14.0
     cres = family_outline("crescent", {"radius": big, "inner_radius": r, "offset": d}, 4096)
-    lens = (r * r * math.acos((d * d + r * r - big * big) / (2 * d * r))
-            + big * big * math.acos((d * d + big * big - r * r) / (2 * d * big))
-            - 0.5 * math.sqrt((-d + r + big) * (d + r - big) * (d - r + big) * (d + r + big)))
+    lens = (
+        r * r * math.acos((d * d + r * r - big * big) / (2 * d * r))
+        + big * big * math.acos((d * d + big * big - r * r) / (2 * d * big))
+        - 0.5 * math.sqrt((-d + r + big) * (d + r - big) * (d - r + big) * (d + r + big))
+    )
     assert shape_metrics(cres)["area"] == pytest.approx(math.pi * big * big - lens, rel=1e-4)
     # rotation keeps the shape, the bounding box stays at the origin
     rot = family_outline("rect", {"width": 10, "height": 2, "rotation_deg": 90}, 64)
@@ -87,8 +89,22 @@ def test_library_meets_the_diversity_targets():
     assert s["elongated(aspect_ratio>=4)"] >= 8
     assert s["near_symmetric(eigen_ratio<1.05)"] >= 4
     fams = set(CATALOG["family"])
-    for fam in ["ngon", "triangle", "rect", "rrect", "ellipse", "ibeam", "lshape", "tshape",
-                "ushape", "crescent", "star", "gear", "keyhole", "blob"]:
+    for fam in [
+        "ngon",
+        "triangle",
+        "rect",
+        "rrect",
+        "ellipse",
+        "ibeam",
+        "lshape",
+        "tshape",
+        "ushape",
+        "crescent",
+        "star",
+        "gear",
+        "keyhole",
+        "blob",
+    ]:
         assert fam in fams
     assert list(CATALOG["id"]) == list_parts(PARTS)
     assert all(LIBRARY_ID_RE.match(i) for i in CATALOG["id"])
@@ -110,8 +126,7 @@ def test_catalog_agrees_with_the_stl_within_one_percent():
     for row in CATALOG.itertuples():
         g = load_part(PARTS / f"{row.id}.stl")
         m = shape_metrics(g.outline)
-        for key in ["area", "perimeter", "aspect_ratio", "convexity", "compactness",
-                    "eigen_ratio"]:
+        for key in ["area", "perimeter", "aspect_ratio", "convexity", "compactness", "eigen_ratio"]:
             assert m[key] == pytest.approx(getattr(row, key), rel=0.01), (row.id, key)
         assert g.area == pytest.approx(row.area, rel=0.01)
         assert g.thickness == pytest.approx(row.thickness, rel=0.01)
@@ -134,11 +149,13 @@ def _mini_spec(tmp_path, parts):
 
 
 def test_generate_cli_twice_is_identical(tmp_path, capsys):
-    spec = _mini_spec(tmp_path, [
-        {"id": "sq-1", "family": "rect", "thickness_mm": 6, "params": {"width": 30, "height": 30}},
-        {"id": "st-1", "family": "star", "thickness_mm": 9,
-         "params": {"points": 4, "outer": 20, "inner": 8}},
-    ])
+    spec = _mini_spec(
+        tmp_path,
+        [
+            {"id": "sq-1", "family": "rect", "thickness_mm": 6, "params": {"width": 30, "height": 30}},
+            {"id": "st-1", "family": "star", "thickness_mm": 9, "params": {"points": 4, "outer": 20, "inner": 8}},
+        ],
+    )
     for out in ["a", "b"]:
         assert cli(["parts", "generate", "--spec", str(spec), "--out", str(tmp_path / out)]) == 0
     summary = json.loads(capsys.readouterr().out.splitlines()[-1])
@@ -152,14 +169,13 @@ def test_generate_cli_twice_is_identical(tmp_path, capsys):
 @pytest.mark.parametrize(
     "entry,msg",
     [
-        ({"id": "bad_id", "family": "rect", "thickness_mm": 6, "params": {"width": 30, "height": 30}},
-         "lowercase"),
-        ({"id": "big", "family": "rect", "thickness_mm": 6, "params": {"width": 300, "height": 30}},
-         "size"),
-        ({"id": "thin", "family": "rect", "thickness_mm": 2, "params": {"width": 30, "height": 30}},
-         "thickness"),
-        ({"id": "blobby", "family": "blob", "thickness_mm": 6,
-          "params": {"radius": 20, "harmonics": [[2, 1.2, 0]]}}, "vanish"),
+        ({"id": "bad_id", "family": "rect", "thickness_mm": 6, "params": {"width": 30, "height": 30}}, "lowercase"),
+        ({"id": "big", "family": "rect", "thickness_mm": 6, "params": {"width": 300, "height": 30}}, "size"),
+        ({"id": "thin", "family": "rect", "thickness_mm": 2, "params": {"width": 30, "height": 30}}, "thickness"),
+        (
+            {"id": "blobby", "family": "blob", "thickness_mm": 6, "params": {"radius": 20, "harmonics": [[2, 1.2, 0]]}},
+            "vanish",
+        ),
     ],
 )
 def test_bad_spec_entries_fail_before_writing(tmp_path, capsys, entry, msg):
@@ -173,8 +189,7 @@ def test_bad_spec_entries_fail_before_writing(tmp_path, capsys, entry, msg):
 
 def test_xyz_subcommand_derives_a_face_cloud(tmp_path):
     out = tmp_path / "d.xyz"
-    assert cli(["parts", "xyz", str(PARTS / "lshape-a.stl"), "--out", str(out),
-                "--points", "2000"]) == 0
+    assert cli(["parts", "xyz", str(PARTS / "lshape-a.stl"), "--out", str(out), "--points", "2000"]) == 0
     pts = np.loadtxt(out)
     assert abs(len(pts) - 2000) <= 20
     assert np.ptp(pts[:, 2]) == 0

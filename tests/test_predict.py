@@ -26,8 +26,9 @@ def model_dir(tmp_path_factory):
     T.train(compose_config("train", small_overrides(root / "ds.npz", root / "m3", "m3", epochs=2)))
     data = load_dataset(root / "ds.npz")
     raw = data["part_raw"][0].reshape(15, 3)
-    (root / "p0.json").write_text(json.dumps({"k": raw[:, 0].tolist(), "magnitude": raw[:, 1].tolist(),
-                                              "phase": raw[:, 2].tolist()}))
+    (root / "p0.json").write_text(
+        json.dumps({"k": raw[:, 0].tolist(), "magnitude": raw[:, 1].tolist(), "phase": raw[:, 2].tolist()})
+    )
     return root
 
 
@@ -37,8 +38,20 @@ def test_predict_csv_matches_model(model_dir, tmp_path):
     from feeder.sim.fences import parse_location
 
     out = tmp_path / "pmf.csv"
-    args = ["--model", str(model_dir / "m3"), "--features", str(model_dir / "p0.json"),
-            "--loc1", "straight:30", "--loc2", "none", "--out", str(out), "--plot", str(tmp_path / "p.png")]
+    args = [
+        "--model",
+        str(model_dir / "m3"),
+        "--features",
+        str(model_dir / "p0.json"),
+        "--loc1",
+        "straight:30",
+        "--loc2",
+        "none",
+        "--out",
+        str(out),
+        "--plot",
+        str(tmp_path / "p.png"),
+    ]
     assert P.main(args) == 0
     df = pd.read_csv(out)
     assert list(df.columns) == ["angle_deg", "pmf", "cdf"] and len(df) == 360
@@ -52,8 +65,18 @@ def test_predict_csv_matches_model(model_dir, tmp_path):
 
 
 def test_predict_to_stdout(model_dir, capsys):
-    P.main(["--model", str(model_dir / "m3"), "--features", str(model_dir / "p0.json"),
-            "--loc1", "curved:45", "--loc2", "straight:20"])
+    P.main(
+        [
+            "--model",
+            str(model_dir / "m3"),
+            "--features",
+            str(model_dir / "p0.json"),
+            "--loc1",
+            "curved:45",
+            "--loc2",
+            "straight:20",
+        ]
+    )
     out = capsys.readouterr()
     assert out.out.startswith("angle_deg,pmf,cdf") and "ms" in out.err
 
@@ -62,8 +85,20 @@ def test_predict_to_stdout(model_dir, capsys):
 def test_bad_fences_write_nothing(model_dir, tmp_path, loc1):
     out = tmp_path / "x.csv"
     with pytest.raises(FeederError):
-        P.main(["--model", str(model_dir / "m3"), "--features", str(model_dir / "p0.json"),
-                "--loc1", loc1, "--loc2", "none", "--out", str(out)])
+        P.main(
+            [
+                "--model",
+                str(model_dir / "m3"),
+                "--features",
+                str(model_dir / "p0.json"),
+                "--loc1",
+                loc1,
+                "--loc2",
+                "none",
+                "--out",
+                str(out),
+            ]
+        )
     assert not out.exists()
 
 
@@ -71,15 +106,32 @@ def test_missing_model_or_part(model_dir, tmp_path):
     with pytest.raises(FeederError):
         P.main(["--model", str(tmp_path), "--features", str(model_dir / "p0.json"), "--loc1", "none", "--loc2", "none"])
     with pytest.raises(FeederError):
-        P.main(["--model", str(model_dir / "m3"), "--part", str(tmp_path / "nope.stl"), "--loc1", "none", "--loc2", "none"])
+        P.main(
+            ["--model", str(model_dir / "m3"), "--part", str(tmp_path / "nope.stl"), "--loc1", "none", "--loc2", "none"]
+        )
 
 
 @pytest.mark.skipif(not any(PARTS.glob("*.stl")), reason="no part library in parts/")
 def test_predict_from_stl(model_dir, tmp_path):
     stl = sorted(PARTS.glob("*.stl"))[0]
     out = tmp_path / "stl.csv"
-    assert P.main(["--model", str(model_dir / "m3"), "--part", str(stl), "--loc1", "straight:30",
-                   "--loc2", "none", "--out", str(out)]) == 0
+    assert (
+        P.main(
+            [
+                "--model",
+                str(model_dir / "m3"),
+                "--part",
+                str(stl),
+                "--loc1",
+                "straight:30",
+                "--loc2",
+                "none",
+                "--out",
+                str(out),
+            ]
+        )
+        == 0
+    )
     assert pd.read_csv(out).pmf.sum() == pytest.approx(1.0)
 
 
@@ -97,8 +149,23 @@ def test_principal_frame_model_answers_in_the_part_frame(model_dir, tmp_path):
     (tmp_path / "p0f.json").write_text(json.dumps({**feats, "frame_deg": 30.0}))
     base = ["--model", str(tmp_path / "mp"), "--loc1", "straight:30", "--loc2", "none"]
     assert P.main(base + ["--features", str(tmp_path / "p0f.json"), "--out", str(tmp_path / "a.csv")]) == 0
-    assert P.main(["--model", str(model_dir / "m3"), "--loc1", "straight:30", "--loc2", "none",
-                   "--features", str(model_dir / "p0.json"), "--out", str(tmp_path / "b.csv")]) == 0
+    assert (
+        P.main(
+            [
+                "--model",
+                str(model_dir / "m3"),
+                "--loc1",
+                "straight:30",
+                "--loc2",
+                "none",
+                "--features",
+                str(model_dir / "p0.json"),
+                "--out",
+                str(tmp_path / "b.csv"),
+            ]
+        )
+        == 0
+    )
     got, same_net = pd.read_csv(tmp_path / "a.csv"), pd.read_csv(tmp_path / "b.csv")
     np.testing.assert_allclose(got.pmf, L.shift_pmf(same_net.pmf.to_numpy(), -30.0), atol=1e-12)
     np.testing.assert_allclose(got.cdf, np.cumsum(got.pmf), atol=1e-12)

@@ -10,9 +10,9 @@ from feeder.labels import metrics as L
 from feeder.labels import pushforward as P
 
 BINS = 360
-NUMERIC = 1e-4          # sup|ΔCDF| slack for the dense-sampling reference (≈ 1/DENSE per jump)
-DENSE = 720_000         # midpoint-rule samples of the exact push-forward
-BAND = (200.0, 220.0)   # the chaotic band of the chaotic map
+NUMERIC = 1e-4  # sup|ΔCDF| slack for the dense-sampling reference (≈ 1/DENSE per jump)
+DENSE = 720_000  # midpoint-rule samples of the exact push-forward
+BAND = (200.0, 220.0)  # the chaotic band of the chaotic map
 
 
 # ----------------------------------------------------------------------------------------------
@@ -151,10 +151,11 @@ def test_narrow_basin_is_counted_as_a_band():
     # basin: two jumps 1° apart look like the start of a chaotic band
     def narrow(beta):
         return all_ok(np.where((beta >= 168.3) & (beta < 169.3), 300.0, 30.0))
+
     d = P.refine(narrow, budget=200)
     pmf, _ = P.pushforward_pmf(d, BINS, 0.0)
     assert pmf[300] == pytest.approx(1 / 360, abs=d.label_bound)
-    assert d.label_bound >= 1 / 360               # the basin's inside is in the bound
+    assert d.label_bound >= 1 / 360  # the basin's inside is in the bound
     assert d.label_bound <= 1 / 360 + 2 * d.min_width_deg / 360
     exact = np.zeros(BINS)
     exact[30], exact[300] = 359 / 360, 1 / 360
@@ -165,6 +166,7 @@ def test_a_basin_between_samples_is_missed_and_unchecked_lists_what_the_budget_s
     # the same 1° basin between samples: no sample sees it (documented limit of max_width)
     def hidden(beta):
         return all_ok(np.where((beta >= 150.0) & (beta < 151.0), 300.0, 30.0))
+
     d = P.refine(hidden)
     assert d.label_bound == 0 and d.evaluations == 32 and d.unchecked.size == 0
     # a budget below n0 + the checks leaves agreeing intervals wider than max_width unchecked
@@ -196,7 +198,7 @@ def test_wraparound_basin_is_interpolated_the_short_way():
     exact[355:] = 0.1
     exact[:5] = 0.1
     assert sup_cdf(pmf, exact) <= d.label_bound + 1e-9
-    assert pmf[5:355].sum() <= d.label_bound + 1e-12   # nothing the long way round
+    assert pmf[5:355].sum() <= d.label_bound + 1e-12  # nothing the long way round
     np.testing.assert_allclose(pmf[[356, 357, 358, 359, 0, 1, 2, 3]], 0.1, atol=d.label_bound + 1e-12)
 
 
@@ -240,7 +242,7 @@ def test_chaotic_band_terminates_and_is_bounded():
     exact = chaotic_exact()
     ev = Counting(chaotic_map)
     d = P.refine(ev, budget=200)
-    assert d.evaluations < 200 and sum(ev.sizes) == d.evaluations   # ended by itself
+    assert d.evaluations < 200 and sum(ev.sizes) == d.evaluations  # ended by itself
     pmf, masses = P.pushforward_pmf(d, BINS, 0.0)
     # the unresolved set is the band, to within a bisected interval at either end
     assert d.unresolved.min() >= BAND[0] - d.min_width_deg
@@ -276,7 +278,7 @@ def test_fourfold_symmetry_unfolds_to_the_full_circle():
     kw = dict(tolerance_deg=2.0, min_width_deg=0.5, max_width_deg=5.0)
     one = P.refine(symmetric_map, n0=4, budget=200, period_deg=90.0, **kw)
     full = P.refine(symmetric_map, n0=16, budget=800, period_deg=360.0, **kw)
-    assert one.evaluations < 200 and full.evaluations < 800      # budgets did not bind
+    assert one.evaluations < 200 and full.evaluations < 800  # budgets did not bind
     assert full.evaluations == 4 * one.evaluations
     un = P.unfold(one, 4)
     np.testing.assert_allclose(un.yaws, full.yaws, atol=1e-9)
@@ -285,7 +287,7 @@ def test_fourfold_symmetry_unfolds_to_the_full_circle():
     assert un.label_bound == pytest.approx(full.label_bound)
     np.testing.assert_allclose(un.unresolved, full.unresolved, atol=1e-9)
     for sigma in (0.0, 1.0):
-        p1, m1 = P.pushforward_pmf(one, BINS, sigma)   # unfolds by itself
+        p1, m1 = P.pushforward_pmf(one, BINS, sigma)  # unfolds by itself
         p2, m2 = P.pushforward_pmf(full, BINS, sigma)
         np.testing.assert_allclose(p1, p2, atol=1e-12)
         assert m1.keys() == m2.keys() and all(m1[k] == pytest.approx(m2[k]) for k in m1)
@@ -306,14 +308,14 @@ def test_budget_never_exceeded_and_batched(fmap, budget):
     assert d.evaluations == d.yaws.size == sum(ev.sizes)
     assert d.calls == ev.calls
     assert ev.sizes[0] == 16
-    assert ev.calls <= 1 + max(0, d.evaluations - 16)   # every later call simulates ≥ 1 yaw
+    assert ev.calls <= 1 + max(0, d.evaluations - 16)  # every later call simulates ≥ 1 yaw
     if budget == 16:
         assert ev.calls == 1
     # each round is one batch: far fewer calls than simulations once refinement runs
     if d.evaluations >= 40:
         assert ev.calls <= 12
     seen = np.concatenate(ev.seen)
-    assert np.unique(np.round(seen, 9)).size == seen.size          # no yaw simulated twice
+    assert np.unique(np.round(seen, 9)).size == seen.size  # no yaw simulated twice
     assert (np.diff(d.yaws) > 0).all()
     assert d.yaws[0] >= d.offset_deg and d.yaws[-1] < d.offset_deg + d.period_deg
 
@@ -339,22 +341,25 @@ def test_offset_and_wrapping_interval():
     assert pmf[30] == pytest.approx(1 / 3, abs=d.label_bound + 1e-12)
 
 
-@pytest.mark.parametrize("kwargs, match", [
-    (dict(budget=10), "budget"),
-    (dict(n0=1, budget=10), "n0"),
-    (dict(n0=2.5), "n0"),
-    (dict(tolerance_deg=0.0), "tolerance"),
-    (dict(tolerance_deg=-1.0), "tolerance"),
-    (dict(min_width_deg=0.0), "min_width"),
-    (dict(min_width_deg=float("nan")), "min_width"),
-    (dict(period_deg=50.0), "divide"),
-    (dict(period_deg=0.0), "period"),
-    (dict(period_deg=720.0), "period"),
-    (dict(max_width_deg=0.1), "max_width"),
-    (dict(band_gap_deg=-1.0), "band_gap"),
-    (dict(edge_check_deg=-1.0), "edge_check"),
-    (dict(offset_deg=float("inf")), "offset"),
-])
+@pytest.mark.parametrize(
+    "kwargs, match",
+    [
+        (dict(budget=10), "budget"),
+        (dict(n0=1, budget=10), "n0"),
+        (dict(n0=2.5), "n0"),
+        (dict(tolerance_deg=0.0), "tolerance"),
+        (dict(tolerance_deg=-1.0), "tolerance"),
+        (dict(min_width_deg=0.0), "min_width"),
+        (dict(min_width_deg=float("nan")), "min_width"),
+        (dict(period_deg=50.0), "divide"),
+        (dict(period_deg=0.0), "period"),
+        (dict(period_deg=720.0), "period"),
+        (dict(max_width_deg=0.1), "max_width"),
+        (dict(band_gap_deg=-1.0), "band_gap"),
+        (dict(edge_check_deg=-1.0), "edge_check"),
+        (dict(offset_deg=float("inf")), "offset"),
+    ],
+)
 def test_bad_inputs_raise(kwargs, match):
     with pytest.raises(FeederError, match=match):
         P.refine(step_map, **kwargs)

@@ -12,14 +12,14 @@ import numpy as np
 import pytest
 import yaml
 
+from feeder.errors import FeederError
+from feeder.parts.geometry import PartGeometry, stl_bytes
+from feeder.parts.shapes import shape_part
 from feeder.sim import body as simbody
 from feeder.sim import drops as sim
 from feeder.sim import record
 from feeder.sim import scene as sc
-from feeder.errors import FeederError
 from feeder.sim.fences import Fence, parse_location
-from feeder.parts.geometry import PartGeometry, stl_bytes
-from feeder.parts.shapes import shape_part
 
 ROOT = Path(__file__).resolve().parents[1]
 CFG = yaml.safe_load((ROOT / "config" / "config.yaml").read_text())
@@ -37,8 +37,9 @@ def run(*args, cwd=ROOT):
 # ------------------------------------------------------------------------------------------
 def test_principal_inertia_rectangle_hand_values():
     # 40 x 20 mm, 5 mm, 1200 kg/m³: m = 1200·0.005·8e-4; ∫x² = w³h/12, ∫y² = wh³/12
-    m, (ixx, iyy, izz), alpha = simbody.principal_inertia(8e-4, (0.04 * 0.02**3 / 12, 0.04**3 * 0.02 / 12, 0.0),
-                                                       0.005, 1200.0)
+    m, (ixx, iyy, izz), alpha = simbody.principal_inertia(
+        8e-4, (0.04 * 0.02**3 / 12, 0.04**3 * 0.02 / 12, 0.0), 0.005, 1200.0
+    )
     assert m == pytest.approx(0.0048)
     flat = m * 0.005**2 / 12
     assert ixx == pytest.approx(6.0 * 0.04 * 0.02**3 / 12 + flat)
@@ -65,8 +66,17 @@ def test_principal_axes_of_rotated_rectangle():
 def test_seeds_stable_and_distinct():
     s = sim.drop_seed("rect", "straight30_none", 0)
     assert s == sim.drop_seed("rect", "straight30_none", 0)
-    assert len({s, sim.drop_seed("rect", "straight30_none", 1), sim.drop_seed("rect", "straight31_none", 0),
-                sim.drop_seed("rectb", "straight30_none", 0)}) == 4
+    assert (
+        len(
+            {
+                s,
+                sim.drop_seed("rect", "straight30_none", 1),
+                sim.drop_seed("rect", "straight31_none", 0),
+                sim.drop_seed("rectb", "straight30_none", 0),
+            }
+        )
+        == 4
+    )
     y = sim.initial_yaws(s, 500)
     assert np.array_equal(y, sim.initial_yaws(s, 500)) and y.min() >= 0 and y.max() < 360
     assert np.array_equal(sim.initial_yaws(s, 100), y[:100])  # drop order: a prefix is a prefix
@@ -81,13 +91,16 @@ def test_golden_yaws_spread_every_prefix_evenly():
     # consecutive drops 360/phi apart (mod 360)
     assert np.allclose(np.mod(np.diff(g), 360.0), 360.0 * (math.sqrt(5) - 1) / 2)
     r = sim.initial_yaws(s, 1000)
+
+    def ks(y):  # KS distance of a sample of yaws to the uniform distribution on [0, 360)
+        return np.max(np.abs(np.sort(y) / 360.0 - (np.arange(len(y)) + 0.5) / len(y)))
+
     for n in (10, 37, 100, 1000):
         ys = np.sort(g[:n])
         gaps = np.diff(np.r_[ys, ys[0] + 360.0])
         # three-gap theorem: at most three distinct gaps, the largest under 2.7 x the mean
         assert len(np.unique(np.round(gaps, 6))) <= 3 and gaps.max() < 2.7 * 360.0 / n
         # every prefix is closer to uniform (KS distance) than independent draws of the same size
-        ks = lambda y: np.max(np.abs(np.sort(y) / 360.0 - (np.arange(n) + 0.5) / n))  # noqa: E731
         assert ks(g[:n]) < ks(r[:n]) and ks(g[:n]) < 2.0 / n
     with pytest.raises(FeederError, match="initial yaws are drawn for"):
         sim.initial_yaws(s, 5, "sobol")
@@ -143,8 +156,9 @@ def test_crossing_fences_are_trimmed_to_the_least_gap():
     # far apart: unchanged; every pair of the grid keeps the gap
     up45, _ = sc.scene_fences(SCENE, Fence("straight", 30.0), Fence("straight", 45.0))
     assert up45.boxes == sc.fence_geometry(SCENE, "loc2", Fence("straight", 45.0)).boxes
-    grid = [Fence("straight", a) for a in CFG["fences"]["straight_angles"]] + \
-        [Fence("curved", a) for a in CFG["fences"]["curved_angles"]]
+    grid = [Fence("straight", a) for a in CFG["fences"]["straight_angles"]] + [
+        Fence("curved", a) for a in CFG["fences"]["curved_angles"]
+    ]
     for f1 in grid:
         for f2 in grid:
             fences = sc.scene_fences(SCENE, f1, f2)
@@ -159,7 +173,7 @@ def test_trimmed_curved_fence_loses_tip_boxes():
     down = sc.fence_geometry(scene, "loc1", Fence("straight", 30.0))
     trimmed = sc.trim_to_gap(up_full, down, 0.6)
     assert 0 < len(trimmed.boxes) < len(up_full.boxes)
-    assert trimmed.boxes == up_full.boxes[:len(trimmed.boxes)]  # from the tip: the slot end stays
+    assert trimmed.boxes == up_full.boxes[: len(trimmed.boxes)]  # from the tip: the slot end stays
     assert trimmed.footprint().distance(down.footprint()) >= 0.6
 
 
@@ -174,7 +188,7 @@ def test_curved_fence_centre_and_outer_face(theta):
     boxes = sc.fence_geometry(SCENE, "loc1", Fence("curved", theta)).boxes
     assert len(boxes) == 16
     # outer faces: every box's outer mid-face lies on the circle r + t/2 within the sagitta
-    for cx, cy, hl, ht, yaw in boxes:
+    for cx, cy, _, ht, yaw in boxes:
         n = np.array([math.sin(yaw), -math.cos(yaw)])
         if np.dot(np.array([cx, cy]) - centre, n) < 0:
             n = -n
@@ -206,13 +220,61 @@ def test_table1_lists_the_scene_from_config(tmp_path):
     r = run("scene-table", "--settings", settings, "--out", str(out))
     assert r.returncode == 0, r.stderr
     text = out.read_text()
-    for needle in ["Conveyor speed,0.1", "Part friction (Coulomb mu),0.8", "Fence friction (Coulomb mu),0.5",
-                   "Belt friction (Coulomb mu),1", "Restitution,0", "r = 0.2", "+-0.24 / +-0.272"]:
+    for needle in [
+        "Conveyor speed,0.1",
+        "Part friction (Coulomb mu),0.8",
+        "Fence friction (Coulomb mu),0.5",
+        "Belt friction (Coulomb mu),1",
+        "Restitution,0",
+        "r = 0.2",
+        "+-0.24 / +-0.272",
+    ]:
         assert needle in text
     changed = copy.deepcopy(SCENE)
     changed["part"]["density"] = 777.0
     run("scene-table", "--settings", json.dumps({"scene": changed, "sim": CFG["sim"]}), "--out", str(out))
     assert "Part density,777" in out.read_text()
+
+
+def test_load_settings_from_a_settings_json_in_either_form():
+    assert sc.load_settings(json.dumps({"scene": SCENE, "presets": PRESETS})) == (SCENE, PRESETS)
+    assert sc.load_settings(json.dumps({"scene": SCENE, "sim": CFG["sim"]})) == (SCENE, PRESETS)
+    with pytest.raises(FeederError, match="lack the 'scene' section"):
+        sc.load_settings(json.dumps({"presets": PRESETS}))
+    with pytest.raises(FeederError, match="simulation presets"):
+        sc.load_settings(json.dumps({"scene": SCENE}))
+    with pytest.raises(FeederError, match="not valid JSON"):
+        sc.load_settings("{scene")
+
+
+def test_load_settings_without_json_reads_the_study_config_of_root_or_cwd(tmp_path, monkeypatch):
+    """The study config via feeder.config.load_study_config: that of ``root``, else of the working
+    directory when it has one, else the repository's (so a command works from any directory)."""
+    study = tmp_path / "study"
+    (study / "config").mkdir(parents=True)
+    scene = copy.deepcopy(SCENE)
+    scene["gravity"] = -1.5
+    (study / "config" / "config.yaml").write_text(yaml.safe_dump({"scene": scene, "sim": {"presets": {"fast": FAST}}}))
+    assert sc.load_settings(root=study) == (scene, {"fast": FAST})
+    monkeypatch.chdir(study)
+    assert sc.load_settings() == (scene, {"fast": FAST})
+    monkeypatch.chdir(tmp_path)  # no config here: the repository's
+    assert sc.load_settings() == (SCENE, PRESETS)
+
+
+def test_load_settings_without_a_config_is_a_one_line_error(tmp_path):
+    with pytest.raises(FeederError) as err:
+        sc.load_settings(root=tmp_path)
+    message = str(err.value)
+    assert "\n" not in message
+    assert str(tmp_path / "config" / "config.yaml") in message and "--settings" in message
+
+
+def test_table1_without_settings_runs_outside_the_project_root(tmp_path):
+    out = tmp_path / "t1.csv"
+    r = run("scene-table", "--out", str(out), cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    assert "Conveyor speed,0.1" in out.read_text()
 
 
 # ------------------------------------------------------------------------------------------
@@ -249,8 +311,25 @@ def test_cli_writes_npz_per_contract_and_reruns_bit_identical(tmp_path):
     outs = []
     for k in range(2):
         out = tmp_path / f"o{k}.npz"
-        r = run("simulate", "--part", str(part), "--loc1", "straight:45", "--loc2", "none", "--drops", "8",
-                "--seed", "3", "--preset", "fast", "--settings", settings, "--out", str(out))
+        r = run(
+            "simulate",
+            "--part",
+            str(part),
+            "--loc1",
+            "straight:45",
+            "--loc2",
+            "none",
+            "--drops",
+            "8",
+            "--seed",
+            "3",
+            "--preset",
+            "fast",
+            "--settings",
+            settings,
+            "--out",
+            str(out),
+        )
         assert r.returncode == 0, r.stderr
         outs.append(np.load(out))
     a, b = outs
@@ -259,7 +338,13 @@ def test_cli_writes_npz_per_contract_and_reruns_bit_identical(tmp_path):
     assert a["status"].dtype.kind == "U" and a["wall_s"].shape == () and a["cpu_s"].shape == ()
     meta = json.loads(str(a["meta"]))
     assert (meta["part"], meta["loc1"], meta["loc2"], meta["preset"], meta["seed"], meta["drops"]) == (
-        "rect", "straight:45", "none", "fast", 3, 8)
+        "rect",
+        "straight:45",
+        "none",
+        "fast",
+        3,
+        8,
+    )
     assert "scene" in meta["settings"] and sum(meta["status_counts"].values()) == 8
     ok = a["status"] == "ok"
     assert np.all(np.isnan(a["final_yaw_deg"][~ok]))
@@ -341,8 +426,17 @@ def test_parts_in_one_world_never_touch_each_other():
 
 def _state(**kw):
     """A part's state at one check: flat at rest on the belt at y = 0.5 unless overridden."""
-    base = dict(elapsed=1.0, x=0.0, y=0.5, z=0.0025, q=(0.0, 0.0, 0.0, 1.0), lin=(0.0, 0.1, 0.0),
-                ang=(0.0, 0.0, 0.0), yaw_rad=0.0, yaw_deg=0.0)
+    base = dict(
+        elapsed=1.0,
+        x=0.0,
+        y=0.5,
+        z=0.0025,
+        q=(0.0, 0.0, 0.0, 1.0),
+        lin=(0.0, 0.1, 0.0),
+        ang=(0.0, 0.0, 0.0),
+        yaw_rad=0.0,
+        yaw_deg=0.0,
+    )
     return sim.PartState(**dict(base, **kw))
 
 
@@ -391,16 +485,22 @@ def test_merge_pieces_hand_cases():
     from shapely.geometry import Polygon
     from shapely.ops import unary_union
 
-    halves = [np.array([(0, 0), (0.02, 0), (0.02, 0.02), (0, 0.02)]),
-              np.array([(0.02, 0), (0.04, 0), (0.04, 0.02), (0.02, 0.02)])]
+    halves = [
+        np.array([(0, 0), (0.02, 0), (0.02, 0.02), (0, 0.02)]),
+        np.array([(0.02, 0), (0.04, 0), (0.04, 0.02), (0.02, 0.02)]),
+    ]
     merged = simbody.merge_pieces(halves, 0.0)  # the union is exactly convex: one piece
     assert len(merged) == 1 and Polygon(merged[0]).area == pytest.approx(8e-4)
-    ell = [np.array([(0, 0), (0.04, 0), (0.04, 0.01), (0, 0.01)]),
-           np.array([(0, 0.01), (0.01, 0.01), (0.01, 0.03), (0, 0.03)])]
+    ell = [
+        np.array([(0, 0), (0.04, 0), (0.04, 0.01), (0, 0.01)]),
+        np.array([(0, 0.01), (0.01, 0.01), (0.01, 0.03), (0, 0.03)]),
+    ]
     assert len(simbody.merge_pieces(ell, 2e-4)) == 2  # an L's corner is far deeper than 0.2 mm
     # a shallow notch (0.1 mm deep) is filled at 0.2 mm, kept at 0
-    notch = [np.array([(0, 0), (0.02, 0), (0.02, 0.0099), (0, 0.01)]),
-             np.array([(0.02, 0), (0.04, 0), (0.04, 0.01), (0.02, 0.0099)])]
+    notch = [
+        np.array([(0, 0), (0.02, 0), (0.02, 0.0099), (0, 0.01)]),
+        np.array([(0.02, 0), (0.04, 0), (0.04, 0.01), (0.02, 0.0099)]),
+    ]
     assert len(simbody.merge_pieces(notch, 2e-4)) == 1 and len(simbody.merge_pieces(notch, 0.0)) == 2
     # the merged shape never leaves the true outline by more than the tolerance
     from feeder.parts.geometry import load_part
@@ -470,7 +570,13 @@ def test_a_part_left_with_a_residual_velocity_by_the_compliant_belt_still_comes_
     velocity it never came to rest and timed out after ~57 s of simulated time. Rest is judged
     from the displacement between checks."""
     scene, part = _compliant(), shape_part("rect-60x20", 0.005)
-    out = sim.run_drops(part, parse_location("straight:20"), parse_location("none"),
-                        np.array([107.75289855403528, 285.3328072351865]), scene, FAST)
+    out = sim.run_drops(
+        part,
+        parse_location("straight:20"),
+        parse_location("none"),
+        np.array([107.75289855403528, 285.3328072351865]),
+        scene,
+        FAST,
+    )
     assert list(out["status"]) == ["ok", "ok"]
     assert (out["diag"]["sim_time"] < 10.0).all() and out["diag"]["skips"].min() >= 1

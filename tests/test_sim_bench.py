@@ -19,8 +19,11 @@ CFG = yaml.safe_load((ROOT / "config" / "config.yaml").read_text())
 
 def _fake_results(rng, drops):
     panel = [("rect-40x20", "straight:45", "none"), ("tri-40x25", "curved:45", "none")]
-    settings = {"faithful": dict(CFG["sim"]["presets"]["faithful"]), "fast": dict(CFG["sim"]["presets"]["fast"]),
-                "biased": dict(CFG["sim"]["presets"]["fast"])}
+    settings = {
+        "faithful": dict(CFG["sim"]["presets"]["faithful"]),
+        "fast": dict(CFG["sim"]["presets"]["fast"]),
+        "biased": dict(CFG["sim"]["presets"]["fast"]),
+    }
     res = {}
     ok = np.array(["ok"] * drops)
     for i in range(len(panel)):
@@ -65,17 +68,42 @@ def test_resolve_setting_overrides_base():
 @pytest.mark.slow
 def test_bench_cli_tiny_panel(tmp_path):
     cfg = {"scene": CFG["scene"], "labels": CFG["labels"], "sim": dict(CFG["sim"])}
-    cfg["sim"]["bench"] = dict(CFG["sim"]["bench"], drops=4, drop_levels=[2], workers=1,
-                               panel=[["rect-40x20", "straight:45", "none"]], sweep=[{"name": "fast"}])
+    cfg["sim"]["bench"] = dict(
+        CFG["sim"]["bench"],
+        drops=4,
+        drop_levels=[2],
+        workers=1,
+        panel=[["rect-40x20", "straight:45", "none"]],
+        sweep=[{"name": "fast"}],
+    )
     csv, png = tmp_path / "b.csv", tmp_path / "b.png"
-    r = subprocess.run([sys.executable, "-m", "feeder", "bench-sim", "--settings", json.dumps(cfg),
-                        "--out-csv", str(csv)], cwd=ROOT, capture_output=True, text=True)
+    r = subprocess.run(
+        [sys.executable, "-m", "feeder", "bench-sim", "--settings", json.dumps(cfg), "--out-csv", str(csv)],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+    )
     assert r.returncode == 0, r.stderr
     df = pd.read_csv(csv)
     assert set(df["setting"]) == {"faithful", "fast"}
-    r = subprocess.run([sys.executable, "-m", "feeder", "figure", "sim_accuracy_vs_time", "--data", str(csv),
-                        "--reference", CFG["sim"]["bench"]["reference"], "--out", str(png)],
-                       cwd=ROOT, capture_output=True, text=True)
+    r = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "feeder",
+            "figure",
+            "sim_accuracy_vs_time",
+            "--data",
+            str(csv),
+            "--reference",
+            CFG["sim"]["bench"]["reference"],
+            "--out",
+            str(png),
+        ],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+    )
     assert r.returncode == 0, r.stderr
     assert png.read_bytes()[:4] == b"\x89PNG"
     agg = df[(df["config"] == "mean") & (df["drops"] == 4)].set_index("setting")
@@ -104,8 +132,9 @@ def test_merge_scene_replaces_nested_values_only():
 
 def test_bench_settings_can_be_config_overlays(monkeypatch):
     monkeypatch.chdir(Path(__file__).resolve().parents[1])
-    _, scene, sim_cfg, _ = bench.bench_cli("feeder bench-sim", "doc", ["--out-csv", "x.csv", "--configfile",
-                                                                       "config/rigid.yaml"])
+    _, scene, sim_cfg, _ = bench.bench_cli(
+        "feeder bench-sim", "doc", ["--out-csv", "x.csv", "--configfile", "config/rigid.yaml"]
+    )
     assert scene["belt"]["contact_stiffness"] is None and scene["belt"]["speed"] == 0.10  # overlaid, rest kept
     assert [s["name"] for s in sim_cfg["bench"]["sweep"]][1] == "fast"
     _, plain, _, _ = bench.bench_cli("feeder bench-sim", "doc", ["--out-csv", "x.csv"])
@@ -139,7 +168,7 @@ def test_paired_excess_flags_a_systematic_shift_but_not_sampling():
 
 def test_paired_excess_wraps_around_zero_and_skips_failed_drops():
     rng = np.random.default_rng(3)
-    b, r = (np.degrees(rng.vonmises(0.0, 8.0, (2, 40))) % 360)  # both straddle 0/360
+    b, r = np.degrees(rng.vonmises(0.0, 8.0, (2, 40))) % 360  # both straddle 0/360
     a = b.copy()
     a[:5] = np.nan  # failed drops of the setting: left out of its PMF, not an error
     t = bench.paired_excess([(a, b, r)], 360, 1.0, 50, seed=0)

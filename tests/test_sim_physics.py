@@ -19,12 +19,12 @@ import numpy as np
 import pytest
 import yaml
 
+from feeder.bench.accuracy import bootstrap_js_floor
 from feeder.labels import metrics as labels
+from feeder.parts.shapes import mirror_part, mod180_dist, shape_part
 from feeder.sim import body as simbody
 from feeder.sim import drops as sim
-from feeder.bench.accuracy import bootstrap_js_floor
 from feeder.sim.fences import parse_location
-from feeder.parts.shapes import mirror_part, mod180_dist, shape_part
 
 ROOT = Path(__file__).resolve().parents[1]
 CFG = yaml.safe_load((ROOT / "config" / "config.yaml").read_text())
@@ -98,8 +98,14 @@ def test_mirrored_scene_and_part_give_the_mirrored_distribution():
     mscene = copy.deepcopy(SCENE)
     mscene["mirror"] = True
     # the same drops mirrored: initial yaw ψ becomes -ψ for the mirrored part
-    mirr = sim.run_drops(mirror_part(tri), parse_location("straight:30"), parse_location("none"),
-                         np.mod(-r0["initial_yaw_deg"], 360.0), mscene, FAST)["final_yaw_deg"]
+    mirr = sim.run_drops(
+        mirror_part(tri),
+        parse_location("straight:30"),
+        parse_location("none"),
+        np.mod(-r0["initial_yaw_deg"], 360.0),
+        mscene,
+        FAST,
+    )["final_yaw_deg"]
     unmirrored = np.mod(-mirr, 360.0)  # the mirror image of yaw ψ is -ψ
     floor = _floor(base1, base0)
     assert _js(unmirrored, base0) < floor
@@ -117,7 +123,9 @@ def test_three_to_one_rectangle_concentrates_after_a_long_fence():
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("shape, loc1, loc2", [("rect-40x20", "straight:45", "none"), ("tri-40x25", "curved:30", "none")])
+@pytest.mark.parametrize(
+    "shape, loc1, loc2", [("rect-40x20", "straight:45", "none"), ("tri-40x25", "curved:30", "none")]
+)
 def test_halving_the_time_step_moves_the_pmf_less_than_the_noise_floor(shape, loc1, loc2):
     half = dict(FAST, substeps=2 * FAST["substeps"])
     a0 = _sim(shape, loc1, loc2, 40, seed=0)["final_yaw_deg"]
@@ -129,8 +137,11 @@ def test_halving_the_time_step_moves_the_pmf_less_than_the_noise_floor(shape, lo
 # ------------------------------------------------------------------------------------------
 # shortcuts against the full simulation (same seeds), three scenes each
 # ------------------------------------------------------------------------------------------
-SCENES = [("rect-40x20", "straight:45", "none"), ("tri-40x25", "curved:30", "none"),
-          ("l-40x30x10", "straight:30", "straight:45")]
+SCENES = [
+    ("rect-40x20", "straight:45", "none"),
+    ("tri-40x25", "curved:30", "none"),
+    ("l-40x30x10", "straight:30", "straight:45"),
+]
 SHORTCUT_DROPS = 50
 # a shorter belt for the full path (start 0.2 m before Location 2, record just past the fences)
 SHORT_BELT = copy.deepcopy(SCENE)
@@ -149,9 +160,12 @@ def _full(scene_key, seed):
 @pytest.mark.parametrize("scene_key", SCENES, ids=lambda s: "_".join(s))
 @pytest.mark.parametrize(
     "name, overrides",
-    [("all shortcuts (fast)", {}), ("lanes only", {"lanes": 25, "full_path": True, "skip_slides": False}),
-     ("start/teleport/stop only", {"lanes": 1, "skip_slides": False}),
-     ("slide skipping only", {"lanes": 1, "full_path": False, "skip_slides": True})],
+    [
+        ("all shortcuts (fast)", {}),
+        ("lanes only", {"lanes": 25, "full_path": True, "skip_slides": False}),
+        ("start/teleport/stop only", {"lanes": 1, "skip_slides": False}),
+        ("slide skipping only", {"lanes": 1, "full_path": False, "skip_slides": True}),
+    ],
 )
 def test_shortcut_matches_full_simulation(scene_key, name, overrides):
     r0, r1 = _full(scene_key, 0), _full(scene_key, 1)
@@ -166,12 +180,12 @@ def test_shortcut_matches_full_simulation(scene_key, name, overrides):
 # hard cases: stable, no tunnelling, no energy gain, status counts written
 # ------------------------------------------------------------------------------------------
 HARD = [
-    ("rect-80x8", "straight:40", "none"),     # thin, aspect 10
-    ("rect-10x8", "straight:30", "none"),     # small
-    ("c-40x30x8", "straight:45", "none"),     # concave C
+    ("rect-80x8", "straight:40", "none"),  # thin, aspect 10
+    ("rect-10x8", "straight:30", "none"),  # small
+    ("c-40x30x8", "straight:45", "none"),  # concave C
     ("star-5x25x10", "straight:30", "curved:45"),  # concave star
     ("ellipse-16x15", "straight:30", "none"),  # near-circular
-    ("rect-120x60", "straight:5", "none"),    # angles near the ends of their ranges
+    ("rect-120x60", "straight:5", "none"),  # angles near the ends of their ranges
     ("rect-40x20", "straight:89", "none"),
     ("rect-100x50", "curved:0", "curved:90"),
     ("tri-40x25", "curved:60", "curved:30"),  # curved + curved
@@ -203,4 +217,3 @@ def test_hard_case_is_stable(shape, loc1, loc2):
         cx, cy, hl, ht, yaw = box
         tip_x = cx + hl * math.cos(yaw)
         assert (d["final_x"][ok] < tip_x + model.radius).all()
-

@@ -20,19 +20,22 @@ TRIANGLE = np.array([[0, 0], [1, 0], [0.5, np.sqrt(3) / 2]])
 LSHAPE = np.array([[0, 0], [3, 0], [3, 1], [1, 1], [1, 3], [0, 3]], dtype=float)
 
 
-@pytest.mark.parametrize("outline, order", [
-    (SQUARE, 4),
-    (SQUARE * 0.02 + 7.0, 4),                 # any unit and frame
-    (TRIANGLE, 3),
-    (RECT, 2),
-    (ngon(6), 6),
-    (LSHAPE, 1),
-    (ngon(64), S.DEFAULT_MAX_ORDER),          # round: capped
-    (ngon(8), 8),
-    (ngon(16), 8),                            # 16-fold, but 360/12 is not a multiple of 22.5°
-    (ngon(5)[::-1], 5),                       # clockwise
-    (np.vstack([SQUARE, SQUARE[:1]]), 4),     # closing duplicate
-])
+@pytest.mark.parametrize(
+    "outline, order",
+    [
+        (SQUARE, 4),
+        (SQUARE * 0.02 + 7.0, 4),  # any unit and frame
+        (TRIANGLE, 3),
+        (RECT, 2),
+        (ngon(6), 6),
+        (LSHAPE, 1),
+        (ngon(64), S.DEFAULT_MAX_ORDER),  # round: capped
+        (ngon(8), 8),
+        (ngon(16), 8),  # 16-fold, but 360/12 is not a multiple of 22.5°
+        (ngon(5)[::-1], 5),  # clockwise
+        (np.vstack([SQUARE, SQUARE[:1]]), 4),  # closing duplicate
+    ],
+)
 def test_rotational_order(outline, order):
     assert S.rotational_order(outline) == order
 
@@ -40,14 +43,18 @@ def test_rotational_order(outline, order):
 def test_max_order_caps_and_symmetric_star():
     assert S.rotational_order(ngon(64), max_order=6) == 6
     star_t = np.pi / 2 + np.pi * np.arange(10) / 5
-    star = np.column_stack([np.where(np.arange(10) % 2 == 0, 1.0, 0.4) * np.cos(star_t),
-                            np.where(np.arange(10) % 2 == 0, 1.0, 0.4) * np.sin(star_t)])
+    star = np.column_stack(
+        [
+            np.where(np.arange(10) % 2 == 0, 1.0, 0.4) * np.cos(star_t),
+            np.where(np.arange(10) % 2 == 0, 1.0, 0.4) * np.sin(star_t),
+        ]
+    )
     assert S.rotational_order(star) == 5
 
 
 def test_small_defect_breaks_symmetry():
     square = np.array([[0, 0], [1, 0], [1, 1], [0.51, 1], [0.5, 0.98], [0.49, 1], [0, 1]], dtype=float)
-    assert S.rotational_order(square) == 1       # a 2 % notch in one side
+    assert S.rotational_order(square) == 1  # a 2 % notch in one side
     assert S.rotational_order(square, tolerance=0.05) == 4
 
 
@@ -69,9 +76,15 @@ def test_symmetry_error_values():
     assert S.symmetry_error(RECT, 4) > 0.1
 
 
-@pytest.mark.parametrize("bad", [np.zeros((2, 2)), np.zeros((4, 3)),
-                                 np.array([[0, 0], [1, 1], [1, 0], [0, 1]], dtype=float),  # bow tie
-                                 np.array([[0, 0], [1, 0], [np.nan, 1]])])
+@pytest.mark.parametrize(
+    "bad",
+    [
+        np.zeros((2, 2)),
+        np.zeros((4, 3)),
+        np.array([[0, 0], [1, 1], [1, 0], [0, 1]], dtype=float),  # bow tie
+        np.array([[0, 0], [1, 0], [np.nan, 1]]),
+    ],
+)
 def test_bad_outlines_raise(bad):
     with pytest.raises(FeederError):
         S.rotational_order(bad)

@@ -81,9 +81,16 @@ def test_m3_learns_beyond_the_mean(dataset, tmp_path):
     """A few hundred steps on the synthetic data beat the training-mean distribution on Test."""
     from feeder.labels.metrics import r2_cdf
 
-    cfg = compose_config("train", small_overrides(dataset, tmp_path / "m3", "m3", epochs=150,
-                                                  extra=["model.hidden=[64,64]", "trainer.batch_size=16",
-                                                         "model.lr=0.003"]))
+    cfg = compose_config(
+        "train",
+        small_overrides(
+            dataset,
+            tmp_path / "m3",
+            "m3",
+            epochs=150,
+            extra=["model.hidden=[64,64]", "trainer.batch_size=16", "model.lr=0.003"],
+        ),
+    )
     metrics = T.train(cfg)
     data = load_dataset(dataset)
     tr, te = data["split"] == "train", data["split"] == "test"
@@ -96,8 +103,10 @@ def test_m3_learns_beyond_the_mean(dataset, tmp_path):
 def test_early_stopping_restores_best_epoch(dataset, tmp_path):
     import pandas as pd
 
-    cfg = compose_config("train", small_overrides(dataset, tmp_path / "m7", "m7", epochs=60,
-                                                  extra=["trainer.patience=2", "model.lr=0.05"]))
+    cfg = compose_config(
+        "train",
+        small_overrides(dataset, tmp_path / "m7", "m7", epochs=60, extra=["trainer.patience=2", "model.lr=0.05"]),
+    )
     metrics = T.train(cfg)
     hist = pd.read_csv(tmp_path / "m7" / "history.csv")
     assert metrics["epochs_run"] == len(hist)

@@ -35,7 +35,10 @@ def test_config_is_table3():
 def test_architecture_shapes():
     cfg = compose_config("vae")
     net = vae.build_vae(cfg.model, 53, BINS)
-    lin = lambda seq: [(m.in_features, m.out_features) for m in seq if isinstance(m, torch.nn.Linear)]
+
+    def lin(seq):
+        return [(m.in_features, m.out_features) for m in seq if isinstance(m, torch.nn.Linear)]
+
     assert lin(net["enc_x"]) == [(53, 128), (128, 64), (64, 45)]
     assert lin(net["enc_f"]) == [(360, 256), (256, 128)]
     assert (net["mu"].in_features, net["mu"].out_features) == (173, 35)
@@ -187,9 +190,11 @@ def test_cli_end_to_end(dataset, tmp_path):
 
 def test_errors_are_one_line_and_write_nothing(dataset, tmp_path):
     out = tmp_path / "x.json"
-    for args in (["p2-level", "--level", "7", "--out", str(out), f"dataset={dataset}", *TINY],
-                 ["p2-level", "--level", "5", "--out", str(out), f"dataset={tmp_path / 'missing.npz'}"],
-                 ["p2-level", "--level", "5", "--out", str(out), "train.nonexistent=1"]):
+    for args in (
+        ["p2-level", "--level", "7", "--out", str(out), f"dataset={dataset}", *TINY],
+        ["p2-level", "--level", "5", "--out", str(out), f"dataset={tmp_path / 'missing.npz'}"],
+        ["p2-level", "--level", "5", "--out", str(out), "train.nonexistent=1"],
+    ):
         with pytest.raises(FeederError) as err:
             vae.main(args)
         assert "\n" not in str(err.value)

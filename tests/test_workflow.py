@@ -12,7 +12,6 @@ import numpy as np
 import pandas as pd
 import pytest
 import yaml
-
 from workflow_helpers import ROOT, SNAKEMAKE, merged_config, planned_jobs, planned_rules, scratch_copy, snakemake
 
 pytestmark = pytest.mark.slow
@@ -80,8 +79,11 @@ def test_crash_midway_then_restart_gives_identical_outputs(smoke_run, tmp_path):
     """Kill the whole run hard while simulations are being written, start again, compare."""
     work = scratch_copy(tmp_path / "crash")
     proc = subprocess.Popen(
-        [SNAKEMAKE, "--cores", "2", *SMOKE], cwd=work, start_new_session=True,
-        stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+        [SNAKEMAKE, "--cores", "2", *SMOKE],
+        cwd=work,
+        start_new_session=True,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
     )
     sims = work / "results" / "sim"
     deadline = time.time() + 300
@@ -172,8 +174,18 @@ def test_editing_one_model_config_reruns_only_that_model(smoke_run, edit):
     trained = {out for rule, out in jobs if rule == "train_model"}
     assert trained == {"results/models/m3/model.pt"}
     rules = {rule for rule, _ in jobs}
-    assert rules <= {"train_model", "evaluate_models", "groupkfold_model", "prediction_figure_data",
-                     "draw_fig12_test_predictions", "draw_fig13_parts_predictions"} | ALWAYS
+    assert (
+        rules
+        <= {
+            "train_model",
+            "evaluate_models",
+            "groupkfold_model",
+            "prediction_figure_data",
+            "draw_fig12_test_predictions",
+            "draw_fig13_parts_predictions",
+        }
+        | ALWAYS
+    )
     assert "evaluate_models" in rules
 
 

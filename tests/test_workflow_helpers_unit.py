@@ -21,7 +21,9 @@ def test_select_settings_keeps_nesting_and_only_the_named_keys():
     picked = json.loads(select_settings(config, "sim.min_ok_drops", "labels"))
     assert picked == {"sim": {"min_ok_drops": 20}, "labels": {"bins": 360}}
     # the same settings in another order give the same string (a stable rerun trigger)
-    assert select_settings(config, "labels", "sim.min_ok_drops") == select_settings(config, "sim.min_ok_drops", "labels")
+    assert select_settings(config, "labels", "sim.min_ok_drops") == select_settings(
+        config, "sim.min_ok_drops", "labels"
+    )
 
 
 def _fake_package(root):
@@ -43,15 +45,26 @@ def test_code_modules_follow_function_local_imports_and_packages(tmp_path):
     root = _fake_package(tmp_path)
     assert feeder_imports("feeder.stage.a", root) == {"feeder.stage.b", "feeder.stage.c"}
     assert code_modules("feeder.stage.a", root=root) == [
-        "feeder", "feeder.errors", "feeder.stage", "feeder.stage.a", "feeder.stage.b", "feeder.stage.c"]
+        "feeder",
+        "feeder.errors",
+        "feeder.stage",
+        "feeder.stage.a",
+        "feeder.stage.b",
+        "feeder.stage.c",
+    ]
     assert module_file("feeder.stage", root) == f"{root.as_posix()}/feeder/stage/__init__.py"
     assert module_file("feeder.stage.nothing", root) is None
 
 
 def test_code_inputs_of_a_command_include_its_dispatcher_and_figure_module():
     files = code_inputs("figure", "fig12_test_predictions")
-    assert {"src/feeder/cli.py", "src/feeder/figures/__init__.py", "src/feeder/figures/fig12_test_predictions.py",
-            "src/feeder/figures/_cdf_predictions.py", "src/feeder/figures/style.py"} <= set(files)
+    assert {
+        "src/feeder/cli.py",
+        "src/feeder/figures/__init__.py",
+        "src/feeder/figures/fig12_test_predictions.py",
+        "src/feeder/figures/_cdf_predictions.py",
+        "src/feeder/figures/style.py",
+    } <= set(files)
     sim = code_inputs("simulate")
     assert "src/feeder/sim/drops.py" in sim and "src/feeder/parts/geometry.py" in sim
     assert not any("learn" in f for f in sim)  # a training edit never reruns a simulation
@@ -116,8 +129,11 @@ class _Scheduler:
         self.job_rate_limiter = limiter
 
 
+_LIMITER = object()  # a stand-in for Snakemake's job rate limiter
+
+
 class _Workflow:
-    def __init__(self, local, limiter=object(), scheduler=True):
+    def __init__(self, local, limiter=_LIMITER, scheduler=True):
         self.local_exec = local
         if scheduler:
             self.scheduler = _Scheduler(limiter)
@@ -146,7 +162,10 @@ def test_config_overlays_merge_nested_sections_and_replace_lists(tmp_path):
     from feeder.errors import FeederError
 
     assert overlay_config({"a": {"b": 1, "c": [1, 2]}, "d": 0}, {"a": {"c": [3]}, "e": 5}) == {
-        "a": {"b": 1, "c": [3]}, "d": 0, "e": 5}
+        "a": {"b": 1, "c": [3]},
+        "d": 0,
+        "e": 5,
+    }
     (tmp_path / "config").mkdir()
     (tmp_path / "config" / "config.yaml").write_text("sim:\n  drops: 1000\n  preset: fast\n")
     (tmp_path / "over.yaml").write_text("sim:\n  drops: 50\n")

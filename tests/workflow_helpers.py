@@ -9,6 +9,8 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 SNAKEMAKE = str(Path(sys.executable).parent / "snakemake")
+
+
 def scratch_copy(dest: Path) -> Path:
     from feeder.workflow import copy_study
 
@@ -16,9 +18,7 @@ def scratch_copy(dest: Path) -> Path:
 
 
 def snakemake(work: Path, *args: str, timeout: float = 900) -> subprocess.CompletedProcess:
-    return subprocess.run(
-        [SNAKEMAKE, "--cores", "2", *args], cwd=work, capture_output=True, text=True, timeout=timeout
-    )
+    return subprocess.run([SNAKEMAKE, "--cores", "2", *args], cwd=work, capture_output=True, text=True, timeout=timeout)
 
 
 _RULE = re.compile(r"^(?:local)?rule (\w+):$")

@@ -5,8 +5,8 @@ Two kinds of settings:
 * the study settings (``config/config.yaml`` and the overlays ``smoke.yaml``, ``dense.yaml`` …),
   which the workflow reads with Snakemake's ``--configfile`` and hands to each command as a
   ``--settings`` JSON of the sections it needs: :func:`load_study_config` (what
-  ``snakemake --configfile <overlays>`` sees, for commands run outside the workflow) and
-  :func:`parse_settings` (a command's ``--settings``);
+  ``snakemake --configfile <overlays>`` sees, for commands run outside the workflow; with
+  :func:`study_root`, where that study is) and :func:`parse_settings` (a command's ``--settings``);
 * the model settings, Hydra files under ``config/hydra/`` (``train.yaml`` with the groups
   ``model/``, ``trainer/``, ``hparams_search/``; ``vae.yaml``; ``delta.yaml``):
   :func:`hydra_config_dir` (where they are), :func:`compose_config` (one composed config) and
@@ -27,6 +27,7 @@ from pathlib import Path
 from feeder.errors import FeederError
 
 HYDRA_SUBDIR = Path("config") / "hydra"  # relative to a study directory (or the repository)
+STUDY_CONFIG = Path("config") / "config.yaml"  # likewise
 
 
 # ----------------------------------------------------------------------------------------------
@@ -64,12 +65,24 @@ def load_study_config(*overlays: str | os.PathLike, root: str | os.PathLike = ".
     import yaml
 
     merged: dict = {}
-    for name in ("config/config.yaml", *overlays):
+    for name in (STUDY_CONFIG, *overlays):
         path = Path(root) / name
         if not path.is_file():
             raise FeederError(f"config file {path} not found (run from the project root or pass --settings)")
         overlay_config(merged, yaml.safe_load(path.read_text()) or {})
     return merged
+
+
+def study_root(cwd: str | os.PathLike | None = None) -> Path:
+    """The study directory of a command run outside the workflow without ``--settings``: the
+    working directory when it holds ``config/config.yaml``, else the repository next to the
+    package (like :func:`hydra_config_dir`). When neither holds it, the working directory, so
+    that :func:`load_study_config` names the file it looked for there."""
+    local = Path(cwd or os.getcwd())
+    repo = Path(__file__).resolve().parents[2]
+    if not (local / STUDY_CONFIG).is_file() and (repo / STUDY_CONFIG).is_file():
+        return repo
+    return local
 
 
 # ----------------------------------------------------------------------------------------------
@@ -106,8 +119,9 @@ def compose_config(name: str, overrides: Sequence[str] = (), config_dir: str | o
         raise FeederError(f"{config_dir / name}.yaml with overrides {overrides}: {first}") from None
 
 
-def resolved_yaml(name: str, overrides: Sequence[str] = (), drop: Sequence[str] = (),
-                  config_dir: str | os.PathLike | None = None) -> str:
+def resolved_yaml(
+    name: str, overrides: Sequence[str] = (), drop: Sequence[str] = (), config_dir: str | os.PathLike | None = None
+) -> str:
     """The composed config, fully resolved, as YAML text, without the top-level keys ``drop``
     (settings that do not change a result, like output paths). As a Snakemake ``params:`` value
     it reruns a job exactly when one of its settings changes."""

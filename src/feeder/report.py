@@ -61,8 +61,15 @@ def cost_by_stage(jobs: pd.DataFrame) -> pd.DataFrame:
     )
     grouped = grouped.reset_index().sort_values("wall_s", ascending=False, kind="stable")
     total = pd.DataFrame(
-        [{"stage": "TOTAL", "jobs": int(grouped["jobs"].sum()), "wall_s": grouped["wall_s"].sum(),
-          "cpu_s": grouped["cpu_s"].sum(), "max_rss_mb": grouped["max_rss_mb"].max()}]
+        [
+            {
+                "stage": "TOTAL",
+                "jobs": int(grouped["jobs"].sum()),
+                "wall_s": grouped["wall_s"].sum(),
+                "cpu_s": grouped["cpu_s"].sum(),
+                "max_rss_mb": grouped["max_rss_mb"].max(),
+            }
+        ]
     )
     out = pd.concat([grouped, total], ignore_index=True)[COLUMNS]
     return out.round({"wall_s": 2, "cpu_s": 2, "max_rss_mb": 1})

@@ -6,6 +6,7 @@ import json
 import os
 import sys
 
+
 def module_file(module: str, root: str | os.PathLike = "src") -> str | None:
     """Source file of a dotted module under ``root`` (``feeder.sim.drops`` ->
     ``src/feeder/sim/drops.py``; a package -> its ``__init__.py``), or None if there is none."""

@@ -30,16 +30,20 @@ rule bench_sim:
     input:
         code("bench-sim"),
     output:
-        report("results/tables/sim_accuracy_vs_time.csv", caption="../report/sim_accuracy_vs_time_table.rst", category="Simulation"),
-    params:
-        settings=settings_json("scene", "sim.presets", "sim.bench", "labels"),
-    threads: config["sim"]["bench"]["workers"]
+        report(
+            "results/tables/sim_accuracy_vs_time.csv",
+            caption="../report/sim_accuracy_vs_time_table.rst",
+            category="Simulation",
+        ),
     log:
         "logs/bench_sim/bench_sim.log",
     benchmark:
         "benchmarks/bench_sim/bench_sim.tsv"
     conda:
         "../envs/feeder.yaml"
+    threads: config["sim"]["bench"]["workers"]
+    params:
+        settings=settings_json("scene", "sim.presets", "sim.bench", "labels"),
     shell:
         "feeder bench-sim --settings '{params.settings}' --out-csv {output} > {log} 2>&1"
 
@@ -51,15 +55,15 @@ rule bench_jams:
         parts=expand("{dir}/{part}.stl", dir=config["parts"]["dir"], part=config["sim"]["jam_survey"]["parts"]),
     output:
         report("results/tables/jam_rates.csv", caption="../report/jam_rates.rst", category="Simulation"),
-    params:
-        settings=settings_json("scene", "sim.presets", "sim.jam_survey", "sim.base_seed", "parts.dir"),
-    threads: config["sim"]["jam_survey"]["workers"]
     log:
         "logs/bench_jams/bench_jams.log",
     benchmark:
         "benchmarks/bench_jams/bench_jams.tsv"
     conda:
         "../envs/feeder.yaml"
+    threads: config["sim"]["jam_survey"]["workers"]
+    params:
+        settings=settings_json("scene", "sim.presets", "sim.jam_survey", "sim.base_seed", "parts.dir"),
     shell:
         "feeder bench-jams --settings '{params.settings}' --out-csv {output} > {log} 2>&1"
 
@@ -70,15 +74,15 @@ rule bench_yaws:
         code("bench-yaws"),
     output:
         report("results/tables/yaw_sampling.csv", caption="../report/yaw_sampling_table.rst", category="Simulation"),
-    params:
-        settings=settings_json("scene", "sim.presets", "sim.bench", "sim.yaw_bench", "labels"),
-    threads: config["sim"]["yaw_bench"]["workers"]
     log:
         "logs/bench_yaws/bench_yaws.log",
     benchmark:
         "benchmarks/bench_yaws/bench_yaws.tsv"
     conda:
         "../envs/feeder.yaml"
+    threads: config["sim"]["yaw_bench"]["workers"]
+    params:
+        settings=settings_json("scene", "sim.presets", "sim.bench", "sim.yaw_bench", "labels"),
     shell:
         "feeder bench-yaws --settings '{params.settings}' --out-csv {output} > {log} 2>&1"
 
@@ -91,15 +95,26 @@ rule bench_cost:
     output:
         sample=report("results/tables/sim_cost_sample.csv", caption="../report/sim_cost_sample.rst", category="Cost"),
         summary=report("results/tables/sim_cost.csv", caption="../report/sim_cost.rst", category="Cost"),
-    params:
-        settings=settings_json("parts.dir", "parts.include", "fences", "datasets", "scene", "sim.preset", "sim.presets",
-                               "sim.drops", "sim.base_seed", "sim.yaw_sampling", "sim.cost_bench"),
-    threads: config["sim"]["cost_bench"]["workers"]
     log:
         "logs/bench_cost/bench_cost.log",
     benchmark:
         "benchmarks/bench_cost/bench_cost.tsv"
     conda:
         "../envs/feeder.yaml"
+    threads: config["sim"]["cost_bench"]["workers"]
+    params:
+        settings=settings_json(
+            "parts.dir",
+            "parts.include",
+            "fences",
+            "datasets",
+            "scene",
+            "sim.preset",
+            "sim.presets",
+            "sim.drops",
+            "sim.base_seed",
+            "sim.yaw_sampling",
+            "sim.cost_bench",
+        ),
     shell:
         "feeder bench-cost --settings '{params.settings}' --out-csv {output.sample} --out-summary {output.summary} > {log} 2>&1"

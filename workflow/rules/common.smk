@@ -43,6 +43,14 @@ def sim_settings():
     )
 
 
+def design_options():
+    """`feeder simulate` options of the adaptive design (sim.adaptive); none for the other
+    designs, so editing sim.adaptive reruns only adaptive simulations."""
+    if config["sim"]["yaw_sampling"] != "adaptive":
+        return ""
+    return cli_options({key.replace("_", "-"): value for key, value in config["sim"]["adaptive"].items()})
+
+
 def fence_location(index):
     """Command-line form (straight:30) of Location 1 (index 0) or 2 (index 1) of a job's fence id."""
     return lambda wildcards: parse_config_id(wildcards.fence)[index].spec

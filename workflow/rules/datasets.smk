@@ -25,15 +25,15 @@ rule datasets_configurations:
         code("datasets"),
     output:
         "results/datasets/configurations.csv",
-    params:
-        settings=settings_json("fences", "datasets"),
-        parts=",".join(PARTS),
     log:
         "logs/datasets/configurations.log",
     benchmark:
         "benchmarks/datasets/configurations.tsv"
     conda:
         "../envs/feeder.yaml"
+    params:
+        settings=settings_json("fences", "datasets"),
+        parts=",".join(PARTS),
     shell:
         "feeder datasets configurations --settings '{params.settings}' --parts '{params.parts}'"
         " --out {output} > {log} 2>&1"
@@ -48,14 +48,14 @@ rule datasets_build:
         features=expand("results/features/{part}.json", part=sorted(set(CONFIGS["part"]))),
     output:
         DATASET,
-    params:
-        settings=settings_json("sim", "labels", "datasets"),
     log:
         "logs/datasets/build.log",
     benchmark:
         "benchmarks/datasets/build.tsv"
     conda:
         "../envs/feeder.yaml"
+    params:
+        settings=settings_json("sim", "labels", "datasets"),
     shell:
         "feeder datasets build --configurations {input.configurations} --features-dir results/features"
         " --sim-dir results/sim --settings '{params.settings}' --out {output} > {log} 2>&1"
@@ -88,21 +88,19 @@ rule datasets_convergence:
         dkw_csv=report(
             "results/tables/convergence_dkw.csv", caption="../report/convergence_dkw_table.rst", category="Datasets"
         ),
-        js_csv=report(
-            "results/tables/convergence_js.csv", caption="../report/convergence_js.rst", category="Datasets"
-        ),
+        js_csv=report("results/tables/convergence_js.csv", caption="../report/convergence_js.rst", category="Datasets"),
         fig4="results/figdata/fig4_js_vs_drops.csv",
         fig5="results/figdata/fig5_js_hist.npz",
         fig9="results/figdata/fig9_example_pmfs.npz",
         dkw="results/figdata/convergence_dkw.npz",
-    params:
-        settings=settings_json("labels", "datasets"),
     log:
         "logs/datasets/convergence.log",
     benchmark:
         "benchmarks/datasets/convergence.tsv"
     conda:
         "../envs/feeder.yaml"
+    params:
+        settings=settings_json("labels", "datasets"),
     shell:
         "feeder datasets convergence --dataset {input.dataset} --settings '{params.settings}'"
         " --dkw-csv {output.dkw_csv} --js-csv {output.js_csv} --fig4-data {output.fig4}"

@@ -33,15 +33,15 @@ rule train_model:
     output:
         model="results/models/{model}/model.pt",
         metrics="results/models/{model}/metrics.json",
-    params:
-        hydra=lambda w: HYDRA_SETTINGS[w.model],
-        overrides=HYDRA_ARGS,
     log:
         "logs/models/train_{model}.log",
     benchmark:
         "benchmarks/models/train_{model}.tsv"
     conda:
         "../envs/feeder.yaml"
+    params:
+        hydra=lambda w: HYDRA_SETTINGS[w.model],
+        overrides=HYDRA_ARGS,
     shell:
         "feeder train model={wildcards.model} paths.dataset={input.dataset}"
         " paths.out=$(dirname {output.model}) hydra.run.dir=$(dirname {output.model})/hydra"
@@ -64,7 +64,11 @@ rule evaluate_models:
             for n in (5, 6, 7, 8)
         ],
         breakdowns=[
-            report(f"results/tables/breakdown_{split}.{ext}", caption=f"../report/breakdown_{split}.rst", category="Models")
+            report(
+                f"results/tables/breakdown_{split}.{ext}",
+                caption=f"../report/breakdown_{split}.rst",
+                category="Models",
+            )
             for split in ("fences", "parts")
             for ext in ("csv", "md")
         ],
@@ -87,15 +91,15 @@ rule groupkfold_model:
     output:
         csv=report("results/tables/groupkfold_{model}.csv", caption="../report/groupkfold.rst", category="Models"),
         md=report("results/tables/groupkfold_{model}.md", caption="../report/groupkfold.rst", category="Models"),
-    params:
-        hydra=lambda w: HYDRA_SETTINGS[w.model],
-        overrides=HYDRA_ARGS,
     log:
         "logs/models/groupkfold_{model}.log",
     benchmark:
         "benchmarks/models/groupkfold_{model}.tsv"
     conda:
         "../envs/feeder.yaml"
+    params:
+        hydra=lambda w: HYDRA_SETTINGS[w.model],
+        overrides=HYDRA_ARGS,
     shell:
         "feeder evaluate groupkfold --dataset {input.dataset} --out {output.csv}"
         " model={wildcards.model} {params.overrides} > {log} 2>&1"

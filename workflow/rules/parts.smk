@@ -6,7 +6,6 @@
 # their own jobs (feeder figure ...) from data files, so a style edit redraws only that figure.
 
 
-
 rule part_features:
     """45 raw DFT values of one part: results/features/{part}.json (docs/data.md)."""
     input:
@@ -35,9 +34,11 @@ rule parts_fig6_data:
     input:
         code("parts"),
         src=lambda w: [
-            f"{config['parts']['dir']}/{p}.xyz"
-            if exists(f"{config['parts']['dir']}/{p}.xyz")
-            else f"{config['parts']['dir']}/{p}.stl"
+            (
+                f"{config['parts']['dir']}/{p}.xyz"
+                if exists(f"{config['parts']['dir']}/{p}.xyz")
+                else f"{config['parts']['dir']}/{p}.stl"
+            )
             for p in ([q for q in config["parts"]["fig6"] if q in PARTS] or PARTS[:8])
         ],
     output:
@@ -58,20 +59,22 @@ rule parts_s1:
     input:
         code("parts"),
         src=lambda w: [
-            f"{config['parts']['dir']}/{p}.xyz"
-            if exists(f"{config['parts']['dir']}/{p}.xyz")
-            else f"{config['parts']['dir']}/{p}.stl"
+            (
+                f"{config['parts']['dir']}/{p}.xyz"
+                if exists(f"{config['parts']['dir']}/{p}.xyz")
+                else f"{config['parts']['dir']}/{p}.stl"
+            )
             for p in PARTS
         ],
     output:
         report("results/tables/s1_dft_mse.csv", caption="../report/s1_dft_mse_table.rst", category="Parts"),
-    params:
-        max_coefficients=config["parts"]["s1_max_coefficients"],
     log:
         "logs/features/s1.log",
     benchmark:
         "benchmarks/features/s1.tsv"
     conda:
         "../envs/feeder.yaml"
+    params:
+        max_coefficients=config["parts"]["s1_max_coefficients"],
     shell:
         "feeder parts s1 {input.src} --table {output} --max-coefficients {params.max_coefficients} > {log} 2>&1"

@@ -27,14 +27,14 @@ rule cost_by_stage:
     output:
         csv=report(f"{TABLES}/cost_by_stage.csv", caption="../report/cost_by_stage.rst", category="Cost"),
         provenance="results/provenance.json",
-    params:
-        config=settings_json(*config),
     log:
         "logs/report/cost_by_stage.log",
     benchmark:
         "benchmarks/report/cost_by_stage.tsv"
     conda:
         "../envs/feeder.yaml"
+    params:
+        config=settings_json(*config),
     shell:
         "feeder cost --benchmarks benchmarks --out-csv {output.csv}"
         " --provenance {output.provenance} --config-json '{params.config}' > {log} 2>&1"
@@ -75,13 +75,13 @@ for fig, (data, caption, category, options) in FIGURE_TABLE.items():
             data=data,
         output:
             report(f"{FIGURES}/{fig}.png", caption=f"../report/{caption}.rst", category=category),
-        params:
-            options=cli_options(options),
         log:
             f"logs/figures/{fig}.log",
         benchmark:
             f"benchmarks/figures/{fig}.tsv"
         conda:
             "../envs/feeder.yaml"
+        params:
+            options=cli_options(options),
         shell:
             f"feeder figure {fig} --data {{input.data}} {{params.options}} --out {{output}} > {{log}} 2>&1"

@@ -20,6 +20,7 @@ rule simulate:
         drops=config["sim"]["drops"],
         seed=config["sim"]["base_seed"],
         yaw_sampling=config["sim"]["yaw_sampling"],
+        design=design_options(),
         loc1=fence_location(0),
         loc2=fence_location(1),
     log:
@@ -30,7 +31,8 @@ rule simulate:
         "../envs/feeder.yaml"
     shell:
         "feeder simulate --part {input.part} --loc1 {params.loc1} --loc2 {params.loc2}"
-        " --drops {params.drops} --seed {params.seed} --yaw-sampling {params.yaw_sampling} --preset {params.preset}"
+        " --drops {params.drops} --seed {params.seed} --yaw-sampling {params.yaw_sampling} {params.design}"
+        " --preset {params.preset}"
         " --settings '{params.settings}' --out {output} > {log} 2>&1"
 
 

@@ -9,7 +9,6 @@ import shlex
 
 from feeder.learn.vae import rule_params, select_levels
 
-
 P2_LEVELS = select_levels(config["vae"]["p2_levels"], config["labels"]["levels_pct"], "vae.p2_levels")
 DELTA_LEVELS = select_levels(config["delta"]["levels"], config["labels"]["levels_pct"], "delta.levels")
 VAE_OVERRIDES = [f"dataset={DATASET}", *config["vae"]["hydra_overrides"]]
@@ -36,15 +35,15 @@ rule vae_train:
         dataset=DATASET,
     output:
         "results/vae/main.pt",
-    params:
-        hydra=VAE_HYDRA["resolved"],
-        overrides=VAE_HYDRA["overrides"],
     log:
         "logs/vae/train.log",
     benchmark:
         "benchmarks/vae/train.tsv"
     conda:
         "../envs/feeder.yaml"
+    params:
+        hydra=VAE_HYDRA["resolved"],
+        overrides=VAE_HYDRA["overrides"],
     shell:
         "feeder vae train --out {output} {params.overrides} > {log} 2>&1"
 
@@ -75,17 +74,17 @@ rule vae_p2_level:
         dataset=DATASET,
     output:
         "results/vae/p2/level_{level}.json",
-    wildcard_constraints:
-        level=r"\d+",
-    params:
-        hydra=VAE_HYDRA["resolved"],
-        overrides=VAE_HYDRA["overrides"],
     log:
         "logs/vae/p2_level_{level}.log",
     benchmark:
         "benchmarks/vae/p2_level_{level}.tsv"
+    wildcard_constraints:
+        level=r"\d+",
     conda:
         "../envs/feeder.yaml"
+    params:
+        hydra=VAE_HYDRA["resolved"],
+        overrides=VAE_HYDRA["overrides"],
     shell:
         "feeder vae p2-level --level {wildcards.level} --out {output} {params.overrides} > {log} 2>&1"
 
@@ -115,17 +114,17 @@ rule delta_sweep_level:
         dataset=DATASET,
     output:
         "results/delta/level_{level}.json",
-    wildcard_constraints:
-        level=r"\d+",
-    params:
-        hydra=DELTA_HYDRA["resolved"],
-        overrides=DELTA_HYDRA["overrides"],
     log:
         "logs/delta/level_{level}.log",
     benchmark:
         "benchmarks/delta/level_{level}.tsv"
+    wildcard_constraints:
+        level=r"\d+",
     conda:
         "../envs/feeder.yaml"
+    params:
+        hydra=DELTA_HYDRA["resolved"],
+        overrides=DELTA_HYDRA["overrides"],
     shell:
         "feeder delta sweep --level {wildcards.level} --out {output} {params.overrides} > {log} 2>&1"
 
@@ -139,15 +138,14 @@ rule delta_table:
     output:
         csv=report("results/tables/table10.csv", caption="../report/table10.rst", category="VAE and delta"),
         md=report("results/tables/table10.md", caption="../report/table10.rst", category="VAE and delta"),
-    params:
-        hydra=DELTA_HYDRA["resolved"],
-        overrides=" ".join(f"--override {shlex.quote(o)}" for o in DELTA_OVERRIDES),
     log:
         "logs/delta/table.log",
     benchmark:
         "benchmarks/delta/table.tsv"
     conda:
         "../envs/feeder.yaml"
+    params:
+        hydra=DELTA_HYDRA["resolved"],
+        overrides=" ".join(f"--override {shlex.quote(o)}" for o in DELTA_OVERRIDES),
     shell:
-        "feeder delta table --table {output.csv} {params.overrides}"
-        " {input.levels} > {log} 2>&1"
+        "feeder delta table --table {output.csv} {params.overrides}" " {input.levels} > {log} 2>&1"

@@ -39,15 +39,23 @@ from feeder.errors import FeederError
 def _run(job):
     """Worker: one (setting, seed, panel entry) simulation → yaws, statuses, CPU seconds."""
     name, preset, seed, idx, entry, scene, thickness = job
-    from feeder.sim.fences import parse_location
-    from feeder.sim.drops import simulate
     from feeder.parts.shapes import shape_part
+    from feeder.sim.drops import simulate
+    from feeder.sim.fences import parse_location
 
     shape, loc1, loc2 = entry
     geom = shape_part(shape, thickness)
     t0 = time.process_time()
-    res = simulate(geom, parse_location(loc1), parse_location(loc2), preset["drops"], seed, scene,
-                   {k: v for k, v in preset.items() if k != "drops"}, name)
+    res = simulate(
+        geom,
+        parse_location(loc1),
+        parse_location(loc2),
+        preset["drops"],
+        seed,
+        scene,
+        {k: v for k, v in preset.items() if k != "drops"},
+        name,
+    )
     cpu = time.process_time() - t0
     return name, seed, idx, res["final_yaw_deg"], res["status"], cpu
 
@@ -64,16 +72,18 @@ def _metrics(yaws_a, yaws_b, bins, sigma):
     return (float(labels.js_divergence(pa, pb)), float(labels.w1(ca, cb)), float(labels.r2_cdf(cb, ca)))
 
 
-def bootstrap_js_floor(sample_a, sample_b, n: int, bins: int, sigma: float, resamples: int,
-                       quantile: float, seed: int) -> float:
+def bootstrap_js_floor(
+    sample_a, sample_b, n: int, bins: int, sigma: float, resamples: int, quantile: float, seed: int
+) -> float:
     """Bootstrap noise floor of the JS divergence between two samples of ``n`` drops.
 
     The ok yaws of two runs of the same process (e.g. two seeds) are pooled; pairs of samples of
     ``n`` drawn with replacement from the pool give the JS divergence expected from sampling alone;
     the ``quantile`` of ``resamples`` such values is returned (NaN when neither run has an ok drop,
-    e.g. a fence that jams every part: the configuration then has no distribution to compare). Unlike a single two-seed value it
-    also covers near-discrete outcomes (sub-degree peaks), where two seeds differ by peak weights
-    only while any change of the numerics reshuffles drops within a peak.
+    e.g. a fence that jams every part: the configuration then has no distribution to compare).
+    Unlike a single two-seed value it also covers near-discrete outcomes (sub-degree peaks), where
+    two seeds differ by peak weights only while any change of the numerics reshuffles drops within
+    a peak.
     """
     from feeder.labels import metrics as labels
 
@@ -211,7 +221,7 @@ def summarize(results, settings, panel, seeds, ref_name, drops, bench, labels_cf
     s0, s1 = seeds
     rows = []
     ref_ms = np.mean([results[(ref_name, s, i)][2] for s in seeds for i in range(len(panel))]) * 1e3 / drops
-    for name, preset in settings.items():
+    for name in settings:
         seed = s1
         for k in levels:
             per = []
@@ -221,28 +231,60 @@ def summarize(results, settings, panel, seeds, ref_name, drops, bench, labels_cf
                 floor_yaws = results[(ref_name, s1, i)][0]
                 js, w1, r2 = _metrics(yaws[:k], ref_yaws, bins, sigma)
                 fjs, fw1, fr2 = _metrics(floor_yaws[:k], ref_yaws, bins, sigma)
-                bjs = bootstrap_js_floor(ref_yaws, floor_yaws, k, bins, sigma, int(bench["boot_resamples"]),
-                                         float(bench["boot_quantile"]), seed=i)
+                bjs = bootstrap_js_floor(
+                    ref_yaws,
+                    floor_yaws,
+                    k,
+                    bins,
+                    sigma,
+                    int(bench["boot_resamples"]),
+                    float(bench["boot_quantile"]),
+                    seed=i,
+                )
                 ok = float(np.mean(status[:k] == "ok"))
                 ref_ok = float(np.mean(results[(ref_name, s0, i)][1] == "ok"))
-                per.append(dict(setting=name, drops=k, config=f"{entry[0]}|{entry[1]}|{entry[2]}",
-                                ms_per_drop=cpu * 1e3 / drops, js=js, w1_deg=w1, r2_cdf=r2,
-                                js_floor=fjs, js_floor_boot=bjs, w1_floor_deg=fw1, r2_floor=fr2, ok_rate=ok,
-                                ref_ok_rate=ref_ok))
+                per.append(
+                    dict(
+                        setting=name,
+                        drops=k,
+                        config=f"{entry[0]}|{entry[1]}|{entry[2]}",
+                        ms_per_drop=cpu * 1e3 / drops,
+                        js=js,
+                        w1_deg=w1,
+                        r2_cdf=r2,
+                        js_floor=fjs,
+                        js_floor_boot=bjs,
+                        w1_floor_deg=fw1,
+                        r2_floor=fr2,
+                        ok_rate=ok,
+                        ref_ok_rate=ref_ok,
+                    )
+                )
             rows += per
             df = pd.DataFrame(per)
             ms = float(df["ms_per_drop"].mean())
-            agg = dict(setting=name, drops=k, config="mean", ms_per_drop=ms,
-                       js=df["js"].mean(), w1_deg=df["w1_deg"].mean(), r2_cdf=df["r2_cdf"].mean(),
-                       js_floor=df["js_floor"].mean(), js_floor_boot=df["js_floor_boot"].mean(),
-                       w1_floor_deg=df["w1_floor_deg"].mean(),
-                       r2_floor=df["r2_floor"].mean(), ok_rate=df["ok_rate"].mean(),
-                       ref_ok_rate=df["ref_ok_rate"].mean())
+            agg = dict(
+                setting=name,
+                drops=k,
+                config="mean",
+                ms_per_drop=ms,
+                js=df["js"].mean(),
+                w1_deg=df["w1_deg"].mean(),
+                r2_cdf=df["r2_cdf"].mean(),
+                js_floor=df["js_floor"].mean(),
+                js_floor_boot=df["js_floor_boot"].mean(),
+                w1_floor_deg=df["w1_floor_deg"].mean(),
+                r2_floor=df["r2_floor"].mean(),
+                ok_rate=df["ok_rate"].mean(),
+                ref_ok_rate=df["ref_ok_rate"].mean(),
+            )
             agg["speedup_vs_reference"] = ref_ms / ms if ms > 0 else np.nan
             agg["below_two_seed_floor"] = bool(agg["js"] <= agg["js_floor"] and agg["w1_deg"] <= agg["w1_floor_deg"])
             # paired test: farther from the reference than its own second seed, beyond sampling?
-            triples = [(results[(name, seed, i)][0][:k], results[(ref_name, s1, i)][0][:k],
-                        results[(ref_name, s0, i)][0]) for i in range(len(panel))]
+            triples = [
+                (results[(name, seed, i)][0][:k], results[(ref_name, s1, i)][0][:k], results[(ref_name, s0, i)][0])
+                for i in range(len(panel))
+            ]
             test = paired_excess(triples, bins, sigma, int(bench["boot_resamples"]), seed=k)
             alpha = 1.0 - float(bench["boot_quantile"])
             agg["js_excess"], agg["js_excess_p"] = test["js"]
@@ -262,21 +304,52 @@ def summarize(results, settings, panel, seeds, ref_name, drops, bench, labels_cf
         out.loc[m, "full_path"] = bool(preset["full_path"])
         out.loc[m, "skip_slides"] = bool(preset["skip_slides"])
         out.loc[m, "merge_tolerance"] = float(preset.get("merge_tolerance", 0.0))
-    first = ["setting", "drops", "config", "time_step", "substeps", "internal_step_ms", "solver_iterations",
-             "lanes", "full_path", "skip_slides", "merge_tolerance", "ms_per_drop", "speedup_vs_reference", "js", "js_floor",
-             "js_floor_boot", "w1_deg", "w1_floor_deg", "r2_cdf", "r2_floor", "below_two_seed_floor", "js_excess",
-             "js_excess_p", "w1_excess_deg", "w1_excess_p", "within_floor", "configs_within_boot_floor", "ok_rate",
-             "ref_ok_rate"]
+    first = [
+        "setting",
+        "drops",
+        "config",
+        "time_step",
+        "substeps",
+        "internal_step_ms",
+        "solver_iterations",
+        "lanes",
+        "full_path",
+        "skip_slides",
+        "merge_tolerance",
+        "ms_per_drop",
+        "speedup_vs_reference",
+        "js",
+        "js_floor",
+        "js_floor_boot",
+        "w1_deg",
+        "w1_floor_deg",
+        "r2_cdf",
+        "r2_floor",
+        "below_two_seed_floor",
+        "js_excess",
+        "js_excess_p",
+        "w1_excess_deg",
+        "w1_excess_p",
+        "within_floor",
+        "configs_within_boot_floor",
+        "ok_rate",
+        "ref_ok_rate",
+    ]
     return out[first]
 
 
 def add_config_source(parser: argparse.ArgumentParser, sections: str) -> None:
     """``--settings`` JSON (the named config ``sections``) or ``--configfile`` overlays, exclusive."""
     source = parser.add_mutually_exclusive_group()
-    source.add_argument("--settings", default=None,
-                        help=f"JSON {{{sections}}} config sections; default config/config.yaml")
-    source.add_argument("--configfile", nargs="+", default=[],
-                        help="config files laid over config/config.yaml (as snakemake --configfile)")
+    source.add_argument(
+        "--settings", default=None, help=f"JSON {{{sections}}} config sections; default config/config.yaml"
+    )
+    source.add_argument(
+        "--configfile",
+        nargs="+",
+        default=[],
+        help="config files laid over config/config.yaml (as snakemake --configfile)",
+    )
 
 
 def config_from_args(args: argparse.Namespace) -> dict:
@@ -316,7 +389,10 @@ def main(argv: list[str]) -> int:
     write_csv(out_csv, df)
     agg = df[(df["config"] == "mean") & (df["drops"] == df["drops"].max())]
     for _, r in agg.iterrows():
-        print(f"{r['setting']:>16}: {r['ms_per_drop']:8.1f} ms/drop  x{r['speedup_vs_reference']:6.1f}  "
-              f"JS {r['js']:.4f} (floor {r['js_floor']:.4f})  W1 {r['w1_deg']:.2f} (floor {r['w1_floor_deg']:.2f})  "
-              f"R2 {r['r2_cdf']:.3f}  ok {r['ok_rate']:.3f}", file=sys.stderr)
+        print(
+            f"{r['setting']:>16}: {r['ms_per_drop']:8.1f} ms/drop  x{r['speedup_vs_reference']:6.1f}  "
+            f"JS {r['js']:.4f} (floor {r['js_floor']:.4f})  W1 {r['w1_deg']:.2f} (floor {r['w1_floor_deg']:.2f})  "
+            f"R2 {r['r2_cdf']:.3f}  ok {r['ok_rate']:.3f}",
+            file=sys.stderr,
+        )
     return 0

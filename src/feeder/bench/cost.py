@@ -44,8 +44,17 @@ import numpy as np
 
 from feeder.errors import FeederError
 
-SAMPLE_COLUMNS = ["part", "config_id", "dataset", "drops", "job_cpu_s", "sim_s", "overhead_s", "ms_per_drop",
-                  "projected_job_cpu_s"]
+SAMPLE_COLUMNS = [
+    "part",
+    "config_id",
+    "dataset",
+    "drops",
+    "job_cpu_s",
+    "sim_s",
+    "overhead_s",
+    "ms_per_drop",
+    "projected_job_cpu_s",
+]
 
 
 def sample_rows(n_rows: int, k: int, seed: int) -> np.ndarray:
@@ -119,18 +128,38 @@ def run_bench(cfg: dict, progress: bool = False):
     drops, full_drops = int(cb["drops"]), int(sim["drops"])
     if drops < 1:
         raise FeederError(f"sim.cost_bench.drops must be positive, got {drops}")
-    settings = json.dumps({"scene": cfg["scene"], "presets": {preset_name: sim["presets"][preset_name]}},
-                          sort_keys=True, separators=(",", ":"))
+    settings = json.dumps(
+        {"scene": cfg["scene"], "presets": {preset_name: sim["presets"][preset_name]}},
+        sort_keys=True,
+        separators=(",", ":"),
+    )
     feeder = [sys.executable, "-m", "feeder"]
     results = {}
     with tempfile.TemporaryDirectory(prefix="feeder-bench-cost-") as tmp:
         jobs = []
         for i, r in sample.iterrows():
             out = str(Path(tmp) / f"{i}.npz")
-            cmd = feeder + ["simulate", "--part", str(parts_dir / f"{r['part']}.stl"), "--loc1", r["loc1"],
-                            "--loc2", r["loc2"], "--drops", str(drops), "--seed", str(int(sim["base_seed"])),
-                            "--yaw-sampling", sim["yaw_sampling"], "--preset", preset_name,
-                            "--settings", settings, "--out", out]
+            cmd = feeder + [
+                "simulate",
+                "--part",
+                str(parts_dir / f"{r['part']}.stl"),
+                "--loc1",
+                r["loc1"],
+                "--loc2",
+                r["loc2"],
+                "--drops",
+                str(drops),
+                "--seed",
+                str(int(sim["base_seed"])),
+                "--yaw-sampling",
+                sim["yaw_sampling"],
+                "--preset",
+                preset_name,
+                "--settings",
+                settings,
+                "--out",
+                out,
+            ]
             jobs.append((i, cmd, out))
         bar = None
         if progress:
@@ -162,14 +191,29 @@ def summarize(sample, population: int, full_drops: int, cores: int, preset: str,
     cpu, lo, hi = project_total(sample["projected_job_cpu_s"], population)
     longest = float(sample["projected_job_cpu_s"].max())
     per_drop = project_total(sample["ms_per_drop"], population)
-    return pd.DataFrame([dict(
-        configurations=population, drops=full_drops, preset=preset, yaw_sampling=yaw_sampling,
-        sampled=len(sample), sample_drops=int(sample["drops"].iloc[0]),
-        ms_per_drop=per_drop[0] / population, ms_per_drop_lo=per_drop[1] / population,
-        ms_per_drop_hi=per_drop[2] / population, overhead_s_per_job=float(sample["overhead_s"].mean()),
-        cpu_s=cpu, cpu_s_lo=lo, cpu_s_hi=hi, cores=cores,
-        wall_h=wall_hours(cpu, cores, longest), wall_h_lo=wall_hours(lo, cores, longest),
-        wall_h_hi=wall_hours(hi, cores, longest))])
+    return pd.DataFrame(
+        [
+            dict(
+                configurations=population,
+                drops=full_drops,
+                preset=preset,
+                yaw_sampling=yaw_sampling,
+                sampled=len(sample),
+                sample_drops=int(sample["drops"].iloc[0]),
+                ms_per_drop=per_drop[0] / population,
+                ms_per_drop_lo=per_drop[1] / population,
+                ms_per_drop_hi=per_drop[2] / population,
+                overhead_s_per_job=float(sample["overhead_s"].mean()),
+                cpu_s=cpu,
+                cpu_s_lo=lo,
+                cpu_s_hi=hi,
+                cores=cores,
+                wall_h=wall_hours(cpu, cores, longest),
+                wall_h_lo=wall_hours(lo, cores, longest),
+                wall_h_hi=wall_hours(hi, cores, longest),
+            )
+        ]
+    )
 
 
 def check_projection(sample, sim_dir, bench_dir=None):
@@ -193,9 +237,15 @@ def check_projection(sample, sim_dir, bench_dir=None):
             if "cpu_s" not in data:
                 raise FeederError(f"{npz} has no cpu_s (written before feeder simulate recorded it)")
             drops, cpu = int(data["final_yaw_deg"].size), float(data["cpu_s"])
-        row = dict(part=r["part"], config_id=r["config_id"], drops=drops,
-                   projected_sim_cpu_s=drops * float(r["ms_per_drop"]) / 1e3, sim_cpu_s=cpu,
-                   benchmark_cpu_s=math.nan, benchmark_wall_s=math.nan)
+        row = dict(
+            part=r["part"],
+            config_id=r["config_id"],
+            drops=drops,
+            projected_sim_cpu_s=drops * float(r["ms_per_drop"]) / 1e3,
+            sim_cpu_s=cpu,
+            benchmark_cpu_s=math.nan,
+            benchmark_wall_s=math.nan,
+        )
         tsv = Path(bench_dir) / r["part"] / f"{r['config_id']}.tsv" if bench_dir is not None else None
         if tsv is not None and tsv.is_file():
             last = pd.read_csv(tsv, sep="\t").iloc[-1]
@@ -215,10 +265,15 @@ def main(argv: list[str]) -> int:
     from feeder.bench.accuracy import add_config_source, config_from_args
 
     parser = argparse.ArgumentParser(prog="feeder bench-cost", description=__doc__.splitlines()[0])
-    parser.add_argument("--out-csv", required=True, help="the sampled jobs, one row each (with --check: the comparison)")
+    parser.add_argument(
+        "--out-csv", required=True, help="the sampled jobs, one row each (with --check: the comparison)"
+    )
     parser.add_argument("--out-summary", help="the projection, one row (required unless --check)")
-    parser.add_argument("--check", metavar="SAMPLE_CSV",
-                        help="instead of sampling: compare this sample's projection with the jobs of it that have run")
+    parser.add_argument(
+        "--check",
+        metavar="SAMPLE_CSV",
+        help="instead of sampling: compare this sample's projection with the jobs of it that have run",
+    )
     parser.add_argument("--sim-dir", default="results/sim", help="with --check: simulation outputs")
     parser.add_argument("--benchmarks", default="benchmarks/simulate", help="with --check: Snakemake benchmark files")
     add_config_source(parser, "parts, fences, datasets, scene, sim")
@@ -233,8 +288,11 @@ def main(argv: list[str]) -> int:
         out = check_projection(pd.read_csv(args.check), args.sim_dir, args.benchmarks)
         write_csv(args.out_csv, out)
         t = out.iloc[-1]
-        print(f"{len(out) - 1} sampled jobs have run: simulation CPU {t['sim_cpu_s']:.0f} s against "
-              f"{t['projected_sim_cpu_s']:.0f} s projected (ratio {t['ratio']:.2f})", file=sys.stderr)
+        print(
+            f"{len(out) - 1} sampled jobs have run: simulation CPU {t['sim_cpu_s']:.0f} s against "
+            f"{t['projected_sim_cpu_s']:.0f} s projected (ratio {t['ratio']:.2f})",
+            file=sys.stderr,
+        )
         return 0
     if args.out_summary is None:
         raise FeederError("--out-summary is required (unless --check)")
@@ -246,9 +304,12 @@ def main(argv: list[str]) -> int:
     write_csv(args.out_csv, sample)
     write_csv(args.out_summary, summary)
     s = summary.iloc[0]
-    print(f"{int(s['configurations'])} configurations x {int(s['drops'])} drops ({s['preset']}): "
-          f"{s['ms_per_drop']:.0f} ms/drop [{s['ms_per_drop_lo']:.0f}, {s['ms_per_drop_hi']:.0f}], "
-          f"{s['cpu_s'] / 3600:.1f} CPU-h [{s['cpu_s_lo'] / 3600:.1f}, {s['cpu_s_hi'] / 3600:.1f}], "
-          f"{s['wall_h']:.1f} h on {int(s['cores'])} cores (from {int(s['sampled'])} jobs of "
-          f"{int(s['sample_drops'])} drops)", file=sys.stderr)
+    print(
+        f"{int(s['configurations'])} configurations x {int(s['drops'])} drops ({s['preset']}): "
+        f"{s['ms_per_drop']:.0f} ms/drop [{s['ms_per_drop_lo']:.0f}, {s['ms_per_drop_hi']:.0f}], "
+        f"{s['cpu_s'] / 3600:.1f} CPU-h [{s['cpu_s_lo'] / 3600:.1f}, {s['cpu_s_hi'] / 3600:.1f}], "
+        f"{s['wall_h']:.1f} h on {int(s['cores'])} cores (from {int(s['sampled'])} jobs of "
+        f"{int(s['sample_drops'])} drops)",
+        file=sys.stderr,
+    )
     return 0

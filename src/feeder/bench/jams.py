@@ -39,9 +39,9 @@ def survey_jobs(angles: dict, parts: list[str]) -> list[tuple[str, str, str]]:
 
 def _run(job):
     loc1, loc2, part, parts_dir, drops, seed, scene, preset, name = job
-    from feeder.sim.fences import parse_location
     from feeder.parts.geometry import load_part
     from feeder.sim.drops import STATUSES, simulate
+    from feeder.sim.fences import parse_location
 
     geom = load_part(f"{parts_dir}/{part}.stl")
     res = simulate(geom, parse_location(loc1), parse_location(loc2), drops, seed, scene, preset, name)
@@ -54,8 +54,15 @@ def summarize(rows: list[tuple[str, str, str, dict]]) -> pd.DataFrame:
     for loc1, loc2, part, shares in rows:
         spec, location = (loc1, "loc1") if loc1 != "none" else (loc2, "loc2")
         kind, angle = spec.split(":")
-        recs.append({"fence": kind, "angle_deg": float(angle), "location": location, "part": part,
-                     **{f"{k}_rate": v for k, v in shares.items()}})
+        recs.append(
+            {
+                "fence": kind,
+                "angle_deg": float(angle),
+                "location": location,
+                "part": part,
+                **{f"{k}_rate": v for k, v in shares.items()},
+            }
+        )
     df = pd.DataFrame(recs).sort_values(["fence", "angle_deg", "location", "part"], ignore_index=True)
     rate_cols = [c for c in df.columns if c.endswith("_rate")]
     mean = df.groupby(["fence", "angle_deg", "location"], as_index=False)[rate_cols].mean()
@@ -82,8 +89,10 @@ def main(argv: list[str]) -> int:
     drops = int(survey["drops"])
     if drops < 1:
         raise FeederError(f"sim.jam_survey.drops must be positive, got {drops}")
-    jobs = [(l1, l2, p, parts_dir, drops, int(sim_cfg["base_seed"]), scene, preset, survey["preset"])
-            for l1, l2, p in survey_jobs(survey, list(survey["parts"]))]
+    jobs = [
+        (l1, l2, p, parts_dir, drops, int(sim_cfg["base_seed"]), scene, preset, survey["preset"])
+        for l1, l2, p in survey_jobs(survey, list(survey["parts"]))
+    ]
     bar = None
     if sys.stderr.isatty():
         from tqdm import tqdm
@@ -103,6 +112,9 @@ def main(argv: list[str]) -> int:
     write_csv(args.out_csv, df)
     worst = df[df["part"] == "mean"].sort_values("ok_rate").head(6)
     for _, r in worst.iterrows():
-        print(f"{r['fence']:>8} {r['angle_deg']:4.0f} {r['location']}: ok {r['ok_rate']:.2f}, "
-              f"jammed {r['jammed_rate']:.2f}", file=sys.stderr)
+        print(
+            f"{r['fence']:>8} {r['angle_deg']:4.0f} {r['location']}: ok {r['ok_rate']:.2f}, "
+            f"jammed {r['jammed_rate']:.2f}",
+            file=sys.stderr,
+        )
     return 0

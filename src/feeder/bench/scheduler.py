@@ -27,6 +27,7 @@ import pandas as pd
 
 from feeder.errors import FeederError
 
+
 def proc_cpu_seconds(stat_line: str, ticks_per_s: float) -> float:
     """User + system CPU of one process's own threads from a /proc/<pid>/stat line (children,
     fields 16-17, excluded). The command name (field 2) may hold spaces: split after its ')'."""
@@ -45,9 +46,9 @@ def spread(items: list, n: int) -> list:
 
 def sim_targets(study: Path, configfiles: list[str], n_jobs: int) -> list[str]:
     """Simulation outputs of n configurations spread over the configured grid."""
+    from feeder.config import load_study_config
     from feeder.labels.grid import configurations
     from feeder.parts.library import list_parts
-    from feeder.config import load_study_config
 
     cfg = load_study_config(*configfiles, root=study)
     parts = list_parts(str(study / cfg["parts"]["dir"]), cfg["parts"]["include"])
@@ -56,8 +57,15 @@ def sim_targets(study: Path, configfiles: list[str], n_jobs: int) -> list[str]:
     return [f"results/sim/{part}/{config_id}.npz" for part, config_id in rows]
 
 
-def run_variant(study: Path, work: Path, configfiles: list[str], targets: list[str], drops: int,
-                local_rate_limit: bool, poll_s: float = 0.5) -> dict:
+def run_variant(
+    study: Path,
+    work: Path,
+    configfiles: list[str],
+    targets: list[str],
+    drops: int,
+    local_rate_limit: bool,
+    poll_s: float = 0.5,
+) -> dict:
     """One snakemake run of the targets in a fresh copy of the study; what it cost."""
     from feeder.workflow import copy_study
 
@@ -66,7 +74,8 @@ def run_variant(study: Path, work: Path, configfiles: list[str], targets: list[s
     copy_study(study, work)
     overlay = work / "config" / "_bench_scheduler.yaml"
     overlay.write_text(
-        f"sim:\n  drops: {drops}\n  min_ok_drops: 1\nscheduling:\n  local_rate_limit: {str(local_rate_limit).lower()}\n"
+        f"sim:\n  drops: {drops}\n  min_ok_mass: 0.001\n"
+        f"scheduling:\n  local_rate_limit: {str(local_rate_limit).lower()}\n"
     )
     snakemake = str(Path(sys.executable).parent / "snakemake")
     cmd = [snakemake, "--cores", "2", *targets, "--configfile", *configfiles, str(overlay.relative_to(work))]
@@ -111,8 +120,9 @@ def run_variant(study: Path, work: Path, configfiles: list[str], targets: list[s
 def main(argv: list[str]) -> int:
     from feeder.io import write_csv
 
-    ap = argparse.ArgumentParser(prog="feeder bench-scheduler", description=__doc__,
-                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap = argparse.ArgumentParser(
+        prog="feeder bench-scheduler", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     ap.add_argument("--study", default=".", help="study directory (Snakefile, config/, parts/)")
     ap.add_argument("--configfile", nargs="*", default=[], help="config overlays, as for snakemake")
     ap.add_argument("--jobs", type=int, default=300, help="simulation jobs per run")
@@ -131,9 +141,12 @@ def main(argv: list[str]) -> int:
     with tempfile.TemporaryDirectory(prefix="bench_scheduler_") as tmp:
         for limit in (True, False):
             row = run_variant(study, Path(tmp) / f"limit_{limit}", args.configfile, targets, args.drops, limit)
-            print(f"rate limit {'on ' if limit else 'off'}: snakemake {row['snakemake_cpu_s']} CPU-s "
-                  f"({row['snakemake_cpu_per_job_s']} per job, {row['snakemake_share_pct']} % of all CPU), "
-                  f"{row['max_threads']} threads, wall {row['wall_s']} s", file=sys.stderr)
+            print(
+                f"rate limit {'on ' if limit else 'off'}: snakemake {row['snakemake_cpu_s']} CPU-s "
+                f"({row['snakemake_cpu_per_job_s']} per job, {row['snakemake_share_pct']} % of all CPU), "
+                f"{row['max_threads']} threads, wall {row['wall_s']} s",
+                file=sys.stderr,
+            )
             rows.append(row)
     write_csv(args.out, pd.DataFrame(rows))
     return 0

@@ -33,15 +33,14 @@ DESIGNS = ("random", "golden")
 def _run(job):
     """Worker: one (role, design, seed, panel entry) simulation → role, design, index, yaws, CPU seconds."""
     role, design, drops, seed, idx, entry, scene, preset, thickness = job
-    from feeder.sim.fences import parse_location
-    from feeder.sim.drops import simulate
     from feeder.parts.shapes import shape_part
+    from feeder.sim.drops import simulate
+    from feeder.sim.fences import parse_location
 
     shape, loc1, loc2 = entry
     geom = shape_part(shape, thickness)
     t0 = time.process_time()
-    res = simulate(geom, parse_location(loc1), parse_location(loc2), drops, seed, scene, preset,
-                   yaw_sampling=design)
+    res = simulate(geom, parse_location(loc1), parse_location(loc2), drops, seed, scene, preset, yaw_sampling=design)
     return role, design, idx, res["final_yaw_deg"], time.process_time() - t0
 
 
@@ -76,13 +75,32 @@ def summarize(results, ref, panel, levels, labels_cfg):
             for i, entry in enumerate(panel):
                 yaws, cpu = results[(design, i)]
                 js, w1, r2 = _metrics(yaws[:k], ref[i], bins, sigma)
-                per.append(dict(design=design, drops=k, config="|".join(entry), js=js, w1_deg=w1, r2_cdf=r2,
-                                ms_per_drop=1e3 * cpu / len(yaws), ok_rate=float(np.mean(np.isfinite(yaws[:k])))))
+                per.append(
+                    dict(
+                        design=design,
+                        drops=k,
+                        config="|".join(entry),
+                        js=js,
+                        w1_deg=w1,
+                        r2_cdf=r2,
+                        ms_per_drop=1e3 * cpu / len(yaws),
+                        ok_rate=float(np.mean(np.isfinite(yaws[:k]))),
+                    )
+                )
             rows += per
             df = pd.DataFrame(per)
-            rows.append(dict(design=design, drops=k, config="mean", js=df["js"].mean(), w1_deg=df["w1_deg"].mean(),
-                             r2_cdf=df["r2_cdf"].mean(), ms_per_drop=df["ms_per_drop"].mean(),
-                             ok_rate=df["ok_rate"].mean()))
+            rows.append(
+                dict(
+                    design=design,
+                    drops=k,
+                    config="mean",
+                    js=df["js"].mean(),
+                    w1_deg=df["w1_deg"].mean(),
+                    r2_cdf=df["r2_cdf"].mean(),
+                    ms_per_drop=df["ms_per_drop"].mean(),
+                    ok_rate=df["ok_rate"].mean(),
+                )
+            )
     out = pd.DataFrame(rows)
     mean = out["config"] == "mean"
     rnd = out[mean & (out["design"] == "random")]
@@ -107,8 +125,11 @@ def run_bench(scene, sim_cfg, labels_cfg, progress=False):
     if levels[-1] > ref_drops:
         raise FeederError("sim.yaw_bench.drop_levels must not exceed reference_drops")
     jobs = [("reference", "random", ref_drops, seeds[0], i, e, scene, preset, thickness) for i, e in enumerate(panel)]
-    jobs += [("estimate", d, levels[-1], seeds[1], i, e, scene, preset, thickness)
-             for d in DESIGNS for i, e in enumerate(panel)]
+    jobs += [
+        ("estimate", d, levels[-1], seeds[1], i, e, scene, preset, thickness)
+        for d in DESIGNS
+        for i, e in enumerate(panel)
+    ]
     ref, results = {}, {}
     bar = None
     if progress:
@@ -141,6 +162,9 @@ def main(argv: list[str]) -> int:
     df = run_bench(scene, sim_cfg, labels_cfg, progress=sys.stderr.isatty())
     write_csv(out_csv, df)
     for _, r in df[df["config"] == "mean"].iterrows():
-        print(f"{r['design']:>7} {int(r['drops']):5d} drops: JS {r['js']:.4f}  W1 {r['w1_deg']:6.2f} deg  "
-              f"R2 {r['r2_cdf']:.3f}  = {r['random_drops_same_w1']:.0f} random drops", file=sys.stderr)
+        print(
+            f"{r['design']:>7} {int(r['drops']):5d} drops: JS {r['js']:.4f}  W1 {r['w1_deg']:6.2f} deg  "
+            f"R2 {r['r2_cdf']:.3f}  = {r['random_drops_same_w1']:.0f} random drops",
+            file=sys.stderr,
+        )
     return 0

@@ -56,16 +56,18 @@ _NOT_FIGURES = {"style"}
 
 def figure_names() -> list[str]:
     """Every figure module of this package (sorted)."""
-    return sorted(m.name for m in pkgutil.iter_modules(__path__)
-                  if not m.name.startswith("_") and m.name not in _NOT_FIGURES)
+    return sorted(
+        m.name for m in pkgutil.iter_modules(__path__) if not m.name.startswith("_") and m.name not in _NOT_FIGURES
+    )
 
 
 def main(argv: list[str]) -> int:
     """``feeder figure <name> [options]``: run ``feeder.figures.<name>.main(options)``."""
     names = figure_names()
     if not argv or argv[0] in {"-h", "--help"}:
-        print("usage: feeder figure <name> [options]   (feeder figure <name> --help)\n\nfigures:\n  "
-              + "\n  ".join(names))
+        print(
+            "usage: feeder figure <name> [options]   (feeder figure <name> --help)\n\nfigures:\n  " + "\n  ".join(names)
+        )
         return 0
     name, rest = argv[0], argv[1:]
     if not _NAME.match(name) or name not in names:

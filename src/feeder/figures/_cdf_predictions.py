@@ -20,8 +20,9 @@ KEYS = ("part", "config_id", "yaw_deg", "cdf_true", "cdf_pred", "r2", "model", "
 def draw(data: dict[str, np.ndarray]):
     k = len(data["cdf_true"])
     fig, axes = style.subplots(1, k, figsize=(3.6 * k, 3.2), squeeze=False, sharey=True)
-    for ax, part, cid, true, pred, r2 in zip(axes[0], data["part"], data["config_id"], data["cdf_true"],
-                                             data["cdf_pred"], data["r2"]):
+    for ax, part, cid, true, pred, r2 in zip(
+        axes[0], data["part"], data["config_id"], data["cdf_true"], data["cdf_pred"], data["r2"]
+    ):
         ax.plot(data["yaw_deg"], true, color=style.PALETTE["reference"], lw=1.5, label="simulation")
         ax.plot(data["yaw_deg"], pred, color=style.PALETTE["cross"], lw=1.2, ls="--", label="prediction")
         ax.set_title(f"{part} | {cid}\nR² = {float(r2):.3f}", fontsize=8)

@@ -13,8 +13,7 @@ import numpy as np
 
 from feeder.figures import style
 
-KEYS = ("n_drops", "q10_sup", "median_sup", "q90_sup", "dkw_epsilon", "fraction_inside_band", "alpha",
-        "n_drops_full")
+KEYS = ("n_drops", "q10_sup", "median_sup", "q90_sup", "dkw_epsilon", "fraction_inside_band", "alpha", "n_drops_full")
 
 
 def draw(data: dict[str, np.ndarray]):
@@ -25,11 +24,18 @@ def draw(data: dict[str, np.ndarray]):
     drops = int(data["n_drops_full"])
     keep = n_axis < drops
     fig, (a1, a2) = style.subplots(1, 2, figsize=(9, 3.5))
-    a1.fill_between(n_axis[keep], data["q10_sup"][keep], data["q90_sup"][keep], color=style.PALETTE["primary"],
-                    alpha=0.3, label="10-90 % of configurations")
+    a1.fill_between(
+        n_axis[keep],
+        data["q10_sup"][keep],
+        data["q90_sup"][keep],
+        color=style.PALETTE["primary"],
+        alpha=0.3,
+        label="10-90 % of configurations",
+    )
     a1.plot(n_axis[keep], data["median_sup"][keep], "o-", color=style.PALETTE["primary"], ms=3, label="median")
-    a1.plot(n_axis[keep], data["dkw_epsilon"][keep], "--", color=style.PALETTE["reference"],
-            label=f"DKW ε, α={alpha:g}")
+    a1.plot(
+        n_axis[keep], data["dkw_epsilon"][keep], "--", color=style.PALETTE["reference"], label=f"DKW ε, α={alpha:g}"
+    )
     a1.set_xscale("log")
     a1.set_yscale("log")
     a1.xaxis.set_major_formatter(ScalarFormatter())

@@ -14,8 +14,15 @@ COLUMNS = ("n_drops", "mean_js", "sd_js", "configurations")
 
 def draw(frame):
     fig, ax = style.subplots(figsize=(5, 3.5))
-    ax.errorbar(frame["n_drops"], frame["mean_js"], yerr=frame["sd_js"], color=style.PALETTE["primary"],
-                marker="o", ms=3, capsize=2)
+    ax.errorbar(
+        frame["n_drops"],
+        frame["mean_js"],
+        yerr=frame["sd_js"],
+        color=style.PALETTE["primary"],
+        marker="o",
+        ms=3,
+        capsize=2,
+    )
     ax.set_xlabel("drops N")
     ax.set_ylabel("JS(P_N || P_full) [bits]")
     ax.set_title(f"JS vs drops, mean ± SD over {int(frame['configurations'].iloc[0])} configurations")

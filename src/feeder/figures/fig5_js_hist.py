@@ -20,8 +20,12 @@ def draw(data: dict[str, np.ndarray]):
     floor = float(data["noise_floor"])
     fig, ax = style.subplots(figsize=(5, 3.5))
     ax.hist(data["js"], bins=BINS, color=style.PALETTE["neutral"], edgecolor=style.PALETTE["reference"])
-    ax.axvline(floor, color=style.PALETTE["threshold"], ls="--",
-               label=f"bootstrap noise floor ({float(data['noise_quantile']):g} quantile) = {floor:.3g}")
+    ax.axvline(
+        floor,
+        color=style.PALETTE["threshold"],
+        ls="--",
+        label=f"bootstrap noise floor ({float(data['noise_quantile']):g} quantile) = {floor:.3g}",
+    )
     ax.set_xlabel(f"JS(P_{int(data['n_drops'])} || P_{int(data['n_drops_full'])}) [bits]")
     ax.set_ylabel("configurations")
     ax.legend(fontsize=7)

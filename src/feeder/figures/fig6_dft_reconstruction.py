@@ -3,8 +3,8 @@
 Data (``results/figdata/fig6_dft_reconstruction.npz``, written by ``feeder parts fig6-data``):
 ``name`` (P,) part ids; ``outline`` (P, S) complex outline samples x + iy, normalised so the
 canvas's drawable extent is 1; ``reconstruction`` (P, S) complex, the inverse DFT of the kept
-coefficients; ``mse`` (P,) reconstruction MSE in normalised units² (longest aligned extent = 1); ``coefficients`` (scalar) the
-number of coefficients kept.
+coefficients; ``mse`` (P,) reconstruction MSE in normalised units² (longest aligned extent = 1);
+``coefficients`` (scalar) the number of coefficients kept.
 """
 
 from __future__ import annotations

@@ -23,8 +23,13 @@ def draw(table):
             parts = at[at["part"] != "mean"]
             mean = at[at["part"] == "mean"].sort_values("angle_deg")
             ax.scatter(parts["angle_deg"], parts["ok_rate"], s=10, alpha=0.25, color=colour)
-            ax.plot(mean["angle_deg"], mean["ok_rate"], "o-", color=colour,
-                    label=f"Location {loc[-1]} (mean of {parts['part'].nunique()} parts)")
+            ax.plot(
+                mean["angle_deg"],
+                mean["ok_rate"],
+                "o-",
+                color=colour,
+                label=f"Location {loc[-1]} (mean of {parts['part'].nunique()} parts)",
+            )
         ax.set_title(f"{kind} fence alone")
         ax.set_xlabel("fence angle to the direction of travel (deg)")
         ax.set_ylim(-0.05, 1.05)

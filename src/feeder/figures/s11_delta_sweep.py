@@ -20,8 +20,10 @@ def draw(frame):
     fig, axes = style.subplots(1, 2, figsize=(10, 4), sharey=True)
     lv = frame["level_pct"].to_numpy()
     for ax, mode, title in zip(axes, MODES, ("part split (unseen parts)", "config split (seen parts)")):
-        for key, color, label in (("r2", style.PALETTE["primary"], "delta model"),
-                                  ("baseline", style.PALETTE["baseline"], "partial PMF as answer")):
+        for key, color, label in (
+            ("r2", style.PALETTE["primary"], "delta model"),
+            ("baseline", style.PALETTE["baseline"], "partial PMF as answer"),
+        ):
             m, s = frame[f"{mode}_{key}_mean"].to_numpy(), frame[f"{mode}_{key}_sd"].to_numpy()
             ax.plot(lv, m, marker="o", color=color, label=label)
             ax.fill_between(lv, m - s, m + s, color=color, alpha=0.15)

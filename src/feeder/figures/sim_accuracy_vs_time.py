@@ -22,16 +22,23 @@ def draw(df, ref_name: str):
     agg = df[df["config"] == "mean"]
     full = agg[agg["drops"] == agg["drops"].max()]
     fig, axes = style.subplots(1, 3, figsize=(17, 4.8))
-    for ax, col, floor, label in [(axes[0], "js", "js_floor", "JS divergence to reference (bits)"),
-                                  (axes[1], "w1_deg", "w1_floor_deg", "W1 on the CDF to reference (deg)")]:
+    for ax, col, floor, label in [
+        (axes[0], "js", "js_floor", "JS divergence to reference (bits)"),
+        (axes[1], "w1_deg", "w1_floor_deg", "W1 on the CDF to reference (deg)"),
+    ]:
         fl = full[floor].mean()
         ax.axhspan(0, fl, color="0.85", label=f"two-seed noise floor ({fl:.3g})")
         for _, r in full.iterrows():
             mk = "*" if r["setting"] == ref_name else "o"
-            ax.scatter(r["ms_per_drop"], r[col], marker=mk, s=60 if mk == "*" else 30,
-                       color="C3" if not r["within_floor"] else "C0", zorder=3)
-            ax.annotate(r["setting"], (r["ms_per_drop"], r[col]), fontsize=7, xytext=(3, 3),
-                        textcoords="offset points")
+            ax.scatter(
+                r["ms_per_drop"],
+                r[col],
+                marker=mk,
+                s=60 if mk == "*" else 30,
+                color="C3" if not r["within_floor"] else "C0",
+                zorder=3,
+            )
+            ax.annotate(r["setting"], (r["ms_per_drop"], r[col]), fontsize=7, xytext=(3, 3), textcoords="offset points")
         # Pareto front: no other setting both cheaper and closer
         best, front = np.inf, []
         for _, r in full.sort_values("ms_per_drop").iterrows():
@@ -50,13 +57,20 @@ def draw(df, ref_name: str):
     for name, fmt in [("fast", "o-"), (ref_name, "s--")]:
         sub = agg[agg["setting"] == name].sort_values("drops")
         if len(sub):
-            ax.plot(sub["drops"], sub["js"], fmt, label=f"{name} vs reference" if name != ref_name
-                    else "noise floor (reference, second seed)")
+            ax.plot(
+                sub["drops"],
+                sub["js"],
+                fmt,
+                label=f"{name} vs reference" if name != ref_name else "noise floor (reference, second seed)",
+            )
     ax.set_xlabel("drops per configuration")
     ax.set_ylabel("JS divergence to reference (bits)")
     ax.legend(fontsize=7)
-    fig.suptitle(f"Simulation accuracy against time ({int(full['drops'].max())} drops per configuration, "
-                 f"{df[df['config'] != 'mean']['config'].nunique()} configurations; blue = inside the noise floor by the paired test, red = outside)")
+    fig.suptitle(
+        f"Simulation accuracy against time ({int(full['drops'].max())} drops per configuration, "
+        f"{df[df['config'] != 'mean']['config'].nunique()} configurations; "
+        "blue = inside the noise floor by the paired test, red = outside)"
+    )
     fig.tight_layout()
     return fig
 

@@ -43,15 +43,15 @@ RC = {
 }
 
 PALETTE = {
-    "primary": "tab:blue",       # the measured / modelled quantity
-    "secondary": "tab:orange",   # a second measured series (e.g. a reconstruction, CPU time)
-    "within": "tab:green",       # within-level comparison
-    "cross": "tab:red",          # cross-level comparison
-    "baseline": "tab:gray",      # a no-model baseline
-    "reference": "k",            # reference lines (bounds, chosen values, targets)
-    "threshold": "r",            # a threshold the data is compared against
-    "neutral": "0.6",            # histogram bars
-    "muted": "0.5",              # a secondary baseline drawn dashed
+    "primary": "tab:blue",  # the measured / modelled quantity
+    "secondary": "tab:orange",  # a second measured series (e.g. a reconstruction, CPU time)
+    "within": "tab:green",  # within-level comparison
+    "cross": "tab:red",  # cross-level comparison
+    "baseline": "tab:gray",  # a no-model baseline
+    "reference": "k",  # reference lines (bounds, chosen values, targets)
+    "threshold": "r",  # a threshold the data is compared against
+    "neutral": "0.6",  # histogram bars
+    "muted": "0.5",  # a secondary baseline drawn dashed
 }
 
 

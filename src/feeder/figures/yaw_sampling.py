@@ -17,8 +17,10 @@ COLUMNS = ("design", "drops", "config", "js", "w1_deg", "random_drops_same_w1", 
 def draw(df):
     fig, axes = style.subplots(1, 2, figsize=(11, 4.5))
     designs = list(dict.fromkeys(df["design"]))
-    for ax, col, label in [(axes[0], "js", "JS divergence to reference (bits)"),
-                           (axes[1], "w1_deg", "W1 on the CDF to reference (deg)")]:
+    for ax, col, label in [
+        (axes[0], "js", "JS divergence to reference (bits)"),
+        (axes[1], "w1_deg", "W1 on the CDF to reference (deg)"),
+    ]:
         for j, design in enumerate(designs):
             sub = df[df["design"] == design]
             for _, per in sub[sub["config"] != "mean"].groupby("config"):
@@ -34,9 +36,12 @@ def draw(df):
     mean = df[(df["config"] == "mean")]
     top = mean[mean["drops"] == mean["drops"].max()].set_index("design")["random_drops_same_w1"]
     same = ", ".join(f"{d}: {top[d]:.0f}" for d in designs if d in top)
-    fig.suptitle(f"Sampling error against drops ({df[df['config'] != 'mean']['config'].nunique()} configurations, "
-                 f"reference {int(df['reference_drops'].iloc[0])} independent drops); independent drops with the "
-                 f"same W1 as {int(mean['drops'].max())}: {same}", fontsize=9)
+    fig.suptitle(
+        f"Sampling error against drops ({df[df['config'] != 'mean']['config'].nunique()} configurations, "
+        f"reference {int(df['reference_drops'].iloc[0])} independent drops); independent drops with the "
+        f"same W1 as {int(mean['drops'].max())}: {same}",
+        fontsize=9,
+    )
     fig.tight_layout()
     return fig
 

@@ -1,1 +1,4 @@
-"""Labels: PMF/CDF math, the configuration grid and splits, the merged dataset, convergence (workflow/rules/datasets.smk)."""
+"""Labels: PMF/CDF math, the configuration grid and splits, the merged dataset, convergence.
+
+Run by workflow/rules/datasets.smk.
+"""

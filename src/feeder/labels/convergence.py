@@ -52,20 +52,23 @@ def js_table(ds: dict, conv: dict, bins: int, sigma: float) -> pd.DataFrame:
     drops = int(np.max(ds["n_drops"]))
     rows = []
     for li, k in enumerate(levels):
-        floor, _ = bootstrap_js_floor(ds, li, int(conv["bootstrap"]), float(conv["noise_quantile"]), int(conv["seed"]),
-                                      bins, sigma)
+        floor, _ = bootstrap_js_floor(
+            ds, li, int(conv["bootstrap"]), float(conv["noise_quantile"]), int(conv["seed"]), bins, sigma
+        )
         col = js[:, li]
-        rows.append({
-            "level_pct": int(k),
-            "n_drops": int(drops * k // 100),
-            "configurations": int(col.size),
-            "median_js": float(np.median(col)),
-            "mean_js": float(col.mean()),
-            "sd_js": float(col.std()),
-            "below_abs_threshold": int(np.sum(col < float(conv["js_threshold"]))),
-            "noise_floor": floor,
-            "below_noise_floor": int(np.sum(col < floor)),
-        })
+        rows.append(
+            {
+                "level_pct": int(k),
+                "n_drops": int(drops * k // 100),
+                "configurations": int(col.size),
+                "median_js": float(np.median(col)),
+                "mean_js": float(col.mean()),
+                "sd_js": float(col.std()),
+                "below_abs_threshold": int(np.sum(col < float(conv["js_threshold"]))),
+                "noise_floor": floor,
+                "below_noise_floor": int(np.sum(col < floor)),
+            }
+        )
     return pd.DataFrame(rows)
 
 
@@ -95,16 +98,18 @@ def dkw_table(ds: dict, alpha: float) -> tuple[pd.DataFrame, np.ndarray]:
     for li, k in enumerate(levels):
         s = sup[:, li]
         s = s[np.isfinite(s)]
-        rows.append({
-            "level_pct": int(k),
-            "n_drops": int(drops * k // 100),
-            "configurations": int(s.size),
-            "median_n_ok": float(np.median(n_ok[:, li])),
-            "dkw_epsilon_at_n_drops": float(L.dkw_epsilon(max(drops * k // 100, 1), alpha)),
-            "median_sup": float(np.median(s)) if s.size else float("nan"),
-            "q90_sup": float(np.quantile(s, 0.9)) if s.size else float("nan"),
-            "fraction_inside_band": float(inside[:, li].mean()),
-        })
+        rows.append(
+            {
+                "level_pct": int(k),
+                "n_drops": int(drops * k // 100),
+                "configurations": int(s.size),
+                "median_n_ok": float(np.median(n_ok[:, li])),
+                "dkw_epsilon_at_n_drops": float(L.dkw_epsilon(max(drops * k // 100, 1), alpha)),
+                "median_sup": float(np.median(s)) if s.size else float("nan"),
+                "q90_sup": float(np.quantile(s, 0.9)) if s.size else float("nan"),
+                "fraction_inside_band": float(inside[:, li].mean()),
+            }
+        )
     return pd.DataFrame(rows), sup
 
 
@@ -148,23 +153,37 @@ def convergence_data(ds: dict, settings: dict) -> dict:
     rng = np.random.default_rng(hash_seed(conv["seed"], "fig4"))
     pick = rng.choice(len(js), size=min(int(conv["fig4_configurations"]), len(js)), replace=False)
     sub = js[np.sort(pick)]
-    fig4 = pd.DataFrame({"level_pct": levels.astype(np.int64), "n_drops": n_axis.astype(np.int64),
-                         "mean_js": sub.mean(axis=0), "sd_js": sub.std(axis=0), "configurations": len(pick)})
+    fig4 = pd.DataFrame(
+        {
+            "level_pct": levels.astype(np.int64),
+            "n_drops": n_axis.astype(np.int64),
+            "mean_js": sub.mean(axis=0),
+            "sd_js": sub.std(axis=0),
+            "configurations": len(pick),
+        }
+    )
 
     # Fig. 5: JS at the comparison level with the bootstrap noise floor
     li = int(np.argmin(np.abs(levels - int(conv["compare_pct"]))))
     jst = js_table(ds, conv, bins, sigma)
-    fig5 = {"js": js[:, li], "noise_floor": np.float64(jst["noise_floor"].iloc[li]),
-            "noise_quantile": np.float64(conv["noise_quantile"]), "n_drops": np.int64(n_axis[li]),
-            "n_drops_full": np.int64(drops)}
+    fig5 = {
+        "js": js[:, li],
+        "noise_floor": np.float64(jst["noise_floor"].iloc[li]),
+        "noise_quantile": np.float64(conv["noise_quantile"]),
+        "n_drops": np.int64(n_axis[li]),
+        "n_drops_full": np.int64(drops),
+    }
 
     # Fig. 9: example PMFs of different shapes
     picks = pick_examples(ds["pmf"], float(conv["peak_prominence"]))
     rows = [i for i, _ in picks]
-    fig9 = {"part": np.asarray(ds["part"])[rows].astype(str),
-            "config_id": np.asarray(ds["config_id"])[rows].astype(str),
-            "label": np.array([label for _, label in picks]), "pmf": ds["pmf"][rows],
-            "yaw_deg": (np.arange(bins) + 0.5) * 360.0 / bins}
+    fig9 = {
+        "part": np.asarray(ds["part"])[rows].astype(str),
+        "config_id": np.asarray(ds["config_id"])[rows].astype(str),
+        "label": np.array([label for _, label in picks]),
+        "pmf": ds["pmf"][rows],
+        "yaw_deg": (np.arange(bins) + 0.5) * 360.0 / bins,
+    }
 
     # DKW convergence view: quantiles over configurations of the sup distance per level
     alpha = float(conv["dkw_alpha"])
@@ -174,9 +193,15 @@ def convergence_data(ds: dict, settings: dict) -> dict:
     def per_level(q):
         return np.array([np.quantile(sup[ok[:, j], j], q) if ok[:, j].any() else np.nan for j in range(levels.size)])
 
-    dkw = {"level_pct": levels.astype(np.int64), "n_drops": n_axis.astype(np.int64), "q10_sup": per_level(0.1),
-           "median_sup": per_level(0.5), "q90_sup": per_level(0.9),
-           "dkw_epsilon": L.dkw_epsilon(np.maximum(n_axis, 1), alpha),
-           "fraction_inside_band": table["fraction_inside_band"].to_numpy(),
-           "alpha": np.float64(alpha), "n_drops_full": np.int64(drops)}
+    dkw = {
+        "level_pct": levels.astype(np.int64),
+        "n_drops": n_axis.astype(np.int64),
+        "q10_sup": per_level(0.1),
+        "median_sup": per_level(0.5),
+        "q90_sup": per_level(0.9),
+        "dkw_epsilon": L.dkw_epsilon(np.maximum(n_axis, 1), alpha),
+        "fraction_inside_band": table["fraction_inside_band"].to_numpy(),
+        "alpha": np.float64(alpha),
+        "n_drops_full": np.int64(drops),
+    }
     return {"dkw_table": table, "js_table": jst, "fig4": fig4, "fig5": fig5, "fig9": fig9, "dkw": dkw}

@@ -33,6 +33,7 @@ from feeder.errors import FeederError
 from feeder.labels import metrics as L
 from feeder.labels.convergence import convergence_data
 from feeder.labels.grid import SPLITS, configurations
+from feeder.labels.pmf import check_ok_mass, level_drops, sim_label
 from feeder.sim.fences import TYPES, Fence, parse_config_id
 from feeder.sim.record import BadData, SimRecord, load_sim
 
@@ -75,7 +76,8 @@ def load_frame_deg(path) -> float:
     if value is None or not isinstance(value, (int, float)) or not math.isfinite(value):
         raise FeederError(
             f"feature file {path} has no frame_deg (its face cloud does not lie in the part's x-y plane, "
-            "or the file predates it: rerun `feeder features`); labels.frame: principal needs it")
+            "or the file predates it: rerun `feeder features`); labels.frame: principal needs it"
+        )
     return float(value)
 
 
@@ -163,10 +165,10 @@ def _progress(iterable, total, desc):
     return tqdm(iterable, total=total, desc=desc, disable=not sys.stderr.isatty(), file=sys.stderr)
 
 
-def _row_sim(sim_dir: Path, row, min_ok: int) -> SimRecord:
+def _row_sim(sim_dir: Path, row) -> SimRecord:
     """The checked simulation record of one configuration-table row."""
     path = sim_dir / row.part / f"{row.config_id}.npz"
-    rec = load_sim(path, min_ok)
+    rec = load_sim(path)
     meta_part = rec.meta.get("part")
     if meta_part is not None and meta_part != row.part:
         raise BadData(f"simulation file {path} holds part {meta_part!r}, not {row.part!r}")
@@ -185,14 +187,16 @@ class _Rows:
     frames: dict[str, float]  # frame_deg per part (0 in the part frame)
 
 
-def _read_rows(configs: pd.DataFrame, features_dir: Path, sim_dir: Path, labels: dict, min_ok: int) -> _Rows:
+def _read_rows(configs: pd.DataFrame, features_dir: Path, sim_dir: Path, labels: dict, min_ok_mass: float) -> _Rows:
     """Read every row's simulation file and its part's features; a bad simulation file raises,
     or with ``labels.on_bad: exclude`` is logged and listed as excluded."""
     frame = labels["frame"]
     out = _Rows([], [], [], {}, {})
     for row in _progress(configs.itertuples(index=False), len(configs), "dataset"):
         try:
-            rec = _row_sim(sim_dir, row, min_ok)
+            rec = _row_sim(sim_dir, row)
+            label = sim_label(rec, int(labels["bins"]), float(labels["sigma_bins"]))
+            check_ok_mass(label, min_ok_mass, f"simulation file {sim_dir / row.part / f'{row.config_id}.npz'}")
         except BadData as err:
             if labels["on_bad"] != "exclude":
                 raise
@@ -210,7 +214,7 @@ def _read_rows(configs: pd.DataFrame, features_dir: Path, sim_dir: Path, labels:
     return out
 
 
-def _label_arrays(rows: _Rows, levels: np.ndarray, bins: int, sigma: float) -> dict[str, np.ndarray]:
+def _label_arrays(rows: _Rows, levels: np.ndarray, bins: int, sigma: float, emulated: int) -> dict[str, np.ndarray]:
     """Per kept row: the yaws (NaN-padded), full and partial-level PMFs, ok drops per level and
     the raw fence vector."""
     n, n_levels = len(rows.kept), levels.size
@@ -222,11 +226,18 @@ def _label_arrays(rows: _Rows, levels: np.ndarray, bins: int, sigma: float) -> d
     feeder_raw = np.empty((n, N_FEEDER))
     for i, (row, rec) in enumerate(zip(rows.kept, rows.recs, strict=True)):
         yaw_mat[i, : rec.yaws.size] = rec.yaws
-        pmf[i] = L.pmf_from_yaws(rec.yaws[rec.ok], bins, sigma)
-        pmf_levels[i], n_ok_levels[i] = L.partial_pmfs(rec.yaws, levels, bins, sigma, ok=rec.ok)
+        pmf[i] = sim_label(rec, bins, sigma).pmf
+        drop_yaws, drop_ok = level_drops(rec, emulated)
+        pmf_levels[i], n_ok_levels[i] = L.partial_pmfs(drop_yaws, levels, bins, sigma, ok=drop_ok)
         feeder_raw[i] = feeder_vector(*parse_config_id(row.config_id))
-    return {"final_yaw_deg": yaw_mat, "pmf": pmf, "pmf_levels": pmf_levels, "n_ok_levels": n_ok_levels,
-            "feeder_raw": feeder_raw, "n_drops": drops}
+    return {
+        "final_yaw_deg": yaw_mat,
+        "pmf": pmf,
+        "pmf_levels": pmf_levels,
+        "n_ok_levels": n_ok_levels,
+        "feeder_raw": feeder_raw,
+        "n_drops": drops,
+    }
 
 
 def _group_folds(parts: np.ndarray, n_folds: int) -> np.ndarray:
@@ -250,8 +261,8 @@ def build_dataset(configs: pd.DataFrame, features_dir, sim_dir, settings: dict) 
     sigma = float(labels["sigma_bins"])
     levels = np.asarray(labels["levels_pct"], dtype=np.int64)
     frame = check_label_frame(labels["frame"])  # before any file is read
-    rows = _read_rows(configs, Path(features_dir), Path(sim_dir), labels, int(settings["sim"]["min_ok_drops"]))
-    lab = _label_arrays(rows, levels, bins, sigma)
+    rows = _read_rows(configs, Path(features_dir), Path(sim_dir), labels, float(settings["sim"]["min_ok_mass"]))
+    lab = _label_arrays(rows, levels, bins, sigma, int(labels["emulated_drops"]))
     parts = np.array([r.part for r in rows.kept])
     group_fold = _group_folds(parts, int(settings["datasets"]["group_folds"]))
     ex = np.array(rows.excluded, dtype=str).reshape(-1, 4)
@@ -354,14 +365,16 @@ def table4(ds: dict) -> pd.DataFrame:
             ex = int(ds["excluded_dataset"].size)
         else:
             ex = int(np.sum(ds["excluded_dataset"] == _EXCLUDED_OF[splits[0]]))
-        rows.append({
-            "dataset": name,
-            "samples": int(sel.sum()),
-            "unique_parts": int(np.unique(ds["part"][sel]).size),
-            "purpose": purpose,
-            "protocol": protocol,
-            "excluded": ex,
-        })
+        rows.append(
+            {
+                "dataset": name,
+                "samples": int(sel.sum()),
+                "unique_parts": int(np.unique(ds["part"][sel]).size),
+                "purpose": purpose,
+                "protocol": protocol,
+                "excluded": ex,
+            }
+        )
     return pd.DataFrame(rows)
 
 
@@ -381,7 +394,8 @@ def _read_configs(path) -> pd.DataFrame:
 
 def main(argv: list[str]) -> int:
     parser = argparse.ArgumentParser(
-        prog="feeder datasets", description="The configuration table, dataset.npz, Table 4 and the convergence study.")
+        prog="feeder datasets", description="The configuration table, dataset.npz, Table 4 and the convergence study."
+    )
     sub = parser.add_subparsers(dest="cmd", required=True)
     p = sub.add_parser("configurations", help="write the part x fence configuration table")
     p.add_argument("--settings", required=True, help="JSON with the fences and datasets config sections")

@@ -62,22 +62,22 @@ from feeder.labels.metrics import FULL_TURN_DEG, normalize_yaw, wrapped_gaussian
 OK = "ok"  # the status of a drop that made it (feeder.sim.drops.STATUSES[0]); kept here: no pybullet import
 
 # Defaults of :func:`refine` (the reasoning is in its docstring).
-DEFAULT_N0 = 16                 # initial grid samples per period (22.5° apart over a full turn)
-DEFAULT_TOLERANCE_DEG = 2.0     # two 1° label bins: ends closer than this are one basin
-DEFAULT_MIN_WIDTH_DEG = 0.5     # half a 1° label bin: an unresolved jump misplaces ≤ 0.5/360 ≈ 0.0014
-DEFAULT_BUDGET = 64             # simulations per period; 40–70 reached sup|ΔCDF| 0.002–0.009
+DEFAULT_N0 = 16  # initial grid samples per period (22.5° apart over a full turn)
+DEFAULT_TOLERANCE_DEG = 2.0  # two 1° label bins: ends closer than this are one basin
+DEFAULT_MIN_WIDTH_DEG = 0.5  # half a 1° label bin: an unresolved jump misplaces ≤ 0.5/360 ≈ 0.0014
+DEFAULT_BUDGET = 64  # simulations per period; 40–70 reached sup|ΔCDF| 0.002–0.009
 DEFAULT_UNSEEN_BASIN_FRACTION = 1.0 / 32.0  # max_width = period / 32 (11.25° over a full turn)
-DEFAULT_BAND_GAP_FACTOR = 4.0   # band_gap = 4 · min_width (2° at the default min_width)
-DEFAULT_EDGE_CHECK_FACTOR = 2.0 # edge_check = 2 · min_width (1°): both sides of a jump sampled finely
-CHAOS_MIN_JUMPS = 2             # jumps within band_gap of each other that make a chaotic band (a
-                                # basin narrower than band_gap looks the same and is treated alike)
+DEFAULT_BAND_GAP_FACTOR = 4.0  # band_gap = 4 · min_width (2° at the default min_width)
+DEFAULT_EDGE_CHECK_FACTOR = 2.0  # edge_check = 2 · min_width (1°): both sides of a jump sampled finely
+CHAOS_MIN_JUMPS = 2  # jumps within band_gap of each other that make a chaotic band (a
+# basin narrower than band_gap looks the same and is treated alike)
 DEFAULT_BINS = 360
-DEFAULT_SIGMA = 1.0             # bins, as the workflow's labels
+DEFAULT_SIGMA = 1.0  # bins, as the workflow's labels
 
-_PERIOD_REL_TOL = 1e-9          # |n · period − 360| allowed, relative to 360
-_POINT_IMAGE_DEG = 1e-12        # a linear segment shorter than this is a point mass
-_ALL_OK_SLACK = 1e-12           # ok mass this close to 1 means every sampled drop was ok
-_WIDTH_SLACK = 1e-9             # relative: a width within round-off of a threshold is not "wider"
+_PERIOD_REL_TOL = 1e-9  # |n · period − 360| allowed, relative to 360
+_POINT_IMAGE_DEG = 1e-12  # a linear segment shorter than this is a point mass
+_ALL_OK_SLACK = 1e-12  # ok mass this close to 1 means every sampled drop was ok
+_WIDTH_SLACK = 1e-9  # relative: a width within round-off of a threshold is not "wider"
 
 
 Evaluate = Callable[[np.ndarray], "tuple[np.ndarray, np.ndarray]"]
@@ -102,8 +102,9 @@ def _turns(period_deg: float) -> int:
         raise FeederError(f"period_deg must be in (0, 360], got {period_deg!r}")
     n = round(FULL_TURN_DEG / period_deg)
     if abs(n * period_deg - FULL_TURN_DEG) > _PERIOD_REL_TOL * FULL_TURN_DEG:
-        raise FeederError(f"period_deg {period_deg:g} does not divide 360 "
-                          f"(360 / period = {FULL_TURN_DEG / period_deg:g})")
+        raise FeederError(
+            f"period_deg {period_deg:g} does not divide 360 (360 / period = {FULL_TURN_DEG / period_deg:g})"
+        )
     return int(n)
 
 
@@ -236,11 +237,10 @@ def _neighbourhood(band: np.ndarray, width: np.ndarray, reach: float) -> np.ndar
 @dataclass(frozen=True)
 class _Classes:
     unresolved: np.ndarray  # counted in label_bound
-    fine: np.ndarray        # to be bisected down to min_width: jumps, bands and their surroundings
+    fine: np.ndarray  # to be bisected down to min_width: jumps, bands and their surroundings
 
 
-def _classify(iv: _Intervals, min_width: float, max_width: float, band_gap: float,
-              edge_check: float = 0.0) -> _Classes:
+def _classify(iv: _Intervals, min_width: float, max_width: float, band_gap: float, edge_check: float = 0.0) -> _Classes:
     """Jumps, chaotic bands and their neighbourhoods (see the module docstring)."""
     width = iv.width
     jump = ~iv.agree
@@ -266,19 +266,28 @@ def _check_evaluation(yaws: np.ndarray, result) -> tuple[np.ndarray, np.ndarray]
     final = np.ravel(np.asarray(final, dtype=np.float64))
     status = np.ravel(np.asarray(status)).astype(str)
     if final.shape != yaws.shape or status.shape != yaws.shape:
-        raise FeederError(f"refine: evaluate returned {final.size} final yaws and {status.size} statuses "
-                          f"for {yaws.size} yaws")
+        raise FeederError(
+            f"refine: evaluate returned {final.size} final yaws and {status.size} statuses for {yaws.size} yaws"
+        )
     ok = status == OK
     if not np.isfinite(final[ok]).all():
         raise FeederError("refine: evaluate returned a non-finite final yaw for an ok drop")
     return np.where(ok, normalize_yaw(np.where(ok, final, 0.0)), np.nan), status
 
 
-def refine(evaluate: Evaluate, n0: int = DEFAULT_N0, tolerance_deg: float = DEFAULT_TOLERANCE_DEG,
-           min_width_deg: float = DEFAULT_MIN_WIDTH_DEG, budget: int = DEFAULT_BUDGET,
-           offset_deg: float = 0.0, period_deg: float = FULL_TURN_DEG, *,
-           max_width_deg: float | None = None, band_gap_deg: float | None = None,
-           edge_check_deg: float | None = None) -> Design:
+def refine(
+    evaluate: Evaluate,
+    n0: int = DEFAULT_N0,
+    tolerance_deg: float = DEFAULT_TOLERANCE_DEG,
+    min_width_deg: float = DEFAULT_MIN_WIDTH_DEG,
+    budget: int = DEFAULT_BUDGET,
+    offset_deg: float = 0.0,
+    period_deg: float = FULL_TURN_DEG,
+    *,
+    max_width_deg: float | None = None,
+    band_gap_deg: float | None = None,
+    edge_check_deg: float | None = None,
+) -> Design:
     """Sample the drop map over one period, bisecting where it jumps, within a budget.
 
     Starts from the grid ``offset + period · i / n0`` and then runs *rounds*: each round
@@ -381,22 +390,72 @@ def refine(evaluate: Evaluate, n0: int = DEFAULT_N0, tolerance_deg: float = DEFA
         perm = np.argsort(yaws, kind="stable")
         yaws, final, status = yaws[perm], final[perm], status[perm]
 
-    return _finish(yaws, final, status, evaluations, calls, period, offset, float(tolerance_deg),
-                   float(min_width_deg), max_width, band_gap, edge_check)
+    return _finish(
+        yaws,
+        final,
+        status,
+        evaluations,
+        calls,
+        period,
+        offset,
+        float(tolerance_deg),
+        float(min_width_deg),
+        max_width,
+        band_gap,
+        edge_check,
+    )
 
 
-def _finish(yaws, final, status, evaluations, calls, period, offset, tolerance, min_width,
-            max_width, band_gap, edge_check) -> Design:
+def _finish(
+    yaws, final, status, evaluations, calls, period, offset, tolerance, min_width, max_width, band_gap, edge_check
+) -> Design:
     iv = _intervals(yaws, final, status, period, tolerance)
     bad = _classify(iv, min_width, max_width, band_gap).unresolved
     unresolved = np.column_stack([iv.start[bad], iv.end[bad]]).reshape(-1, 2)
     unchecked_mask = iv.agree & ~bad & (iv.width > max_width * (1.0 + _WIDTH_SLACK))
     unchecked = np.column_stack([iv.start[unchecked_mask], iv.end[unchecked_mask]]).reshape(-1, 2)
-    return Design(yaws=yaws, final=final, status=status, evaluations=int(evaluations), calls=int(calls),
-                  unresolved=unresolved, label_bound=float(iv.width[bad].sum() / period),
-                  unchecked=unchecked, period_deg=period, offset_deg=offset, tolerance_deg=tolerance,
-                  min_width_deg=min_width, max_width_deg=max_width, band_gap_deg=band_gap,
-                  edge_check_deg=edge_check)
+    return Design(
+        yaws=yaws,
+        final=final,
+        status=status,
+        evaluations=int(evaluations),
+        calls=int(calls),
+        unresolved=unresolved,
+        label_bound=float(iv.width[bad].sum() / period),
+        unchecked=unchecked,
+        period_deg=period,
+        offset_deg=offset,
+        tolerance_deg=tolerance,
+        min_width_deg=min_width,
+        max_width_deg=max_width,
+        band_gap_deg=band_gap,
+        edge_check_deg=edge_check,
+    )
+
+
+def design_from_samples(
+    yaws, final, status, *, period_deg: float, offset_deg: float, tolerance_deg: float, min_width_deg: float,
+    max_width_deg: float | None = None, band_gap_deg: float | None = None, edge_check_deg: float | None = None,
+    calls: int = 1,
+) -> Design:
+    """A :class:`Design` rebuilt from stored samples (a simulation file): the intervals, what is
+    unresolved and ``label_bound`` are recomputed from the samples exactly as :func:`refine`
+    leaves them. ``yaws`` are sorted into ``[offset, offset + period)``; a grid design is one
+    with ``min_width_deg`` = its spacing (no interval was bisected)."""
+    period = float(period_deg)
+    _turns(period)
+    yaws = np.asarray(yaws, dtype=np.float64)
+    rel = np.mod(yaws - offset_deg, period) + offset_deg
+    order = np.argsort(rel, kind="stable")
+    final = np.asarray(final, dtype=np.float64)[order]
+    status = np.asarray(status).astype(str)[order]
+    max_width = max(period * DEFAULT_UNSEEN_BASIN_FRACTION, min_width_deg) if max_width_deg is None else max_width_deg
+    band_gap = DEFAULT_BAND_GAP_FACTOR * min_width_deg if band_gap_deg is None else band_gap_deg
+    edge_check = DEFAULT_EDGE_CHECK_FACTOR * min_width_deg if edge_check_deg is None else edge_check_deg
+    return _finish(
+        rel[order], final, status, rel.size, calls, period, float(offset_deg), float(tolerance_deg),
+        float(min_width_deg), float(max_width), float(band_gap), float(edge_check),
+    )
 
 
 def unfold(design: Design, n: int | None = None) -> Design:
@@ -410,8 +469,9 @@ def unfold(design: Design, n: int | None = None) -> Design:
     turns = _turns(design.period_deg)
     n = turns if n is None else n
     if int(n) != n or n != turns:
-        raise FeederError(f"unfold: n = {n!r} does not match the design's period {design.period_deg:g}° "
-                          f"(360 / period = {turns})")
+        raise FeederError(
+            f"unfold: n = {n!r} does not match the design's period {design.period_deg:g}° (360 / period = {turns})"
+        )
     if turns == 1:
         return design
     P = design.period_deg
@@ -421,8 +481,9 @@ def unfold(design: Design, n: int | None = None) -> Design:
     status = np.tile(design.status, turns)
     unres = (design.unresolved[None, :, :] + shifts[:, None, None]).reshape(-1, 2)
     unchk = (design.unchecked[None, :, :] + shifts[:, None, None]).reshape(-1, 2)
-    return replace(design, yaws=yaws, final=final, status=status, unresolved=unres, unchecked=unchk,
-                   period_deg=FULL_TURN_DEG)
+    return replace(
+        design, yaws=yaws, final=final, status=status, unresolved=unres, unchecked=unchk, period_deg=FULL_TURN_DEG
+    )
 
 
 # ----------------------------------------------------------------------------------------------
@@ -443,8 +504,8 @@ def _segment_hist(lo: np.ndarray, length: np.ndarray, mass: np.ndarray, bins: in
         lo_s, len_s, m_s = lo[seg], length[seg], mass[seg]
         chunk = max(1, int(2**22 // edges.size))  # bound the (k, edges) work array
         for s in range(0, lo_s.size, chunk):
-            frac = np.clip((edges[None, :] - lo_s[s:s + chunk, None]) / len_s[s:s + chunk, None], 0.0, 1.0)
-            per_bin = np.diff(frac, axis=1) * m_s[s:s + chunk, None]
+            frac = np.clip((edges[None, :] - lo_s[s : s + chunk, None]) / len_s[s : s + chunk, None], 0.0, 1.0)
+            per_bin = np.diff(frac, axis=1) * m_s[s : s + chunk, None]
             hist += per_bin.sum(axis=0).reshape(2, bins).sum(axis=0)
     return hist
 
@@ -456,8 +517,9 @@ def _check_sigma_bins(bins: int, sigma: float) -> None:
         raise FeederError(f"pushforward_pmf: sigma must be a finite number of bins >= 0, got {sigma!r}")
 
 
-def pushforward_pmf(design: Design, bins: int = DEFAULT_BINS, sigma: float = DEFAULT_SIGMA
-                    ) -> tuple[np.ndarray, dict[str, float]]:
+def pushforward_pmf(
+    design: Design, bins: int = DEFAULT_BINS, sigma: float = DEFAULT_SIGMA
+) -> tuple[np.ndarray, dict[str, float]]:
     """The label of a design: the push-forward of the uniform β through the interpolated map.
 
     A design over a period ``360 / n`` is :func:`unfold`-ed first. Every interval carries

@@ -1,1 +1,4 @@
-"""Learning: models, losses, training, evaluation, prediction, the VAE and the delta study (workflow/rules/models.smk, vae.smk)."""
+"""Learning: models, losses, training, evaluation, prediction, the VAE and the delta study.
+
+Run by workflow/rules/models.smk and vae.smk.
+"""

@@ -38,9 +38,10 @@ import argparse
 import copy
 import hashlib
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -55,16 +56,26 @@ from feeder.learn.vae import _read_json, config_digest, seeded_run, summarize
 
 MODES = ("part", "config")
 LOG_FLOOR = 1e-12
-TABLE10_COLUMNS = ["level_pct", "cost_saved_pct", "part_r2_mean", "part_r2_sd", "part_baseline_mean",
-                   "part_baseline_sd", "config_r2_mean", "config_r2_sd", "config_baseline_mean",
-                   "config_baseline_sd"]
+TABLE10_COLUMNS = [
+    "level_pct",
+    "cost_saved_pct",
+    "part_r2_mean",
+    "part_r2_sd",
+    "part_baseline_mean",
+    "part_baseline_sd",
+    "config_r2_mean",
+    "config_r2_sd",
+    "config_baseline_mean",
+    "config_baseline_sd",
+]
 
 
 # ----------------------------------------------------------------------------------------------
 # Inputs (pure numpy)
 # ----------------------------------------------------------------------------------------------
-def checkpoints(pmf_levels: np.ndarray, levels_pct: Sequence[int], level: int,
-                offsets: Sequence[int]) -> tuple[np.ndarray, np.ndarray]:
+def checkpoints(
+    pmf_levels: np.ndarray, levels_pct: Sequence[int], level: int, offsets: Sequence[int]
+) -> tuple[np.ndarray, np.ndarray]:
     """PMFs at ``level`` and ``level - offset`` for each offset: ``(N, 1 + len(offsets), bins)``
     and a presence flag per checkpoint. Checkpoints at or below 0 % are zero rows (absent); a
     positive checkpoint missing from ``levels_pct`` is an error."""
@@ -98,8 +109,12 @@ def stability_features(ckpts: np.ndarray, present: np.ndarray) -> np.ndarray:
         a, b = ckpts[:, j], ckpts[:, j + 1]
         ok = bool(present[j] and present[j + 1])
         if ok:
-            cols += [np.ones(n), js_divergence(a, b), 0.5 * np.abs(a - b).sum(axis=-1),
-                     w1(cdf_of(a), cdf_of(b)) / 360.0]
+            cols += [
+                np.ones(n),
+                js_divergence(a, b),
+                0.5 * np.abs(a - b).sum(axis=-1),
+                w1(cdf_of(a), cdf_of(b)) / 360.0,
+            ]
         else:
             cols += [np.zeros(n)] * 4
     for j in range(c):
@@ -115,8 +130,9 @@ def delta_inputs(features: np.ndarray, ckpts: np.ndarray, present: np.ndarray) -
     bins = ckpts.shape[-1]
     diffs = ckpts[:, :-1] - ckpts[:, 1:]
     n = ckpts.shape[0]
-    return np.concatenate([features, bins * ckpts.reshape(n, -1), bins * diffs.reshape(n, -1),
-                           stability_features(ckpts, present)], axis=1)
+    return np.concatenate(
+        [features, bins * ckpts.reshape(n, -1), bins * diffs.reshape(n, -1), stability_features(ckpts, present)], axis=1
+    )
 
 
 # ----------------------------------------------------------------------------------------------
@@ -194,7 +210,7 @@ def fit_delta(cfg, x: np.ndarray, pmf_k: np.ndarray, pmf_full: np.ndarray, seed:
         order = tr_t[torch.randperm(len(tr), generator=gen)]
         total = 0.0
         for i in range(0, len(tr), batch):
-            idx = order[i:i + batch]
+            idx = order[i : i + batch]
             loss, _ = loss_of(idx)
             if not torch.isfinite(loss):
                 raise FeederError(f"delta model diverged: non-finite loss at epoch {epoch}")
@@ -223,8 +239,9 @@ def predict_pmf(net, x: np.ndarray, pmf_k: np.ndarray) -> tuple[np.ndarray, np.n
     import torch
 
     with torch.no_grad():
-        q, _, w = corrected_pmf(net(torch.as_tensor(x, dtype=torch.float32)),
-                                torch.as_tensor(pmf_k, dtype=torch.float32))
+        q, _, w = corrected_pmf(
+            net(torch.as_tensor(x, dtype=torch.float32)), torch.as_tensor(pmf_k, dtype=torch.float32)
+        )
     q = q.double().numpy()
     return q / q.sum(axis=-1, keepdims=True), w.double().numpy()
 
@@ -264,9 +281,15 @@ def sweep_level(cfg, level: int) -> dict[str, Any]:
     ckpts, present = checkpoints(data["pmf_levels"], data["levels_pct"], level, cfg.checkpoint_offsets)
     pmf_k, pmf_full, cdf_full = ckpts[:, 0], data["pmf"], data["cdf"]
     baseline = r2_cdf(cdf_full, cdf_of(pmf_k))
-    result: dict[str, Any] = {"level_pct": int(level), "cost_saved_pct": 100.0 - float(level),
-                              "n_rows": int(rows.size), "checkpoints_present": present.tolist(),
-                              "config_digest": config_digest(cfg), "train_wall_s": 0.0, "modes": {}}
+    result: dict[str, Any] = {
+        "level_pct": int(level),
+        "cost_saved_pct": 100.0 - float(level),
+        "n_rows": int(rows.size),
+        "checkpoints_present": present.tolist(),
+        "config_digest": config_digest(cfg),
+        "train_wall_s": 0.0,
+        "modes": {},
+    }
     for mode in MODES:
         fold_of = folds(data, rows, mode, cfg)
         r2 = np.full(rows.size, np.nan)
@@ -283,17 +306,31 @@ def sweep_level(cfg, level: int) -> dict[str, Any]:
             q, w = predict_pmf(fit.net, x[test], pmf_k[test])
             r2[fold_of == f] = r2_cdf(cdf_full[test], cdf_of(q))
             gates[fold_of == f] = w
-            fold_info.append({"fold": int(f), "n_train": int(train.size), "n_test": int(test.size),
-                              "best_epoch": fit.best_epoch, "epochs_run": fit.epochs_run, "wall_s": fit.wall_s})
+            fold_info.append(
+                {
+                    "fold": int(f),
+                    "n_train": int(train.size),
+                    "n_test": int(test.size),
+                    "best_epoch": fit.best_epoch,
+                    "epochs_run": fit.epochs_run,
+                    "wall_s": fit.wall_s,
+                }
+            )
             result["train_wall_s"] += fit.wall_s
         if not np.isfinite(r2).all():
             raise FeederError(f"delta level {level} mode {mode}: non-finite R²")
         base = baseline[rows]
         m, s = summarize(r2)
         bm, bs = summarize(base)
-        result["modes"][mode] = {"r2_mean": m, "r2_sd": s, "baseline_mean": bm, "baseline_sd": bs,
-                                 "gate_mean": float(gates.mean()), "folds": fold_info,
-                                 "per_row": {"r2": r2.tolist(), "baseline": base.tolist()}}
+        result["modes"][mode] = {
+            "r2_mean": m,
+            "r2_sd": s,
+            "baseline_mean": bm,
+            "baseline_sd": bs,
+            "gate_mean": float(gates.mean()),
+            "folds": fold_info,
+            "per_row": {"r2": r2.tolist(), "baseline": base.tolist()},
+        }
     result["rows"] = {"part": data["part"][rows].tolist(), "config_id": data["config_id"][rows].astype(str).tolist()}
     return result
 
@@ -308,8 +345,14 @@ def table10(results: Sequence[dict]):
         rec = {"level_pct": int(r["level_pct"]), "cost_saved_pct": float(r["cost_saved_pct"])}
         for mode in MODES:
             mres = r["modes"][mode]
-            rec.update({f"{mode}_r2_mean": mres["r2_mean"], f"{mode}_r2_sd": mres["r2_sd"],
-                        f"{mode}_baseline_mean": mres["baseline_mean"], f"{mode}_baseline_sd": mres["baseline_sd"]})
+            rec.update(
+                {
+                    f"{mode}_r2_mean": mres["r2_mean"],
+                    f"{mode}_r2_sd": mres["r2_sd"],
+                    f"{mode}_baseline_mean": mres["baseline_mean"],
+                    f"{mode}_baseline_sd": mres["baseline_sd"],
+                }
+            )
         recs.append(rec)
     frame = pd.DataFrame(recs, columns=TABLE10_COLUMNS)
     if frame["level_pct"].duplicated().any():
@@ -334,20 +377,27 @@ def table10_markdown(frame, results: Sequence[dict], representative: Sequence[in
         "|---|---|---|---|---|---|",
     ]
     for r in shown.itertuples():
-        lines.append(f"| {r.level_pct}% | {r.cost_saved_pct:.1f} | {fmt(r.part_r2_mean, r.part_r2_sd)} | "
-                     f"{fmt(r.part_baseline_mean, r.part_baseline_sd)} | {fmt(r.config_r2_mean, r.config_r2_sd)} | "
-                     f"{fmt(r.config_baseline_mean, r.config_baseline_sd)} |")
+        lines.append(
+            f"| {r.level_pct}% | {r.cost_saved_pct:.1f} | {fmt(r.part_r2_mean, r.part_r2_sd)} | "
+            f"{fmt(r.part_baseline_mean, r.part_baseline_sd)} | {fmt(r.config_r2_mean, r.config_r2_sd)} | "
+            f"{fmt(r.config_baseline_mean, r.config_baseline_sd)} |"
+        )
     if missing:
         lines += ["", f"Levels not in this sweep: {', '.join(f'{m}%' for m in missing)}."]
     wall = sum(float(r["train_wall_s"]) for r in results)
     n_models = sum(len(r["modes"][m]["folds"]) for r in results for m in MODES)
-    lines += ["", "Provenance:",
-              f"- {n_models} models trained over {len(results)} levels, training wall time {wall:.1f} s in total",
-              "- training wall time per level: " + ", ".join(
-                  f"{int(r['level_pct'])}%: {float(r['train_wall_s']):.1f} s"
-                  for r in sorted(results, key=lambda r: int(r["level_pct"]))),
-              f"- rows per level: {sorted({int(r['n_rows']) for r in results})}; "
-              f"config digests: {sorted({r['config_digest'] for r in results})}"]
+    lines += [
+        "",
+        "Provenance:",
+        f"- {n_models} models trained over {len(results)} levels, training wall time {wall:.1f} s in total",
+        "- training wall time per level: "
+        + ", ".join(
+            f"{int(r['level_pct'])}%: {float(r['train_wall_s']):.1f} s"
+            for r in sorted(results, key=lambda r: int(r["level_pct"]))
+        ),
+        f"- rows per level: {sorted({int(r['n_rows']) for r in results})}; "
+        f"config digests: {sorted({r['config_digest'] for r in results})}",
+    ]
     return "\n".join(lines) + "\n"
 
 
@@ -363,8 +413,13 @@ def main(argv: list[str]) -> int:
     p.add_argument("overrides", nargs="*", help="Hydra overrides of config/hydra/delta.yaml")
     p = sub.add_parser("table", help="Table 10 (+ .md; also the data of Fig. S11) from level results")
     p.add_argument("--table", type=Path, required=True, help="table10.csv (a .md is written beside it)")
-    p.add_argument("--override", action="append", default=[], metavar="KEY=VALUE",
-                   help="Hydra override of config/hydra/delta.yaml (repeatable; representative_levels is read)")
+    p.add_argument(
+        "--override",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="Hydra override of config/hydra/delta.yaml (repeatable; representative_levels is read)",
+    )
     p.add_argument("results", nargs="+", type=Path, help="level JSONs from `feeder delta sweep`")
     args = parser.parse_args(argv)
     if args.cmd == "sweep":

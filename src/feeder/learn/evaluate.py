@@ -68,8 +68,10 @@ def summarise(m: dict[str, np.ndarray]) -> dict[str, float]:
         return {"n": 0, "r2_mean": np.nan, "r2_sd": np.nan, "w1_mean": np.nan, "w1_sd": np.nan, "mse_mean": np.nan}
     return {
         "n": n,
-        "r2_mean": float(np.mean(m["r2"])), "r2_sd": float(np.std(m["r2"], ddof=0)),
-        "w1_mean": float(np.mean(m["w1"])), "w1_sd": float(np.std(m["w1"], ddof=0)),
+        "r2_mean": float(np.mean(m["r2"])),
+        "r2_sd": float(np.std(m["r2"], ddof=0)),
+        "w1_mean": float(np.mean(m["w1"])),
+        "w1_sd": float(np.std(m["w1"], ddof=0)),
         "mse_mean": float(np.mean(m["mse"])),
     }
 
@@ -85,12 +87,12 @@ def nearest_rows(query: np.ndarray, ref: np.ndarray, exclude_same: np.ndarray | 
     out = np.empty(len(query), dtype=np.int64)
     chunk = 64  # rows per block of exact differences (bounded memory)
     for start in range(0, len(query), chunk):
-        q = query[start:start + chunk]
+        q = query[start : start + chunk]
         d2 = ((q[:, None, :] - ref[None, :, :]) ** 2).sum(axis=-1)
-        ex = exclude[start:start + chunk]
+        ex = exclude[start : start + chunk]
         rows = np.flatnonzero(ex >= 0)
         d2[rows, ex[rows]] = np.inf
-        out[start:start + chunk] = np.argmin(d2, axis=1)
+        out[start : start + chunk] = np.argmin(d2, axis=1)
     return out
 
 
@@ -167,8 +169,10 @@ def evaluation_tables(data: dict, models: list[tuple[str, object, float]]):
     per_row = {name: row_metrics(data["cdf"], cdf) for name, cdf, _ in preds}
     for split in TABLES:
         mask = data["split"] == split
-        rows = [{"model": name, **summarise({k: v[mask] for k, v in per_row[name].items()}), "train_s": secs}
-                for name, _, secs in preds]
+        rows = [
+            {"model": name, **summarise({k: v[mask] for k, v in per_row[name].items()}), "train_s": secs}
+            for name, _, secs in preds
+        ]
         tables[split] = pd.DataFrame(rows, columns=COLUMNS)
 
     def breakdown(split: str, groups: np.ndarray) -> pd.DataFrame:
@@ -243,10 +247,19 @@ def groupkfold(data: dict, cfg, progress: bool | None = None) -> pd.DataFrame:
         rows.append({"model": model_name, "group": "all configurations", **summarise(m), "train_s": secs[model_name]})
         r2s = np.array([s["r2_mean"] for s in part_means])
         w1s = np.array([s["w1_mean"] for s in part_means])
-        rows.append({"model": model_name, "group": "over parts", "n": len(part_means),
-                     "r2_mean": r2s.mean(), "r2_sd": r2s.std(ddof=0), "w1_mean": w1s.mean(),
-                     "w1_sd": w1s.std(ddof=0), "mse_mean": float(np.mean([s["mse_mean"] for s in part_means])),
-                     "train_s": secs[model_name]})
+        rows.append(
+            {
+                "model": model_name,
+                "group": "over parts",
+                "n": len(part_means),
+                "r2_mean": r2s.mean(),
+                "r2_sd": r2s.std(ddof=0),
+                "w1_mean": w1s.mean(),
+                "w1_sd": w1s.std(ddof=0),
+                "mse_mean": float(np.mean([s["mse_mean"] for s in part_means])),
+                "train_s": secs[model_name],
+            }
+        )
     return pd.DataFrame(rows, columns=BREAKDOWN_COLUMNS + ["train_s"])
 
 
@@ -283,13 +296,16 @@ def prediction_data(dataset, model_dir) -> dict[str, dict[str, np.ndarray]]:
         if idx.size == 0:
             raise FeederError(f"{dataset}: no {split} rows to plot")
         rows = [int(idx[j]) for j in representative_rows(r2[idx])]
-        out[split] = {"part": np.asarray(data["part"])[rows].astype(str),
-                      "config_id": np.asarray(data["config_id"])[rows].astype(str),
-                      "yaw_deg": np.arange(bins) * (360.0 / bins),
-                      "cdf_true": np.asarray(data["cdf"][rows], dtype=np.float64),
-                      "cdf_pred": np.asarray(cdf[rows], dtype=np.float64),
-                      "r2": np.asarray(r2[rows], dtype=np.float64),
-                      "model": np.array(str(model.spec.name)), "split": np.array(label)}
+        out[split] = {
+            "part": np.asarray(data["part"])[rows].astype(str),
+            "config_id": np.asarray(data["config_id"])[rows].astype(str),
+            "yaw_deg": np.arange(bins) * (360.0 / bins),
+            "cdf_true": np.asarray(data["cdf"][rows], dtype=np.float64),
+            "cdf_pred": np.asarray(cdf[rows], dtype=np.float64),
+            "r2": np.asarray(r2[rows], dtype=np.float64),
+            "model": np.array(str(model.spec.name)),
+            "split": np.array(label),
+        }
     return out
 
 
@@ -304,9 +320,17 @@ def grid_table(grid_dir) -> pd.DataFrame:
     for metrics_path in sorted(Path(grid_dir).glob("*/metrics.json")):
         cfg = OmegaConf.load(metrics_path.parent / "config.yaml")
         m = json.loads(metrics_path.read_text())
-        rows.append({"run": metrics_path.parent.name, "lr": cfg["model"]["lr"],
-                     "batch_size": cfg["trainer"]["batch_size"], "best_val_loss": m["best_val_loss"],
-                     "best_epoch": m["best_epoch"], "r2_train": m.get("r2_train"), "train_s": m["train_s"]})
+        rows.append(
+            {
+                "run": metrics_path.parent.name,
+                "lr": cfg["model"]["lr"],
+                "batch_size": cfg["trainer"]["batch_size"],
+                "best_val_loss": m["best_val_loss"],
+                "best_epoch": m["best_epoch"],
+                "r2_train": m.get("r2_train"),
+                "train_s": m["train_s"],
+            }
+        )
     if not rows:
         raise FeederError(f"{grid_dir}: no finished grid runs (*/metrics.json)")
     return pd.DataFrame(rows).sort_values(["best_val_loss", "run"], kind="stable").reset_index(drop=True)
@@ -351,9 +375,13 @@ def main(argv: list[str]) -> int:
         cfg = compose_config("train", args.overrides)
         df = groupkfold(data, cfg)
         name = str(cfg.model.name)
-        _write_table(args.out, df, f"Leave-parts-out GroupKFold of {name} ({np.unique(data['group_fold']).size} folds): "
-                                   "CDF R², W1 in degrees, mean ± SD (ddof=0) per part, over all held-out "
-                                   "configurations, and over the per-part means.")
+        _write_table(
+            args.out,
+            df,
+            f"Leave-parts-out GroupKFold of {name} ({np.unique(data['group_fold']).size} folds): "
+            "CDF R², W1 in degrees, mean ± SD (ddof=0) per part, over all held-out "
+            "configurations, and over the per-part means.",
+        )
         summary = df[df.group == "over parts"][["model", "r2_mean", "r2_sd", "w1_mean"]]
         print(summary.to_string(index=False), file=sys.stderr)
     elif args.cmd == "figure-data":

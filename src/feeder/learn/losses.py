@@ -22,7 +22,7 @@ huge logits give finite values and finite gradients.
 
 from __future__ import annotations
 
-from typing import Callable
+from collections.abc import Callable
 
 import torch
 

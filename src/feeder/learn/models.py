@@ -178,7 +178,7 @@ class ModelSpec:
             raise ValueError(f"model {self.name}: PCA labels need a positive number of components")
 
     @classmethod
-    def from_config(cls, model_cfg, bins: int) -> "ModelSpec":
+    def from_config(cls, model_cfg, bins: int) -> ModelSpec:
         get = model_cfg.get  # a dict or an OmegaConf DictConfig
 
         def tup(key: str) -> tuple[int, ...]:
@@ -202,7 +202,7 @@ class ModelSpec:
         return {k: (list(v) if isinstance(v, tuple) else v) for k, v in self.__dict__.items()}
 
     @classmethod
-    def from_dict(cls, d: dict) -> "ModelSpec":
+    def from_dict(cls, d: dict) -> ModelSpec:
         d = dict(d)
         for k in ("hidden", "part_hidden", "feeder_hidden", "shared_hidden"):
             d[k] = tuple(d.get(k) or ())
@@ -213,8 +213,9 @@ class RegressionModel(nn.Module):
     """Body network + output head. ``forward(x)`` returns raw 360-bin ``pmf``, ``cdf`` and
     ``log_pmf`` (softmax outputs only; ``None`` otherwise)."""
 
-    def __init__(self, spec: ModelSpec, n_out: int, pca_mean: np.ndarray | None = None,
-                 pca_components: np.ndarray | None = None):
+    def __init__(
+        self, spec: ModelSpec, n_out: int, pca_mean: np.ndarray | None = None, pca_components: np.ndarray | None = None
+    ):
         super().__init__()
         self.spec = spec
         if spec.arch == "standard":
@@ -370,13 +371,20 @@ class TrainedModel:
 
         out_dir = Path(out_dir)
         buf = _io.BytesIO()
-        torch.save({"spec": self.spec.to_dict(), "n_out": int(self.net.body.head.out_features),
-                    "label_frame": self.label_frame, "state_dict": self.net.state_dict()}, buf)
+        torch.save(
+            {
+                "spec": self.spec.to_dict(),
+                "n_out": int(self.net.body.head.out_features),
+                "label_frame": self.label_frame,
+                "state_dict": self.net.state_dict(),
+            },
+            buf,
+        )
         write_json(out_dir / SCALER_FILE, self.scaler.to_dict())
         write_bytes(out_dir / WEIGHTS_FILE, buf.getvalue())
 
     @classmethod
-    def load(cls, model_dir) -> "TrainedModel":
+    def load(cls, model_dir) -> TrainedModel:
         from pathlib import Path
 
         from feeder.errors import FeederError

@@ -47,8 +47,7 @@ def part_vector(part: Path | None, features: Path | None) -> tuple[np.ndarray, f
     return as_vector(feats), feats["frame_deg"]
 
 
-def predict_frame(model, part_raw: np.ndarray, loc1: str, loc2: str,
-                  frame_deg: float | None = None) -> pd.DataFrame:
+def predict_frame(model, part_raw: np.ndarray, loc1: str, loc2: str, frame_deg: float | None = None) -> pd.DataFrame:
     """The 360-bin prediction of ``model`` (a TrainedModel) as a DataFrame, in the part's own frame.
 
     A model trained on ``principal``-frame labels predicts the yaw of the part's feature frame;
@@ -62,8 +61,10 @@ def predict_frame(model, part_raw: np.ndarray, loc1: str, loc2: str,
     pmf, cdf = model.predict(part_raw[None, :], feeder_raw[None, :])
     if model.label_frame == "principal":
         if frame_deg is None:
-            raise FeederError("this model predicts in the parts' feature frame and needs the part's frame_deg: "
-                              "give --part, or a features JSON written by `feeder features`")
+            raise FeederError(
+                "this model predicts in the parts' feature frame and needs the part's frame_deg: "
+                "give --part, or a features JSON written by `feeder features`"
+            )
         pmf = L.shift_pmf(pmf, -float(frame_deg))
         cdf = L.cdf(pmf)
     bins = pmf.shape[1]
@@ -101,8 +102,8 @@ def main(argv: list[str]) -> int:
     parser.add_argument("--plot", type=Path, help="also draw the PMF/CDF to this image")
     args = parser.parse_args(argv)
 
-    from feeder.sim.fences import parse_location
     from feeder.learn.models import TrainedModel
+    from feeder.sim.fences import parse_location
 
     parse_location(args.loc1), parse_location(args.loc2)  # bad fences fail before any work
     model = TrainedModel.load(args.model)
@@ -122,6 +123,5 @@ def main(argv: list[str]) -> int:
 
         name = (args.part or args.features).stem
         save_figure(args.plot, plot(frame, f"{model.spec.name}: {name}, loc1 {args.loc1}, loc2 {args.loc2}"))
-    print(f"feeder predict: features {1e3 * (t1 - t0):.1f} ms, network {1e3 * (t2 - t1):.1f} ms",
-          file=sys.stderr)
+    print(f"feeder predict: features {1e3 * (t1 - t0):.1f} ms, network {1e3 * (t2 - t1):.1f} ms", file=sys.stderr)
     return 0

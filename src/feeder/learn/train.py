@@ -95,8 +95,11 @@ def _model_inputs(spec, data: dict[str, np.ndarray], train_mask: np.ndarray, row
     if spec.repr == "pca":
         pca = fit_pca(data[spec.label][rows], spec.components)
         if pca.capped:
-            print(f"feeder train: {spec.name}: PCA capped at {pca.n_components} components "
-                  f"(requested {spec.components}; {rows.size} training rows)", file=sys.stderr)
+            print(
+                f"feeder train: {spec.name}: PCA capped at {pca.n_components} components "
+                f"(requested {spec.components}; {rows.size} training rows)",
+                file=sys.stderr,
+            )
     return scaler, x_all, pca
 
 
@@ -122,7 +125,7 @@ def _train_epoch(net, opt, loss_of, tensors, batch: int, gen, name: str, epoch: 
     order = torch.randperm(x.shape[0], generator=gen)
     total, seen = 0.0, 0
     for start in range(0, x.shape[0], batch):
-        idx = order[start:start + batch]
+        idx = order[start : start + batch]
         loss, _ = loss_of(x[idx], p[idx], c[idx])
         if not torch.isfinite(loss):
             raise FeederError(f"{name}: non-finite training loss at epoch {epoch}")
@@ -134,8 +137,18 @@ def _train_epoch(net, opt, loss_of, tensors, batch: int, gen, name: str, epoch: 
     return total / seen
 
 
-def _train_epochs(cfg, net, spec, weights: dict, x_all: np.ndarray, data: dict[str, np.ndarray],
-                  fit_rows: np.ndarray, val_rows: np.ndarray, seed: int, progress: bool | None):
+def _train_epochs(
+    cfg,
+    net,
+    spec,
+    weights: dict,
+    x_all: np.ndarray,
+    data: dict[str, np.ndarray],
+    fit_rows: np.ndarray,
+    val_rows: np.ndarray,
+    seed: int,
+    progress: bool | None,
+):
     """Adam with early stopping on the validation rows; leaves ``net`` at its best epoch.
     Returns (history, best epoch, best validation loss)."""
     import torch
@@ -169,8 +182,14 @@ def _train_epochs(cfg, net, spec, weights: dict, x_all: np.ndarray, data: dict[s
         val_loss = float(val_loss)
         if not np.isfinite(val_loss):
             raise FeederError(f"{spec.name}: non-finite validation loss at epoch {epoch}")
-        history.append({"epoch": epoch, "train_loss": train_loss, "val_loss": val_loss,
-                        **{f"val_{k}": float(v) for k, v in parts.items()}})
+        history.append(
+            {
+                "epoch": epoch,
+                "train_loss": train_loss,
+                "val_loss": val_loss,
+                **{f"val_{k}": float(v) for k, v in parts.items()},
+            }
+        )
         bar.set_postfix(val=f"{val_loss:.4g}")
         if val_loss < best_val:
             best_val, best_epoch, best_state = val_loss, epoch, copy.deepcopy(net.state_dict())
@@ -180,8 +199,9 @@ def _train_epochs(cfg, net, spec, weights: dict, x_all: np.ndarray, data: dict[s
     return history, best_epoch, best_val
 
 
-def fit(cfg, data: dict[str, np.ndarray], train_mask: np.ndarray, seed: int | None = None,
-        progress: bool | None = None) -> Fitted:
+def fit(
+    cfg, data: dict[str, np.ndarray], train_mask: np.ndarray, seed: int | None = None, progress: bool | None = None
+) -> Fitted:
     """Train the model of ``cfg.model`` on the rows in ``train_mask`` (scaler and PCA fit on
     them, a ``trainer.val_fraction`` carve-out of them for early stopping)."""
     from feeder.learn.models import TrainedModel
@@ -198,12 +218,17 @@ def fit(cfg, data: dict[str, np.ndarray], train_mask: np.ndarray, seed: int | No
     spec, weights = _model_spec(cfg, data["pmf"].shape[1])
     scaler, x_all, pca = _model_inputs(spec, data, train_mask, rows)
     net = _init_net(spec, pca, data, rows, seed)
-    history, best_epoch, best_val = _train_epochs(cfg, net, spec, weights, x_all, data, fit_rows, val_rows,
-                                                  seed, progress)
+    history, best_epoch, best_val = _train_epochs(
+        cfg, net, spec, weights, x_all, data, fit_rows, val_rows, seed, progress
+    )
     return Fitted(
-        model=TrainedModel(net, scaler, str(data.get("label_frame", "part"))), history=history,
-        best_epoch=best_epoch, best_val_loss=best_val, train_s=time.perf_counter() - t0,
-        n_fit=int(fit_rows.size), n_val=int(val_rows.size),
+        model=TrainedModel(net, scaler, str(data.get("label_frame", "part"))),
+        history=history,
+        best_epoch=best_epoch,
+        best_val_loss=best_val,
+        train_s=time.perf_counter() - t0,
+        n_fit=int(fit_rows.size),
+        n_val=int(val_rows.size),
         pca_components=None if pca is None else pca.n_components,
         pca_requested=None if pca is None else pca.requested,
     )

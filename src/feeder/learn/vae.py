@@ -52,9 +52,10 @@ import io as _io
 import shlex
 import sys
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -65,10 +66,23 @@ from feeder.labels.dataset import DATASET_KEYS, LEVEL_KEYS, load_dataset
 from feeder.labels.metrics import r2_cdf
 from feeder.learn.data import level_index, scaled_features, split_mask, validation_split
 
-P2_COLUMNS = ["level_pct", "n_train", "n_val", "n_holdout", "within_r2_mean", "within_r2_sd",
-              "cross_r2_mean", "cross_r2_sd", "features_r2_mean", "features_r2_sd",
-              "partial_baseline_r2_mean", "partial_baseline_r2_sd", "best_epoch", "epochs_run",
-              "train_wall_s"]
+P2_COLUMNS = [
+    "level_pct",
+    "n_train",
+    "n_val",
+    "n_holdout",
+    "within_r2_mean",
+    "within_r2_sd",
+    "cross_r2_mean",
+    "cross_r2_sd",
+    "features_r2_mean",
+    "features_r2_sd",
+    "partial_baseline_r2_mean",
+    "partial_baseline_r2_sd",
+    "best_epoch",
+    "epochs_run",
+    "train_wall_s",
+]
 TABLE9_COLUMNS = ["dataset", "n", "r2_features_mean", "r2_features_sd", "r2_cdf_mean", "r2_cdf_sd"]
 
 
@@ -256,7 +270,7 @@ def _vae_epoch(net, opt, cfg, x_tr, f_tr, gen, beta: float, epoch: int) -> float
     order = torch.randperm(len(x_tr), generator=gen)
     total, count = 0.0, 0
     for i in range(0, len(x_tr), batch):
-        idx = order[i:i + batch]
+        idx = order[i : i + batch]
         noise = torch.randn(len(idx), latent, generator=gen)
         out = vae_forward(net, cfg.model, x_tr[idx], f_tr[idx], noise)
         loss, _ = vae_loss(out, x_tr[idx], f_tr[idx], cfg, beta)
@@ -302,14 +316,22 @@ def fit_vae(cfg, x: np.ndarray, cdf: np.ndarray, seed: int | None = None) -> Vae
     best, best_state, best_epoch, stale = float("inf"), None, -1, 0
     history: list[dict[str, float]] = []
     start = time.perf_counter()
-    epochs = tqdm(range(int(tcfg.epochs)), desc="vae", unit="epoch", file=sys.stderr,
-                  disable=not sys.stderr.isatty(), leave=False)
+    epochs = tqdm(
+        range(int(tcfg.epochs)), desc="vae", unit="epoch", file=sys.stderr, disable=not sys.stderr.isatty(), leave=False
+    )
     for epoch in epochs:
         beta = kl_weight(cfg.loss, epoch)
         train_loss = _vae_epoch(net, opt, cfg, x_tr, f_tr, gen, beta, epoch)
         val, parts = _vae_validation(net, cfg, x_va, f_va, epoch)
-        history.append({"epoch": epoch, "beta": beta, "train_loss": train_loss, "val_loss": val,
-                        **{f"val_{k}": float(v) for k, v in parts.items()}})
+        history.append(
+            {
+                "epoch": epoch,
+                "beta": beta,
+                "train_loss": train_loss,
+                "val_loss": val,
+                **{f"val_{k}": float(v) for k, v in parts.items()},
+            }
+        )
         if val < best:
             best, best_epoch, stale = val, epoch, 0
             best_state = copy.deepcopy(net.state_dict())
@@ -330,8 +352,7 @@ def reconstruct(net, mcfg, x: np.ndarray, cdf: np.ndarray) -> tuple[np.ndarray, 
     import torch
 
     with torch.no_grad():
-        out = vae_forward(net, mcfg, torch.as_tensor(x, dtype=torch.float32),
-                          torch.as_tensor(cdf, dtype=torch.float32))
+        out = vae_forward(net, mcfg, torch.as_tensor(x, dtype=torch.float32), torch.as_tensor(cdf, dtype=torch.float32))
     return out["features"].double().numpy(), out["cdf"].double().numpy()
 
 
@@ -404,7 +425,7 @@ def reconstruction_scores(net, mcfg, x: np.ndarray, cdf_in: np.ndarray, cdf_targ
     return r2_cdf(x, feat_hat), r2_cdf(target, cdf_hat)
 
 
-def table9(net, cfg, data: dict[str, np.ndarray]) -> "pd.DataFrame":  # noqa: F821
+def table9(net, cfg, data: dict[str, np.ndarray]) -> pd.DataFrame:  # noqa: F821
     """One row per evaluation split: n and R² mean/SD of features and CDF."""
     import pandas as pd
 
@@ -416,8 +437,16 @@ def table9(net, cfg, data: dict[str, np.ndarray]) -> "pd.DataFrame":  # noqa: F8
         r2_x, r2_f = reconstruction_scores(net, cfg.model, data["features"][mask], data["cdf"][mask])
         fm, fs = summarize(r2_x)
         cm, cs = summarize(r2_f)
-        rows.append({"dataset": name, "n": int(mask.sum()), "r2_features_mean": fm, "r2_features_sd": fs,
-                     "r2_cdf_mean": cm, "r2_cdf_sd": cs})
+        rows.append(
+            {
+                "dataset": name,
+                "n": int(mask.sum()),
+                "r2_features_mean": fm,
+                "r2_features_sd": fs,
+                "r2_cdf_mean": cm,
+                "r2_cdf_sd": cs,
+            }
+        )
     return pd.DataFrame(rows, columns=TABLE9_COLUMNS)
 
 
@@ -433,8 +462,10 @@ def table9_markdown(frame, blob: dict, cfg) -> str:
         "|---|---|---|---|",
     ]
     for r in frame.itertuples():
-        lines.append(f"| {r.dataset.capitalize()} | {r.n} | {r.r2_features_mean:.2f} ± {r.r2_features_sd:.2f} | "
-                     f"{r.r2_cdf_mean:.2f} ± {r.r2_cdf_sd:.2f} |")
+        lines.append(
+            f"| {r.dataset.capitalize()} | {r.n} | {r.r2_features_mean:.2f} ± {r.r2_features_sd:.2f} | "
+            f"{r.r2_cdf_mean:.2f} ± {r.r2_cdf_sd:.2f} |"
+        )
     lines += [
         "",
         "Provenance:",
@@ -479,21 +510,41 @@ def p2_level(cfg, level: int) -> dict[str, Any]:
     for name, arr in (("within", within), ("cross", cross), ("features", feats)):
         if not np.isfinite(arr).all():
             raise FeederError(f"P2 level {level}: non-finite {name} R²")
-    result: dict[str, Any] = {"level_pct": int(level), "n_train": fit.n_train, "n_val": fit.n_val,
-                              "n_holdout": int(hold.size)}
-    for name, arr in (("within_r2", within), ("cross_r2", cross), ("features_r2", feats),
-                      ("partial_baseline_r2", base)):
+    result: dict[str, Any] = {
+        "level_pct": int(level),
+        "n_train": fit.n_train,
+        "n_val": fit.n_val,
+        "n_holdout": int(hold.size),
+    }
+    for name, arr in (
+        ("within_r2", within),
+        ("cross_r2", cross),
+        ("features_r2", feats),
+        ("partial_baseline_r2", base),
+    ):
         result[f"{name}_mean"], result[f"{name}_sd"] = summarize(arr)
-    result.update({"best_epoch": fit.best_epoch, "epochs_run": fit.epochs_run, "train_wall_s": fit.wall_s,
-                   "config_digest": config_digest(cfg),
-                   "holdout_rows": {"part": data["part"][hold].tolist(),
-                                    "config_id": data["config_id"][hold].astype(str).tolist()},
-                   "per_row": {"within_r2": within.tolist(), "cross_r2": cross.tolist(),
-                               "features_r2": feats.tolist(), "partial_baseline_r2": base.tolist()}})
+    result.update(
+        {
+            "best_epoch": fit.best_epoch,
+            "epochs_run": fit.epochs_run,
+            "train_wall_s": fit.wall_s,
+            "config_digest": config_digest(cfg),
+            "holdout_rows": {
+                "part": data["part"][hold].tolist(),
+                "config_id": data["config_id"][hold].astype(str).tolist(),
+            },
+            "per_row": {
+                "within_r2": within.tolist(),
+                "cross_r2": cross.tolist(),
+                "features_r2": feats.tolist(),
+                "partial_baseline_r2": base.tolist(),
+            },
+        }
+    )
     return result
 
 
-def p2_gather(results: Sequence[dict]) -> "pd.DataFrame":  # noqa: F821
+def p2_gather(results: Sequence[dict]) -> pd.DataFrame:  # noqa: F821
     import pandas as pd
 
     if not results:
@@ -505,15 +556,20 @@ def p2_gather(results: Sequence[dict]) -> "pd.DataFrame":  # noqa: F821
 
 
 def p2_markdown(frame) -> str:
-    lines = ["# P2: VAE per iteration level, shared holdout (R² mean ± population SD)", "",
-             "| Level | N train | N holdout | Within-level | Cross-convergence | Partial CDF vs 100 % | "
-             "Features | Train wall [s] |",
-             "|---|---|---|---|---|---|---|---|"]
+    lines = [
+        "# P2: VAE per iteration level, shared holdout (R² mean ± population SD)",
+        "",
+        "| Level | N train | N holdout | Within-level | Cross-convergence | Partial CDF vs 100 % | "
+        "Features | Train wall [s] |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
     for r in frame.itertuples():
-        lines.append(f"| {r.level_pct}% | {r.n_train} | {r.n_holdout} | {r.within_r2_mean:.2f} ± {r.within_r2_sd:.2f} | "
-                     f"{r.cross_r2_mean:.2f} ± {r.cross_r2_sd:.2f} | "
-                     f"{r.partial_baseline_r2_mean:.2f} ± {r.partial_baseline_r2_sd:.2f} | "
-                     f"{r.features_r2_mean:.2f} ± {r.features_r2_sd:.2f} | {r.train_wall_s:.1f} |")
+        lines.append(
+            f"| {r.level_pct}% | {r.n_train} | {r.n_holdout} | {r.within_r2_mean:.2f} ± {r.within_r2_sd:.2f} | "
+            f"{r.cross_r2_mean:.2f} ± {r.cross_r2_sd:.2f} | "
+            f"{r.partial_baseline_r2_mean:.2f} ± {r.partial_baseline_r2_sd:.2f} | "
+            f"{r.features_r2_mean:.2f} ± {r.features_r2_sd:.2f} | {r.train_wall_s:.1f} |"
+        )
     return "\n".join(lines) + "\n"
 
 
@@ -551,8 +607,11 @@ def main(argv: list[str]) -> int:
         cfg = compose_config("vae", args.overrides)
         fit, _ = train_vae(cfg)
         save_checkpoint(args.out, fit, cfg)
-        print(f"vae: {fit.n_train}+{fit.n_val} rows, {fit.epochs_run} epochs, best {fit.best_epoch}, "
-              f"{fit.wall_s:.1f} s -> {args.out}", file=sys.stderr)
+        print(
+            f"vae: {fit.n_train}+{fit.n_val} rows, {fit.epochs_run} epochs, best {fit.best_epoch}, "
+            f"{fit.wall_s:.1f} s -> {args.out}",
+            file=sys.stderr,
+        )
     elif args.cmd == "table9":
         net, cfg, blob = load_checkpoint(args.model)
         data = load_dataset(cfg.dataset, DATASET_KEYS + LEVEL_KEYS)

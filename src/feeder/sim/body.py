@@ -91,7 +91,8 @@ def _mergeable_pair(polys, tolerance: float):
             union = unary_union([a, b])
             hull = union.convex_hull
             if hull.difference(union).area <= 1e-12 * hull.area or (
-                    tolerance > 0 and union.buffer(tolerance, join_style=2).contains(hull)):
+                tolerance > 0 and union.buffer(tolerance, join_style=2).contains(hull)
+            ):
                 return i, j, hull
     return None
 
@@ -102,8 +103,7 @@ def part_model(geom, scene: dict, merge_tolerance: float = 0.0) -> PartModel:
 
     pc = scene["part"]
     margin = float(pc["collision_margin"])
-    mass, inertia, alpha = principal_inertia(geom.area, geom.second_moment, geom.thickness,
-                                             float(pc["density"]))
+    mass, inertia, alpha = principal_inertia(geom.area, geom.second_moment, geom.thickness, float(pc["density"]))
     c, s = math.cos(-alpha), math.sin(-alpha)
     rot = np.array([[c, -s], [s, c]])
     centroid = np.asarray(geom.centroid, dtype=np.float64)
@@ -200,7 +200,8 @@ class World:
         blo, bhi = plan.start_y - travel - 1.0, plan.record_y + 1.0
         self.belt_start = [0.5 * (blo + bhi), -0.5 * bt]
         belt_shape = pb.createCollisionShape(
-            pb.GEOM_BOX, halfExtents=[0.5 * self.pitch, 0.5 * (bhi - blo), 0.5 * bt], physicsClientId=self.cid)
+            pb.GEOM_BOX, halfExtents=[0.5 * self.pitch, 0.5 * (bhi - blo), 0.5 * bt], physicsClientId=self.cid
+        )
         walls_y = (min(blo, plan.start_y - 1.0), bhi + travel)
         self.belts = []
         for x0 in self.lane_x:
@@ -216,9 +217,14 @@ class World:
         pb.resetSimulation(physicsClientId=c)
         pb.setGravity(0, 0, -float(scene["gravity"]), physicsClientId=c)
         pb.setPhysicsEngineParameter(
-            fixedTimeStep=float(preset["time_step"]), numSubSteps=int(preset["substeps"]),
-            numSolverIterations=int(preset["solver_iterations"]), enableConeFriction=1,
-            deterministicOverlappingPairs=1, enableFileCaching=0, physicsClientId=c)
+            fixedTimeStep=float(preset["time_step"]),
+            numSubSteps=int(preset["substeps"]),
+            numSolverIterations=int(preset["solver_iterations"]),
+            enableConeFriction=1,
+            deterministicOverlappingPairs=1,
+            enableFileCaching=0,
+            physicsClientId=c,
+        )
         if preset.get("engine"):
             pb.setPhysicsEngineParameter(**dict(preset["engine"]), physicsClientId=c)
         return c
@@ -240,8 +246,11 @@ class World:
         wt, wh = float(walls["thickness"]), float(walls["height"])
         wx = float(belt["half_width"]) + 0.5 * wt
         shape = pb.createCollisionShapeArray(
-            shapeTypes=[pb.GEOM_BOX, pb.GEOM_BOX], halfExtents=[[0.5 * wt, 0.5 * (whi - wlo), 0.5 * wh]] * 2,
-            collisionFramePositions=[[-wx, 0, 0], [wx, 0, 0]], physicsClientId=c)
+            shapeTypes=[pb.GEOM_BOX, pb.GEOM_BOX],
+            halfExtents=[[0.5 * wt, 0.5 * (whi - wlo), 0.5 * wh]] * 2,
+            collisionFramePositions=[[-wx, 0, 0], [wx, 0, 0]],
+            physicsClientId=c,
+        )
         body = pb.createMultiBody(0, shape, basePosition=[x0, 0.5 * (wlo + whi), 0.5 * wh], physicsClientId=c)
         self._surface(body, float(walls["friction"]))
 
@@ -251,13 +260,14 @@ class World:
         fh, fclr = float(fc["height"]), float(fc["clearance"])
         for f in self.plan.fences:
             for k in range(0, len(f.boxes), _MAX_COMPOUND):  # pybullet keeps <= 16 shapes per array
-                chunk = f.boxes[k:k + _MAX_COMPOUND]
+                chunk = f.boxes[k : k + _MAX_COMPOUND]
                 shape = pb.createCollisionShapeArray(
                     shapeTypes=[pb.GEOM_BOX] * len(chunk),
                     halfExtents=[[b[2], b[3], 0.5 * fh] for b in chunk],
                     collisionFramePositions=[[b[0], b[1], 0.0] for b in chunk],
                     collisionFrameOrientations=[pb.getQuaternionFromEuler([0, 0, b[4]]) for b in chunk],
-                    physicsClientId=c)
+                    physicsClientId=c,
+                )
                 body = pb.createMultiBody(0, shape, basePosition=[x0, 0.0, fclr + 0.5 * fh], physicsClientId=c)
                 self._surface(body, float(fc["friction"]))
 
@@ -274,14 +284,22 @@ class World:
         return shape
 
     def _surface(self, body: int, friction: float) -> None:
-        self.pb.changeDynamics(body, -1, lateralFriction=friction, restitution=float(self.scene["restitution"]),
-                               rollingFriction=0.0, spinningFriction=0.0, physicsClientId=self.cid)
+        self.pb.changeDynamics(
+            body,
+            -1,
+            lateralFriction=friction,
+            restitution=float(self.scene["restitution"]),
+            rollingFriction=0.0,
+            spinningFriction=0.0,
+            physicsClientId=self.cid,
+        )
 
     def reset_belt(self, lane: int) -> None:
         """Put the lane's belt back at its start pose, moving at the belt speed (no part on it)."""
         pb, c = self.pb, self.cid
-        pb.resetBasePositionAndOrientation(self.belts[lane], [self.lane_x[lane], *self.belt_start], [0, 0, 0, 1],
-                                          physicsClientId=c)
+        pb.resetBasePositionAndOrientation(
+            self.belts[lane], [self.lane_x[lane], *self.belt_start], [0, 0, 0, 1], physicsClientId=c
+        )
         pb.resetBaseVelocity(self.belts[lane], self.belt_vel, [0.0, 0.0, 0.0], physicsClientId=c)
 
     def add_part(self, lane: int, x: float, y: float, yaw_deg: float) -> int:
@@ -289,11 +307,21 @@ class World:
         pb, c, m = self.pb, self.cid, self.model
         yb = math.radians(yaw_deg) + m.alpha
         body = pb.createMultiBody(
-            m.mass, self.part_shape, basePosition=[self.lane_x[lane] + x, y, 0.5 * m.thickness],
-            baseOrientation=[0.0, 0.0, math.sin(0.5 * yb), math.cos(0.5 * yb)], physicsClientId=c)
-        pb.changeDynamics(body, -1, localInertiaDiagonal=list(m.inertia),
-                          collisionMargin=float(self.scene["part"]["collision_margin"]),
-                          linearDamping=0.0, angularDamping=0.0, physicsClientId=c)
+            m.mass,
+            self.part_shape,
+            basePosition=[self.lane_x[lane] + x, y, 0.5 * m.thickness],
+            baseOrientation=[0.0, 0.0, math.sin(0.5 * yb), math.cos(0.5 * yb)],
+            physicsClientId=c,
+        )
+        pb.changeDynamics(
+            body,
+            -1,
+            localInertiaDiagonal=list(m.inertia),
+            collisionMargin=float(self.scene["part"]["collision_margin"]),
+            linearDamping=0.0,
+            angularDamping=0.0,
+            physicsClientId=c,
+        )
         self._surface(body, float(self.scene["part"]["friction"]))
         pb.setCollisionFilterGroupMask(body, -1, _PART_GROUP, _PART_MASK, physicsClientId=c)
         pb.resetBaseVelocity(body, self.belt_vel, [0.0, 0.0, 0.0], physicsClientId=c)

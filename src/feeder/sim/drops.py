@@ -194,8 +194,7 @@ def gap_ahead(poly: np.ndarray, samples: np.ndarray, pad: float) -> float | None
     return float(np.min(cand[ahead, 1] - upper[ahead]))
 
 
-def make_plan(scene: dict, loc1: Fence, loc2: Fence, model: PartModel, full_path: bool,
-              prune: bool = True) -> Plan:
+def make_plan(scene: dict, loc1: Fence, loc2: Fence, model: PartModel, full_path: bool, prune: bool = True) -> Plan:
     st, belt = scene["status"], scene["belt"]
     pad = float(st["clear_margin"])
     half = model.radius + pad
@@ -260,17 +259,28 @@ def drop_limits(scene: dict, preset: dict) -> Limits:
     t_check = check_steps * dt
     full_path = bool(preset["full_path"])
     return Limits(
-        belt_speed=float(scene["belt"]["speed"]), check_steps=check_steps, t_check=t_check,
+        belt_speed=float(scene["belt"]["speed"]),
+        check_steps=check_steps,
+        t_check=t_check,
         rest_checks=max(1, int(math.ceil(float(st["rest_window_s"]) / t_check))),
-        rest_speed=float(st["rest_speed"]), rest_omega=math.radians(float(st["rest_omega_deg_s"])),
-        jam_window=float(st["jam_window_s"]), jam_travel=float(st["jam_travel"]),
-        flip_tilt=float(st["flip_tilt_deg"]), fall_z=float(st["fall_z"]), lateral=float(st["lateral_limit"]),
-        approach=float(st["approach_margin"]), pad=float(st["clear_margin"]),
-        full_path=full_path, skip_slides=bool(preset["skip_slides"]) and not full_path,
+        rest_speed=float(st["rest_speed"]),
+        rest_omega=math.radians(float(st["rest_omega_deg_s"])),
+        jam_window=float(st["jam_window_s"]),
+        jam_travel=float(st["jam_travel"]),
+        flip_tilt=float(st["flip_tilt_deg"]),
+        fall_z=float(st["fall_z"]),
+        lateral=float(st["lateral_limit"]),
+        approach=float(st["approach_margin"]),
+        pad=float(st["clear_margin"]),
+        full_path=full_path,
+        skip_slides=bool(preset["skip_slides"]) and not full_path,
         slide_checks=max(1, int(math.ceil(float(st["slide_window_s"]) / t_check))),
-        slide_tol=float(st["slide_tol"]), slide_yaw=float(st["slide_yaw_deg"]),
+        slide_tol=float(st["slide_tol"]),
+        slide_yaw=float(st["slide_yaw_deg"]),
         slide_min_speed=float(st["slide_min_speed"]),
-        skip_margin=float(st["skip_margin"]), skip_min=float(st["skip_min"]))
+        skip_margin=float(st["skip_margin"]),
+        skip_min=float(st["skip_min"]),
+    )
 
 
 @dataclass(frozen=True)
@@ -350,12 +360,23 @@ class DropEnd:
 def part_state(world: World, lane: int, body: int, elapsed: float) -> PartState | None:
     """The part's state now; None when Bullet's state is not finite (status ``nan``)."""
     pos, q, lin, ang = world.part_motion(body)
-    if not (math.isfinite(pos[0] + pos[1] + pos[2] + q[0] + q[1] + q[2] + q[3])
-            and math.isfinite(lin[0] + lin[1] + lin[2] + ang[0] + ang[1] + ang[2])):
+    if not (
+        math.isfinite(pos[0] + pos[1] + pos[2] + q[0] + q[1] + q[2] + q[3])
+        and math.isfinite(lin[0] + lin[1] + lin[2] + ang[0] + ang[1] + ang[2])
+    ):
         return None
     yaw_rad = quat_yaw(q)
-    return PartState(elapsed, pos[0] - world.lane_x[lane], pos[1], pos[2], q, lin, ang, yaw_rad,
-                     (math.degrees(yaw_rad - world.model.alpha)) % 360.0)
+    return PartState(
+        elapsed,
+        pos[0] - world.lane_x[lane],
+        pos[1],
+        pos[2],
+        q,
+        lin,
+        ang,
+        yaw_rad,
+        (math.degrees(yaw_rad - world.model.alpha)) % 360.0,
+    )
 
 
 def note_diagnostics(ln: _Lane, s: PartState, probes: Probes) -> None:
@@ -405,8 +426,10 @@ def at_rest(hist: deque, s: PartState, lim: Limits) -> bool:
     tp, xp, yp, rp = hist[-2]
     span = s.elapsed - tp
     turn = (s.yaw_rad - rp + math.pi) % (2.0 * math.pi) - math.pi
-    return (math.hypot((s.x - xp) / span, (s.y - yp) / span - lim.belt_speed) < lim.rest_speed
-            and abs(turn) / span < lim.rest_omega)
+    return (
+        math.hypot((s.x - xp) / span, (s.y - yp) / span - lim.belt_speed) < lim.rest_speed
+        and abs(turn) / span < lim.rest_omega
+    )
 
 
 def sliding_along(ways: list[Slideway], s: PartState, lim: Limits, radius: float) -> int:
@@ -418,8 +441,11 @@ def sliding_along(ways: list[Slideway], s: PartState, lim: Limits, radius: float
         return -1
     for k, w in enumerate(ways):
         d, n, p = w.along, w.normal, w.wall_end
-        if (vx * d[0] + vy * d[1] > 0 and abs(vx * d[1] - vy * d[0]) < lim.slide_tol * speed
-                and abs((s.x - p[0]) * n[0] + (s.y - p[1]) * n[1]) <= radius + w.half_thickness + lim.pad):
+        if (
+            vx * d[0] + vy * d[1] > 0
+            and abs(vx * d[1] - vy * d[0]) < lim.slide_tol * speed
+            and abs((s.x - p[0]) * n[0] + (s.y - p[1]) * n[1]) <= radius + w.half_thickness + lim.pad
+        ):
             return k
     return -1
 
@@ -466,8 +492,9 @@ def arrived(world: World, ln: _Lane, s: PartState, lim: Limits) -> bool:
     return False
 
 
-def check_lane(world: World, lane: int, ln: _Lane, t: float, lim: Limits, ways: list[Slideway],
-               probes: Probes) -> DropEnd | None:
+def check_lane(
+    world: World, lane: int, ln: _Lane, t: float, lim: Limits, ways: list[Slideway], probes: Probes
+) -> DropEnd | None:
     """One state check of the lane's part: how its drop ended, or None while it goes on (the part
     may have been moved ahead: a slide skipped, free transport)."""
     s = part_state(world, lane, ln.body, t - ln.t0)
@@ -549,8 +576,9 @@ def record_drop(out: dict, ln: _Lane, end: DropEnd, t: float) -> None:
         diag["final_x"][i], diag["final_y"][i] = end.pos
 
 
-def run_lanes(world: World, yaws0: np.ndarray, lim: Limits, ways: list[Slideway], probes: Probes,
-              out: dict, bar=None) -> None:
+def run_lanes(
+    world: World, yaws0: np.ndarray, lim: Limits, ways: list[Slideway], probes: Probes, out: dict, bar=None
+) -> None:
     """Every drop, over the world's lanes: step the world from one state check to the next; a lane
     whose drop has ended takes the next one in the queue, until every drop has ended."""
     queue = deque(range(len(yaws0)))
@@ -575,9 +603,18 @@ def run_lanes(world: World, yaws0: np.ndarray, lim: Limits, ways: list[Slideway]
                 lanes[j] = start_drop(world, j, queue, yaws0, t, lim)
 
 
-def run_drops(geom, loc1: Fence, loc2: Fence, yaws0: np.ndarray, scene: dict, preset: dict,
-              progress: bool = False, probe_x: float | None = None, check_fences: bool = False,
-              prune: bool = True) -> dict:
+def run_drops(
+    geom,
+    loc1: Fence,
+    loc2: Fence,
+    yaws0: np.ndarray,
+    scene: dict,
+    preset: dict,
+    progress: bool = False,
+    probe_x: float | None = None,
+    check_fences: bool = False,
+    prune: bool = True,
+) -> dict:
     """Simulate every drop; returns final yaws, statuses and per-drop diagnostics.
 
     ``check_fences`` tests at every state check whether the part's centroid lies inside a fence
@@ -636,28 +673,56 @@ def run_design(evaluate, seed: int, budget: int, adaptive: dict, order: int) -> 
     if n0 < 2:
         raise FeederError(f"sim.adaptive.n0 must be at least 2, got {n0}")
     offset = float(np.random.default_rng(seed).uniform(0.0, period / n0))
-    return refine(evaluate, n0=n0, tolerance_deg=float(adaptive["tolerance_deg"]),
-                  min_width_deg=float(adaptive["min_width_deg"]), budget=int(budget), offset_deg=offset,
-                  period_deg=period)
+    return refine(
+        evaluate,
+        n0=n0,
+        tolerance_deg=float(adaptive["tolerance_deg"]),
+        min_width_deg=float(adaptive["min_width_deg"]),
+        budget=int(budget),
+        offset_deg=offset,
+        period_deg=period,
+    )
 
 
 def design_record(design: Design, order: int) -> tuple[dict, dict]:
     """What a simulation file keeps of an adaptive design: arrays and a JSON-able summary."""
-    arrays = {"unresolved_deg": np.asarray(design.unresolved, dtype=np.float64).reshape(-1, 2),
-              "unchecked_deg": np.asarray(design.unchecked, dtype=np.float64).reshape(-1, 2),
-              "label_bound": np.float64(design.label_bound)}
-    summary = {"symmetry_order": int(order), "period_deg": design.period_deg, "offset_deg": design.offset_deg,
-               "tolerance_deg": design.tolerance_deg, "min_width_deg": design.min_width_deg,
-               "max_width_deg": design.max_width_deg, "band_gap_deg": design.band_gap_deg,
-               "edge_check_deg": design.edge_check_deg, "evaluations": int(design.evaluations),
-               "calls": int(design.calls), "label_bound": float(design.label_bound)}
+    arrays = {
+        "unresolved_deg": np.asarray(design.unresolved, dtype=np.float64).reshape(-1, 2),
+        "unchecked_deg": np.asarray(design.unchecked, dtype=np.float64).reshape(-1, 2),
+        "label_bound": np.float64(design.label_bound),
+    }
+    summary = {
+        "symmetry_order": int(order),
+        "period_deg": design.period_deg,
+        "offset_deg": design.offset_deg,
+        "tolerance_deg": design.tolerance_deg,
+        "min_width_deg": design.min_width_deg,
+        "max_width_deg": design.max_width_deg,
+        "band_gap_deg": design.band_gap_deg,
+        "edge_check_deg": design.edge_check_deg,
+        "evaluations": int(design.evaluations),
+        "calls": int(design.calls),
+        "label_bound": float(design.label_bound),
+    }
     return arrays, summary
 
 
-def simulate(geom, loc1: Fence, loc2: Fence, drops: int, seed: int, scene: dict, preset: dict,
-             preset_name: str = "custom", progress: bool = False, probe_x: float | None = None,
-             check_fences: bool = False, prune: bool = True, yaw_sampling: str = "random",
-             adaptive: dict | None = None) -> dict:
+def simulate(
+    geom,
+    loc1: Fence,
+    loc2: Fence,
+    drops: int,
+    seed: int,
+    scene: dict,
+    preset: dict,
+    preset_name: str = "custom",
+    progress: bool = False,
+    probe_x: float | None = None,
+    check_fences: bool = False,
+    prune: bool = True,
+    yaw_sampling: str = "random",
+    adaptive: dict | None = None,
+) -> dict:
     """One configuration: the npz payload (docs/data.md) plus ``diag`` (not written).
 
     ``drops`` is the number of simulations; for ``adaptive`` it is the budget (at most that many),
@@ -677,13 +742,16 @@ def simulate(geom, loc1: Fence, loc2: Fence, drops: int, seed: int, scene: dict,
         if adaptive is None:
             raise FeederError("the adaptive design needs its settings (sim.adaptive)")
         if int(preset["lanes"]) != 1:
-            raise FeederError(f"the adaptive design needs lanes: 1 (one part per world), the preset has {preset['lanes']}")
+            raise FeederError(
+                f"the adaptive design needs lanes: 1 (one part per world), the preset has {preset['lanes']}"
+            )
         order = symmetry_order(geom, adaptive.get("symmetry", "auto"))
         diags = []
 
         def evaluate(yaws):
-            res = run_drops(geom, loc1, loc2, yaws, scene, preset, probe_x=probe_x,
-                            check_fences=check_fences, prune=prune)
+            res = run_drops(
+                geom, loc1, loc2, yaws, scene, preset, probe_x=probe_x, check_fences=check_fences, prune=prune
+            )
             diags.append(res["diag"])
             return res["final_yaw_deg"], res["status"]
 
@@ -692,19 +760,44 @@ def simulate(geom, loc1: Fence, loc2: Fence, drops: int, seed: int, scene: dict,
         extra, design_meta = design_record(design, order)
     else:
         y0 = initial_yaws(s, int(drops), yaw_sampling)
-        out = run_drops(geom, loc1, loc2, y0, scene, preset, progress=progress, probe_x=probe_x,
-                        check_fences=check_fences, prune=prune)
+        out = run_drops(
+            geom,
+            loc1,
+            loc2,
+            y0,
+            scene,
+            preset,
+            progress=progress,
+            probe_x=probe_x,
+            check_fences=check_fences,
+            prune=prune,
+        )
     wall, cpu = time.perf_counter() - t0, time.process_time() - c0
-    meta = {"part": geom.part_id, "loc1": loc1.spec, "loc2": loc2.spec, "config_id": cfg,
-            "preset": preset_name, "seed": int(seed), "drops": int(drops), "yaw_sampling": yaw_sampling,
-            "simulations": int(len(y0)), "settings": {"scene": scene, "preset": preset},
-            "status_counts": {k: int(np.sum(out["status"] == k)) for k in STATUSES}}
+    meta = {
+        "part": geom.part_id,
+        "loc1": loc1.spec,
+        "loc2": loc2.spec,
+        "config_id": cfg,
+        "preset": preset_name,
+        "seed": int(seed),
+        "drops": int(drops),
+        "yaw_sampling": yaw_sampling,
+        "simulations": int(len(y0)),
+        "settings": {"scene": scene, "preset": preset},
+        "status_counts": {k: int(np.sum(out["status"] == k)) for k in STATUSES},
+    }
     if design_meta is not None:
         meta["design"] = design_meta
-    return {"final_yaw_deg": np.asarray(out["final_yaw_deg"], dtype=np.float64), "initial_yaw_deg": y0,
-            "status": np.asarray(out["status"]).astype(str), "wall_s": np.float64(wall),
-            "cpu_s": np.float64(cpu),
-            "meta": json.dumps(meta, sort_keys=True), "diag": out["diag"], **extra}
+    return {
+        "final_yaw_deg": np.asarray(out["final_yaw_deg"], dtype=np.float64),
+        "initial_yaw_deg": y0,
+        "status": np.asarray(out["status"]).astype(str),
+        "wall_s": np.float64(wall),
+        "cpu_s": np.float64(cpu),
+        "meta": json.dumps(meta, sort_keys=True),
+        "diag": out["diag"],
+        **extra,
+    }
 
 
 # --------------------------------------------------------------------------------------------
@@ -715,21 +808,35 @@ def main(argv: list[str]) -> int:
     parser.add_argument("--part", required=True, help="parts/<id>.stl")
     parser.add_argument("--loc1", required=True, help="none | straight:ANGLE | curved:ANGLE (downstream)")
     parser.add_argument("--loc2", required=True, help="none | straight:ANGLE | curved:ANGLE (upstream)")
-    parser.add_argument("--drops", type=int, required=True,
-                        help="simulations; for --yaw-sampling adaptive the budget (at most this many)")
+    parser.add_argument(
+        "--drops",
+        type=int,
+        required=True,
+        help="simulations; for --yaw-sampling adaptive the budget (at most this many)",
+    )
     parser.add_argument("--seed", type=int, default=0, help="base seed")
     parser.add_argument("--preset", default="fast")
-    parser.add_argument("--yaw-sampling", default="random", choices=YAW_SAMPLINGS,
-                        help="initial yaws: random (independent, the paper), golden (even prefixes), grid "
-                             "(evenly spaced, random offset) or adaptive (refined where the outcome jumps)")
+    parser.add_argument(
+        "--yaw-sampling",
+        default="random",
+        choices=YAW_SAMPLINGS,
+        help="initial yaws: random (independent, the paper), golden (even prefixes), grid "
+        "(evenly spaced, random offset) or adaptive (refined where the outcome jumps)",
+    )
     adaptive = parser.add_argument_group("adaptive design (--yaw-sampling adaptive; sim.adaptive)")
     adaptive.add_argument("--n0", type=int, default=DEFAULT_N0, help="evenly spaced start yaws per period")
-    adaptive.add_argument("--tolerance-deg", type=float, default=DEFAULT_TOLERANCE_DEG,
-                          help="final yaws further apart than this mark a jump to bisect")
-    adaptive.add_argument("--min-width-deg", type=float, default=DEFAULT_MIN_WIDTH_DEG,
-                          help="intervals are not bisected below this width")
-    adaptive.add_argument("--symmetry", default="auto",
-                          help="rotational order to fold over: auto (from the outline) or N (checked)")
+    adaptive.add_argument(
+        "--tolerance-deg",
+        type=float,
+        default=DEFAULT_TOLERANCE_DEG,
+        help="final yaws further apart than this mark a jump to bisect",
+    )
+    adaptive.add_argument(
+        "--min-width-deg", type=float, default=DEFAULT_MIN_WIDTH_DEG, help="intervals are not bisected below this width"
+    )
+    adaptive.add_argument(
+        "--symmetry", default="auto", help="rotational order to fold over: auto (from the outline) or N (checked)"
+    )
     parser.add_argument("--settings", default=None, help="JSON {scene, presets}; default config/config.yaml")
     parser.add_argument("--out", required=True, help="output .npz")
     args = parser.parse_args(argv)
@@ -746,16 +853,34 @@ def main(argv: list[str]) -> int:
         raise FeederError(f"part file {path} not found")
     geom = load_part(path)
     try:
-        design = {"n0": args.n0, "tolerance_deg": args.tolerance_deg, "min_width_deg": args.min_width_deg,
-                  "symmetry": args.symmetry}
-        res = simulate(geom, loc1, loc2, args.drops, args.seed, scene, preset, args.preset,
-                       progress=sys.stderr.isatty(), yaw_sampling=args.yaw_sampling, adaptive=design)
+        design = {
+            "n0": args.n0,
+            "tolerance_deg": args.tolerance_deg,
+            "min_width_deg": args.min_width_deg,
+            "symmetry": args.symmetry,
+        }
+        res = simulate(
+            geom,
+            loc1,
+            loc2,
+            args.drops,
+            args.seed,
+            scene,
+            preset,
+            args.preset,
+            progress=sys.stderr.isatty(),
+            yaw_sampling=args.yaw_sampling,
+            adaptive=design,
+        )
     except KeyError as err:
         raise FeederError(f"scene settings lack key {err}") from None
     from feeder.sim.record import write_sim
 
     write_sim(args.out, res)
     counts = json.loads(res["meta"])["status_counts"]
-    print(f"{geom.part_id} {config_id(loc1, loc2)}: {len(res['status'])} drops in {float(res['wall_s']):.1f} s; "
-          + ", ".join(f"{k} {n}" for k, n in counts.items() if n), file=sys.stderr)
+    print(
+        f"{geom.part_id} {config_id(loc1, loc2)}: {len(res['status'])} drops in {float(res['wall_s']):.1f} s; "
+        + ", ".join(f"{k} {n}" for k, n in counts.items() if n),
+        file=sys.stderr,
+    )
     return 0

@@ -38,9 +38,7 @@ class Fence:
         ok = lo <= self.angle <= hi if closed else lo < self.angle < hi
         if not ok:
             brackets = "[{}, {}]" if closed else "({}, {})"
-            raise FeederError(
-                f"{self.type} fence angle {self.angle:g} is outside {brackets.format(lo, hi)} degrees"
-            )
+            raise FeederError(f"{self.type} fence angle {self.angle:g} is outside {brackets.format(lo, hi)} degrees")
 
     @property
     def present(self) -> bool:

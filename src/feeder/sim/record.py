@@ -39,6 +39,13 @@ class SimRecord:
     yaws: np.ndarray  # (drops,) final yaw degrees, NaN where not ok
     ok: np.ndarray  # (drops,) bool
     meta: dict
+    initial: np.ndarray | None = None  # (drops,) initial yaw degrees (docs/data.md: sorted for grid/adaptive)
+    status: np.ndarray | None = None  # (drops,) status strings
+
+    @property
+    def design(self) -> str:
+        """The initial-yaw design that made the file (``random`` for files that predate the key)."""
+        return str(self.meta.get("yaw_sampling", "random"))
 
 
 def load_sim(path, min_ok_drops: int = 1) -> SimRecord:
@@ -54,13 +61,16 @@ def load_sim(path, min_ok_drops: int = 1) -> SimRecord:
             yaws = np.asarray(z["final_yaw_deg"], dtype=np.float64)
             status = np.asarray(z["status"]).astype(str)
             meta_raw = str(z["meta"]) if "meta" in z.files else "{}"
+            initial = np.asarray(z["initial_yaw_deg"], dtype=np.float64) if "initial_yaw_deg" in z.files else None
     except BadData:
         raise
     except (zipfile.BadZipFile, OSError, ValueError, EOFError, KeyError) as err:
         raise BadData(f"simulation file {path} is truncated or unreadable ({type(err).__name__}: {err})") from None
     if yaws.ndim != 1 or status.shape != yaws.shape or yaws.size == 0:
-        raise BadData(f"simulation file {path}: final_yaw_deg {yaws.shape} and status {status.shape} "
-                      "must be equal non-empty vectors")
+        raise BadData(
+            f"simulation file {path}: final_yaw_deg {yaws.shape} and status {status.shape} "
+            "must be equal non-empty vectors"
+        )
     ok = status == "ok"
     if not np.isfinite(yaws[ok]).all():
         raise BadData(f"simulation file {path}: an ok drop has a non-finite yaw")
@@ -70,6 +80,5 @@ def load_sim(path, min_ok_drops: int = 1) -> SimRecord:
         raise BadData(f"simulation file {path}: meta is not JSON") from None
     n_ok = int(ok.sum())
     if n_ok < min_ok_drops:
-        raise BadData(f"simulation file {path} has {n_ok} ok drops of {yaws.size} "
-                      f"(< sim.min_ok_drops={min_ok_drops})")
-    return SimRecord(yaws=np.where(ok, yaws, np.nan), ok=ok, meta=meta)
+        raise BadData(f"simulation file {path} has {n_ok} ok drops of {yaws.size} (< sim.min_ok_drops={min_ok_drops})")
+    return SimRecord(yaws=np.where(ok, yaws, np.nan), ok=ok, meta=meta, initial=initial, status=status)

@@ -33,37 +33,35 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 
 from feeder.errors import FeederError
 from feeder.sim.fences import Fence
 
-CONFIG_PATH = Path("config/config.yaml")
-
 
 # --------------------------------------------------------------------------------------------
 # Settings
 # --------------------------------------------------------------------------------------------
-def load_settings(settings_json: str | None = None, config_path: str | Path = CONFIG_PATH):
-    """``(scene, presets)`` from a ``--settings`` JSON string or from ``config/config.yaml``.
+def load_settings(settings_json: str | None = None, root: str | os.PathLike | None = None):
+    """``(scene, presets)`` from a ``--settings`` JSON string or else from the study config.
 
     The JSON holds ``{"scene": {...}, "presets": {...}}`` (or ``{"scene": ..., "sim": {"presets":
-    ...}}``: the config sections as they are).
+    ...}}``: the config sections as they are). Without it, ``config/config.yaml`` of the study in
+    ``root`` is read by :func:`feeder.config.load_study_config`; ``root`` defaults to
+    :func:`feeder.config.study_root` (the working directory when it holds that file, else the
+    repository).
     """
     if settings_json is not None:
         from feeder.config import parse_settings
 
         data = parse_settings(settings_json)
     else:
-        import yaml
+        from feeder.config import load_study_config, study_root
 
-        path = Path(config_path)
-        if not path.is_file():
-            raise FeederError(f"{path} not found (run from the project root or pass --settings)")
-        data = yaml.safe_load(path.read_text()) or {}
+        data = load_study_config(root=study_root() if root is None else root)
     presets = data.get("presets")
     if presets is None:
         presets = (data.get("sim") or {}).get("presets")
@@ -104,8 +102,7 @@ def box_corners(cx, cy, hl, ht, yaw) -> np.ndarray:
     c, s = math.cos(yaw), math.sin(yaw)
     u, v = np.array([c, s]), np.array([-s, c])
     ctr = np.array([cx, cy])
-    return np.array([ctr - hl * u - ht * v, ctr + hl * u - ht * v, ctr + hl * u + ht * v,
-                     ctr - hl * u + ht * v])
+    return np.array([ctr - hl * u - ht * v, ctr + hl * u - ht * v, ctr + hl * u + ht * v, ctr - hl * u + ht * v])
 
 
 def segment_box(p, q, half_thickness: float, extend: float = 0.0):
@@ -164,8 +161,9 @@ def arc_boxes(pts_outer: np.ndarray, centre: np.ndarray, half_thickness: float):
         out = mid - centre
         out = out / np.hypot(*out)
         cx, cy, hl, _, yaw = segment_box(a, b, half_thickness)
-        boxes.append((float(mid[0] - half_thickness * out[0]), float(mid[1] - half_thickness * out[1]),
-                      hl, half_thickness, yaw))
+        boxes.append(
+            (float(mid[0] - half_thickness * out[0]), float(mid[1] - half_thickness * out[1]), hl, half_thickness, yaw)
+        )
     return tuple(boxes)
 
 
@@ -186,15 +184,17 @@ def fence_geometry(scene: dict, location: str, fence: Fence) -> FenceGeom | None
         sc = fc["straight"]
         slot_x = float(fc["slots"][sc["slot"]])
         wall_x = float(scene["belt"]["half_width"]) + 0.5 * float(scene["walls"]["thickness"])
-        pts = straight_polyline(fence.angle, side, slot_x, y0, float(sc["tip_past_centre"]),
-                                float(sc["max_length"]), wall_x)
+        pts = straight_polyline(
+            fence.angle, side, slot_x, y0, float(sc["tip_past_centre"]), float(sc["max_length"]), wall_x
+        )
         boxes = (segment_box(pts[0], pts[1], ht),)
     else:
         cc = fc["curved"]
         slot_x = float(fc["slots"][cc["slot"]])
         # the arc (radius r) is the fence's centre line; its outer face lies at r + thickness / 2
-        pts, centre = curved_polyline(fence.angle, side, slot_x, y0, float(cc["radius"]),
-                                      float(cc["span_deg"]), int(cc["segments"]), offset=ht)
+        pts, centre = curved_polyline(
+            fence.angle, side, slot_x, y0, float(cc["radius"]), float(cc["span_deg"]), int(cc["segments"]), offset=ht
+        )
         boxes = arc_boxes(pts, centre, ht)
     return FenceGeom(location, fence, side, boxes)
 
@@ -260,8 +260,10 @@ def belt_contact(belt: dict) -> tuple[float, float] | None:
     if k is None and d is None:
         return None
     if k is None or d is None or float(k) <= 0 or float(d) < 0:
-        raise FeederError("scene.belt: contact_stiffness (> 0) and contact_damping (>= 0) go together; "
-                          f"both null = rigid contact (got {k!r} and {d!r})")
+        raise FeederError(
+            "scene.belt: contact_stiffness (> 0) and contact_damping (>= 0) go together; "
+            f"both null = rigid contact (got {k!r} and {d!r})"
+        )
     return float(k), float(d)
 
 
@@ -269,11 +271,18 @@ def belt_contact_row(belt: dict) -> tuple[str, str, str]:
     """Table 1 row of the belt-part contact model: rigid, or a spring-damper per contact point."""
     contact = belt_contact(belt)
     if contact is None:
-        return ("Belt contact", "rigid", "hard constraint; how a flat part's weight splits over its contact points is left to the solver")
+        return (
+            "Belt contact",
+            "rigid",
+            "hard constraint; how a flat part's weight splits over its contact points is left to the solver",
+        )
     k, d = contact
-    return ("Belt contact stiffness / damping", f"{k:g} / {d:g}",
-            "N/m and N s/m per contact point (Bullet contactStiffness/contactDamping): a compliant belt, "
-            "so a flat part's weight splits over its contact points by their penetration")
+    return (
+        "Belt contact stiffness / damping",
+        f"{k:g} / {d:g}",
+        "N/m and N s/m per contact point (Bullet contactStiffness/contactDamping): a compliant belt, "
+        "so a flat part's weight splits over its contact points by their penetration",
+    )
 
 
 def table1_rows(scene: dict, presets: dict) -> list[tuple[str, str, str]]:
@@ -284,10 +293,17 @@ def table1_rows(scene: dict, presets: dict) -> list[tuple[str, str, str]]:
     rows = [
         ("Simulator", "pybullet (Bullet 3) DIRECT", "one client per process, multibody rigid bodies"),
         ("Gravity", f"{scene['gravity']:g}", "m/s^2, along -z"),
-        ("Conveyor speed", f"{b['speed']:g}", "m/s along +y; fixed-base belt slab per lane given this velocity when a drop starts"),
-        ("Friction combination", "product",
-         f"Bullet multiplies the two bodies' coefficients: part-belt {pt['friction'] * b['friction']:g}, "
-         f"part-fence {pt['friction'] * fc['friction']:g}, part-wall {pt['friction'] * w['friction']:g}"),
+        (
+            "Conveyor speed",
+            f"{b['speed']:g}",
+            "m/s along +y; fixed-base belt slab per lane given this velocity when a drop starts",
+        ),
+        (
+            "Friction combination",
+            "product",
+            f"Bullet multiplies the two bodies' coefficients: part-belt {pt['friction'] * b['friction']:g}, "
+            f"part-fence {pt['friction'] * fc['friction']:g}, part-wall {pt['friction'] * w['friction']:g}",
+        ),
         ("Belt friction (Coulomb mu)", f"{b['friction']:g}", "static = kinetic"),
         ("Part friction (Coulomb mu)", f"{pt['friction']:g}", "static = kinetic"),
         ("Fence friction (Coulomb mu)", f"{fc['friction']:g}", "static = kinetic"),
@@ -299,35 +315,99 @@ def table1_rows(scene: dict, presets: dict) -> list[tuple[str, str, str]]:
         belt_contact_row(b),
         ("Containment walls", f"{w['height']:g} x {w['thickness']:g}", "m, height x thickness"),
         ("Part density", f"{pt['density']:g}", "kg/m^3; mass, centre of mass and inertia from the exact polygon"),
-        ("Part collision margin", f"{pt['collision_margin']:g}", "m; convex pieces are inset by it so the part keeps its true size"),
-        ("Initial part pose", f"x = 0, y = {b['start_y']:g}, flat, yaw ~ U[0, 360)", "m; placed on the belt already moving with it"),
-        ("Record point (full path)", f"y >= max({b['end_y']:g}, last fence end + {b['end_margin']:g})", "m; then at rest"),
-        ("Fence locations", f"Location 1 y = {fc['locations']['loc1']['y']:g} (right); Location 2 y = {fc['locations']['loc2']['y']:g} (left)", "m" + ("; sides mirrored" if scene.get("mirror") else "")),
+        (
+            "Part collision margin",
+            f"{pt['collision_margin']:g}",
+            "m; convex pieces are inset by it so the part keeps its true size",
+        ),
+        (
+            "Initial part pose",
+            f"x = 0, y = {b['start_y']:g}, flat, yaw ~ U[0, 360)",
+            "m; placed on the belt already moving with it",
+        ),
+        (
+            "Record point (full path)",
+            f"y >= max({b['end_y']:g}, last fence end + {b['end_margin']:g})",
+            "m; then at rest",
+        ),
+        (
+            "Fence locations",
+            f"Location 1 y = {fc['locations']['loc1']['y']:g} (right); "
+            f"Location 2 y = {fc['locations']['loc2']['y']:g} (left)",
+            "m" + ("; sides mirrored" if scene.get("mirror") else ""),
+        ),
         ("Fence slots (A / B)", f"x = +-{slots['a']:g} / +-{slots['b']:g}", "m"),
-        ("Fence cross-section", f"{fc['thickness']:g} x {fc['height']:g}", "m, thickness x height; bottom {0:g} m above the belt".format(fc["clearance"])),
-        ("Straight fence", f"slot {st['slot'].upper()}, tip {st['tip_past_centre']:g} past the centre line, length <= {st['max_length']:g}",
-         "m; cuboid from the wall at angle theta to the travel direction, 0 < theta < 90"),
-        ("Curved fence", f"r = {cv['radius']:g}, span {cv['span_deg']:g} deg, {cv['segments']} boxes, slot {cv['slot'].upper()}",
-         "arc centre x = x0 - r sin(theta), y = y0 + r cos(theta); 0 <= theta <= 90"),
-        ("Least gap between the fences", f"{fc['min_gap']:g}", "m; the upstream fence's tip is cut back to keep it (crossing fences trap parts)"),
-        ("Jam", f"travel < {scene['status']['jam_travel']:g} m in {scene['status']['jam_window_s']:g} s", "drop status 'jammed'"),
-        ("At rest", f"|v - v_belt| < {scene['status']['rest_speed']:g} m/s and |w_z| < {scene['status']['rest_omega_deg_s']:g} deg/s for {scene['status']['rest_window_s']:g} s", "velocities from the displacement between state checks; final yaw recorded once at rest past the last fence"),
-        ("Flipped / fell off", f"tilt > {scene['status']['flip_tilt_deg']:g} deg / z < {scene['status']['fall_z']:g} m", "drop status"),
-        ("Time limit", f"{scene['status']['timeout_factor']:g} x path / speed + {scene['status']['timeout_extra_s']:g} s", "drop status 'timed_out'"),
+        (
+            "Fence cross-section",
+            f"{fc['thickness']:g} x {fc['height']:g}",
+            f"m, thickness x height; bottom {fc['clearance']:g} m above the belt",
+        ),
+        (
+            "Straight fence",
+            f"slot {st['slot'].upper()}, tip {st['tip_past_centre']:g} past the centre line, "
+            f"length <= {st['max_length']:g}",
+            "m; cuboid from the wall at angle theta to the travel direction, 0 < theta < 90",
+        ),
+        (
+            "Curved fence",
+            f"r = {cv['radius']:g}, span {cv['span_deg']:g} deg, {cv['segments']} boxes, slot {cv['slot'].upper()}",
+            "arc centre x = x0 - r sin(theta), y = y0 + r cos(theta); 0 <= theta <= 90",
+        ),
+        (
+            "Least gap between the fences",
+            f"{fc['min_gap']:g}",
+            "m; the upstream fence's tip is cut back to keep it (crossing fences trap parts)",
+        ),
+        (
+            "Jam",
+            f"travel < {scene['status']['jam_travel']:g} m in {scene['status']['jam_window_s']:g} s",
+            "drop status 'jammed'",
+        ),
+        (
+            "At rest",
+            f"|v - v_belt| < {scene['status']['rest_speed']:g} m/s and "
+            f"|w_z| < {scene['status']['rest_omega_deg_s']:g} deg/s for {scene['status']['rest_window_s']:g} s",
+            "velocities from the displacement between state checks; "
+            "final yaw recorded once at rest past the last fence",
+        ),
+        (
+            "Flipped / fell off",
+            f"tilt > {scene['status']['flip_tilt_deg']:g} deg / z < {scene['status']['fall_z']:g} m",
+            "drop status",
+        ),
+        (
+            "Time limit",
+            f"{scene['status']['timeout_factor']:g} x path / speed + {scene['status']['timeout_extra_s']:g} s",
+            "drop status 'timed_out'",
+        ),
     ]
     for name, p in presets.items():
-        rows.append((f"Preset '{name}'",
-                     f"step {p['time_step'] * 1e3:g} ms, {p['substeps']} substeps, {p['solver_iterations']} solver iterations",
-                     f"{p['lanes']} lanes per world; " + ("full belt path" if p["full_path"] else "only the fence region is stepped")
-                     + ("; steady slides along straight fences skipped" if p.get("skip_slides") else "")
-                     + (f"; convex pieces merged within {p['merge_tolerance'] * 1e3:g} mm" if p.get("merge_tolerance") else "")))
+        rows.append(
+            (
+                f"Preset '{name}'",
+                f"step {p['time_step'] * 1e3:g} ms, {p['substeps']} substeps, "
+                f"{p['solver_iterations']} solver iterations",
+                f"{p['lanes']} lanes per world; "
+                + ("full belt path" if p["full_path"] else "only the fence region is stepped")
+                + ("; steady slides along straight fences skipped" if p.get("skip_slides") else "")
+                + (
+                    f"; convex pieces merged within {p['merge_tolerance'] * 1e3:g} mm"
+                    if p.get("merge_tolerance")
+                    else ""
+                ),
+            )
+        )
     return rows
 
 
 def main(argv: list[str]) -> int:
     parser = argparse.ArgumentParser(prog="feeder scene-table", description=__doc__.splitlines()[0])
     parser.add_argument("--out", required=True, help="CSV to write (Table 1)")
-    parser.add_argument("--settings", default=None, help="JSON {scene, presets}; default config/config.yaml")
+    parser.add_argument(
+        "--settings",
+        default=None,
+        help="JSON {scene, presets}; default config/config.yaml (of the working directory, else of the repository)",
+    )
     args = parser.parse_args(argv)
     import pandas as pd
 
