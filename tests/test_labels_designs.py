@@ -9,6 +9,7 @@ import json
 import numpy as np
 import pandas as pd
 import pytest
+from workflow_helpers import ROOT
 
 from feeder.cli import main as feeder
 from feeder.labels import metrics as L
@@ -16,7 +17,6 @@ from feeder.labels import pmf as P
 from feeder.labels.pushforward import pushforward_pmf, refine
 from feeder.sim import drops as sim
 from feeder.sim.record import SimRecord, load_sim, write_sim
-from workflow_helpers import ROOT
 
 PART = str(ROOT / "parts" / "rect-a2.stl")
 
@@ -34,8 +34,18 @@ def adaptive_record(tmp_path, evaluate=step_map):
     arrays, summary = sim.design_record(design, 1)
     meta = {"part": "x", "config_id": "straight30_none", "seed": 0, "yaw_sampling": "adaptive", "design": summary}
     path = tmp_path / "a.npz"
-    write_sim(path, {"final_yaw_deg": design.final, "initial_yaw_deg": design.yaws, "status": design.status,
-                     "wall_s": np.float64(0), "cpu_s": np.float64(0), "meta": json.dumps(meta), **arrays})
+    write_sim(
+        path,
+        {
+            "final_yaw_deg": design.final,
+            "initial_yaw_deg": design.yaws,
+            "status": design.status,
+            "wall_s": np.float64(0),
+            "cpu_s": np.float64(0),
+            "meta": json.dumps(meta),
+            **arrays,
+        },
+    )
     return path, design
 
 
@@ -87,8 +97,29 @@ def test_labels_pmf_cli_reads_every_design(tmp_path, capsys, design):
     sim_file, out = tmp_path / "s.npz", tmp_path / "pmf.csv"
     drops = "16" if design == "adaptive" else "6"
     extra = ["--n0", "4", "--min-width-deg", "5"] if design == "adaptive" else []
-    assert feeder(["simulate", "--part", PART, "--loc1", "straight:45", "--loc2", "none", "--drops", drops,
-                   "--preset", "coarse", "--yaw-sampling", design, *extra, "--out", str(sim_file)]) == 0
+    assert (
+        feeder(
+            [
+                "simulate",
+                "--part",
+                PART,
+                "--loc1",
+                "straight:45",
+                "--loc2",
+                "none",
+                "--drops",
+                drops,
+                "--preset",
+                "coarse",
+                "--yaw-sampling",
+                design,
+                *extra,
+                "--out",
+                str(sim_file),
+            ]
+        )
+        == 0
+    )
     capsys.readouterr()
     assert feeder(["labels", "pmf", str(sim_file), "--out", str(out)]) == 0
     summary = json.loads(capsys.readouterr().out)
@@ -116,8 +147,24 @@ def test_labels_pmf_cli_reads_every_design(tmp_path, capsys, design):
 )
 def test_adaptive_bad_input_is_one_line_and_writes_nothing(tmp_path, capsys, args, message):
     out = tmp_path / "s.npz"
-    code = feeder(["simulate", "--part", PART, "--loc1", "straight:45", "--loc2", "none", "--preset", "coarse",
-                   "--yaw-sampling", "adaptive", *args, "--out", str(out)])
+    code = feeder(
+        [
+            "simulate",
+            "--part",
+            PART,
+            "--loc1",
+            "straight:45",
+            "--loc2",
+            "none",
+            "--preset",
+            "coarse",
+            "--yaw-sampling",
+            "adaptive",
+            *args,
+            "--out",
+            str(out),
+        ]
+    )
     err = capsys.readouterr().err.strip()
     assert code == 2 and message in err and "\n" not in err and "Traceback" not in err
     assert not out.exists()
@@ -133,8 +180,14 @@ def test_a_half_turn_of_a_two_fold_part_turns_its_outcome_by_a_half_turn():
     scene, presets = load_settings()
     geom = load_part(PART)
     yaws = np.array([12.0, 75.0, 140.0])
-    res = sim.run_drops(geom, parse_location("straight:45"), parse_location("none"), np.r_[yaws, yaws + 180.0],
-                        scene, sim.get_preset(presets, "fast"))
+    res = sim.run_drops(
+        geom,
+        parse_location("straight:45"),
+        parse_location("none"),
+        np.r_[yaws, yaws + 180.0],
+        scene,
+        sim.get_preset(presets, "fast"),
+    )
     a, b = res["final_yaw_deg"][:3], res["final_yaw_deg"][3:]
     assert list(res["status"]) == ["ok"] * 6
     np.testing.assert_array_less(np.abs(((b - a - 180.0) + 180.0) % 360.0 - 180.0), 0.5)

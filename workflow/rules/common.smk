@@ -8,8 +8,13 @@ from snakemake.utils import validate
 from feeder.labels.grid import configurations
 from feeder.sim.fences import parse_config_id
 from feeder.parts.library import list_parts
-from feeder.workflow import cli_options, code_inputs, drop_local_job_rate_limit, put_interpreter_on_path, select_settings
-
+from feeder.workflow import (
+    cli_options,
+    code_inputs,
+    drop_local_job_rate_limit,
+    put_interpreter_on_path,
+    select_settings,
+)
 
 validate(config, schema="../schemas/config.schema.yaml")
 
@@ -17,6 +22,7 @@ put_interpreter_on_path()
 
 PARTS = list_parts(config["parts"]["dir"], config["parts"]["include"])
 CONFIGS = configurations(config, PARTS)
+
 
 def sim_path(part, config_id):
     return f"results/sim/{part}/{config_id}.npz"

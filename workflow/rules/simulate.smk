@@ -11,9 +11,15 @@ rule simulate:
         part=lambda wildcards: f"{config['parts']['dir']}/{wildcards.part}.stl",
     output:
         "results/sim/{part}/{fence}.npz",
+    log:
+        "logs/simulate/{part}/{fence}.log",
+    benchmark:
+        "benchmarks/simulate/{part}/{fence}.tsv"
     wildcard_constraints:
         part=r"[A-Za-z0-9-]+",
         fence=r"[a-z0-9.]+_[a-z0-9.]+",
+    conda:
+        "../envs/feeder.yaml"
     params:
         settings=sim_settings(),
         preset=config["sim"]["preset"],
@@ -23,12 +29,6 @@ rule simulate:
         design=design_options(),
         loc1=fence_location(0),
         loc2=fence_location(1),
-    log:
-        "logs/simulate/{part}/{fence}.log",
-    benchmark:
-        "benchmarks/simulate/{part}/{fence}.tsv"
-    conda:
-        "../envs/feeder.yaml"
     shell:
         "feeder simulate --part {input.part} --loc1 {params.loc1} --loc2 {params.loc2}"
         " --drops {params.drops} --seed {params.seed} --yaw-sampling {params.yaw_sampling} {params.design}"
@@ -42,13 +42,13 @@ rule scene_table:
         code("scene-table"),
     output:
         report("results/tables/table1.csv", caption="../report/table1.rst", category="Simulation"),
-    params:
-        settings=settings_json("scene", "sim.presets"),
     log:
         "logs/scene_table/table1.log",
     benchmark:
         "benchmarks/scene_table/table1.tsv"
     conda:
         "../envs/feeder.yaml"
+    params:
+        settings=settings_json("scene", "sim.presets"),
     shell:
         "feeder scene-table --settings '{params.settings}' --out {output} > {log} 2>&1"

@@ -30,7 +30,6 @@ from pathlib import Path
 
 import numpy as np
 
-from feeder.errors import FeederError
 from feeder.labels import metrics as L
 from feeder.labels.pushforward import (
     DEFAULT_BINS,
@@ -74,18 +73,33 @@ def record_design(rec: SimRecord) -> Design:
         d = rec.meta.get("design") or {}
         try:
             return design_from_samples(
-                rec.initial, rec.yaws, rec.status, period_deg=d["period_deg"], offset_deg=d["offset_deg"],
-                tolerance_deg=d["tolerance_deg"], min_width_deg=d["min_width_deg"],
-                max_width_deg=d["max_width_deg"], band_gap_deg=d["band_gap_deg"],
-                edge_check_deg=d["edge_check_deg"], calls=d.get("calls", 1),
+                rec.initial,
+                rec.yaws,
+                rec.status,
+                period_deg=d["period_deg"],
+                offset_deg=d["offset_deg"],
+                tolerance_deg=d["tolerance_deg"],
+                min_width_deg=d["min_width_deg"],
+                max_width_deg=d["max_width_deg"],
+                band_gap_deg=d["band_gap_deg"],
+                edge_check_deg=d["edge_check_deg"],
+                calls=d.get("calls", 1),
             )
         except KeyError as err:
             raise BadData(f"an adaptive simulation record lacks design setting {err}") from None
     spacing = 360.0 / rec.initial.size
     tolerance = DEFAULT_TOLERANCE_DEG
     return design_from_samples(
-        rec.initial, rec.yaws, rec.status, period_deg=360.0, offset_deg=float(np.min(rec.initial)),
-        tolerance_deg=tolerance, min_width_deg=spacing, max_width_deg=spacing, band_gap_deg=0.0, edge_check_deg=0.0,
+        rec.initial,
+        rec.yaws,
+        rec.status,
+        period_deg=360.0,
+        offset_deg=float(np.min(rec.initial)),
+        tolerance_deg=tolerance,
+        min_width_deg=spacing,
+        max_width_deg=spacing,
+        band_gap_deg=0.0,
+        edge_check_deg=0.0,
     )
 
 
@@ -148,9 +162,13 @@ def main(argv: list[str]) -> int:
     p.add_argument("sim", type=Path, help="results/sim/<part>/<config>.npz")
     p.add_argument("--bins", type=int, default=DEFAULT_BINS)
     p.add_argument("--sigma", type=float, default=DEFAULT_SIGMA, help="smoothing sigma in bins")
-    p.add_argument("--frame", type=Path, default=None,
-                   help="the part's features JSON (results/features/<part>.json): label in its feature "
-                        "(principal) frame, as the workflow's labels; default: the part file's own frame")
+    p.add_argument(
+        "--frame",
+        type=Path,
+        default=None,
+        help="the part's features JSON (results/features/<part>.json): label in its feature "
+        "(principal) frame, as the workflow's labels; default: the part file's own frame",
+    )
     p.add_argument("--out", type=Path, default=None, help="CSV with angle_deg,pmf,cdf (one row per bin)")
     args = parser.parse_args(argv)
 
@@ -164,8 +182,10 @@ def main(argv: list[str]) -> int:
         from feeder.io import write_csv
 
         width = 360.0 / args.bins
-        write_csv(args.out, pd.DataFrame({"angle_deg": np.arange(args.bins) * width,
-                                          "pmf": label.pmf, "cdf": L.cdf(label.pmf)}))
+        write_csv(
+            args.out,
+            pd.DataFrame({"angle_deg": np.arange(args.bins) * width, "pmf": label.pmf, "cdf": L.cdf(label.pmf)}),
+        )
     summary = {
         "file": str(args.sim),
         "design": label.design,

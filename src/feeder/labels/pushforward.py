@@ -434,8 +434,17 @@ def _finish(
 
 
 def design_from_samples(
-    yaws, final, status, *, period_deg: float, offset_deg: float, tolerance_deg: float, min_width_deg: float,
-    max_width_deg: float | None = None, band_gap_deg: float | None = None, edge_check_deg: float | None = None,
+    yaws,
+    final,
+    status,
+    *,
+    period_deg: float,
+    offset_deg: float,
+    tolerance_deg: float,
+    min_width_deg: float,
+    max_width_deg: float | None = None,
+    band_gap_deg: float | None = None,
+    edge_check_deg: float | None = None,
     calls: int = 1,
 ) -> Design:
     """A :class:`Design` rebuilt from stored samples (a simulation file): the intervals, what is
@@ -453,8 +462,18 @@ def design_from_samples(
     band_gap = DEFAULT_BAND_GAP_FACTOR * min_width_deg if band_gap_deg is None else band_gap_deg
     edge_check = DEFAULT_EDGE_CHECK_FACTOR * min_width_deg if edge_check_deg is None else edge_check_deg
     return _finish(
-        rel[order], final, status, rel.size, calls, period, float(offset_deg), float(tolerance_deg),
-        float(min_width_deg), float(max_width), float(band_gap), float(edge_check),
+        rel[order],
+        final,
+        status,
+        rel.size,
+        calls,
+        period,
+        float(offset_deg),
+        float(tolerance_deg),
+        float(min_width_deg),
+        float(max_width),
+        float(band_gap),
+        float(edge_check),
     )
 
 
