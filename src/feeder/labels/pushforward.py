@@ -275,6 +275,40 @@ def _check_evaluation(yaws: np.ndarray, result) -> tuple[np.ndarray, np.ndarray]
     return np.where(ok, normalize_yaw(np.where(ok, final, 0.0)), np.nan), status
 
 
+def _refine_settings(
+    n0, tolerance_deg, min_width_deg, budget, offset_deg, period_deg, max_width_deg, band_gap_deg, edge_check_deg
+) -> tuple[int, int, float, float, float, float, float]:
+    """:func:`refine`'s settings checked, defaults filled in: ``(n0, budget, period, offset,
+    max_width, band_gap, edge_check)``; a one-line FeederError for any bad value."""
+    if int(n0) != n0 or n0 < 2:
+        raise FeederError(f"refine: n0 must be an integer >= 2, got {n0!r}")
+    if int(budget) != budget or budget < n0:
+        raise FeederError(f"refine: budget ({budget!r}) must be an integer >= n0 ({n0})")
+    if not (math.isfinite(tolerance_deg) and tolerance_deg > 0):
+        raise FeederError(f"refine: tolerance_deg must be > 0, got {tolerance_deg!r}")
+    if not (math.isfinite(min_width_deg) and min_width_deg > 0):
+        raise FeederError(f"refine: min_width_deg must be > 0, got {min_width_deg!r}")
+    if not math.isfinite(offset_deg):
+        raise FeederError(f"refine: offset_deg must be finite, got {offset_deg!r}")
+    _turns(period_deg)
+    n0, budget, period = int(n0), int(budget), float(period_deg)
+    if max_width_deg is None:
+        max_width = max(period * DEFAULT_UNSEEN_BASIN_FRACTION, float(min_width_deg))
+    else:
+        max_width = float(max_width_deg)
+    if not (math.isfinite(max_width) and max_width >= min_width_deg):
+        raise FeederError(f"refine: max_width_deg ({max_width!r}) must be >= min_width_deg ({min_width_deg!r})")
+    band_gap = DEFAULT_BAND_GAP_FACTOR * min_width_deg if band_gap_deg is None else float(band_gap_deg)
+    if not (math.isfinite(band_gap) and band_gap >= 0):
+        raise FeederError(f"refine: band_gap_deg must be >= 0, got {band_gap!r}")
+    edge_check = DEFAULT_EDGE_CHECK_FACTOR * min_width_deg if edge_check_deg is None else float(edge_check_deg)
+    if not (math.isfinite(edge_check) and edge_check >= 0):
+        raise FeederError(f"refine: edge_check_deg must be >= 0, got {edge_check!r}")
+    offset = float(normalize_yaw(offset_deg))
+
+    return n0, budget, period, offset, max_width, band_gap, edge_check
+
+
 def refine(
     evaluate: Evaluate,
     n0: int = DEFAULT_N0,
@@ -336,32 +370,9 @@ def refine(
     max_width < min_width, band_gap < 0, edge_check < 0, a period that does not divide 360,
     or a malformed evaluation.
     """
-    if int(n0) != n0 or n0 < 2:
-        raise FeederError(f"refine: n0 must be an integer >= 2, got {n0!r}")
-    if int(budget) != budget or budget < n0:
-        raise FeederError(f"refine: budget ({budget!r}) must be an integer >= n0 ({n0})")
-    if not (math.isfinite(tolerance_deg) and tolerance_deg > 0):
-        raise FeederError(f"refine: tolerance_deg must be > 0, got {tolerance_deg!r}")
-    if not (math.isfinite(min_width_deg) and min_width_deg > 0):
-        raise FeederError(f"refine: min_width_deg must be > 0, got {min_width_deg!r}")
-    if not math.isfinite(offset_deg):
-        raise FeederError(f"refine: offset_deg must be finite, got {offset_deg!r}")
-    _turns(period_deg)
-    n0, budget, period = int(n0), int(budget), float(period_deg)
-    if max_width_deg is None:
-        max_width = max(period * DEFAULT_UNSEEN_BASIN_FRACTION, float(min_width_deg))
-    else:
-        max_width = float(max_width_deg)
-    if not (math.isfinite(max_width) and max_width >= min_width_deg):
-        raise FeederError(f"refine: max_width_deg ({max_width!r}) must be >= min_width_deg ({min_width_deg!r})")
-    band_gap = DEFAULT_BAND_GAP_FACTOR * min_width_deg if band_gap_deg is None else float(band_gap_deg)
-    if not (math.isfinite(band_gap) and band_gap >= 0):
-        raise FeederError(f"refine: band_gap_deg must be >= 0, got {band_gap!r}")
-    edge_check = DEFAULT_EDGE_CHECK_FACTOR * min_width_deg if edge_check_deg is None else float(edge_check_deg)
-    if not (math.isfinite(edge_check) and edge_check >= 0):
-        raise FeederError(f"refine: edge_check_deg must be >= 0, got {edge_check!r}")
-    offset = float(normalize_yaw(offset_deg))
-
+    n0, budget, period, offset, max_width, band_gap, edge_check = _refine_settings(
+        n0, tolerance_deg, min_width_deg, budget, offset_deg, period_deg, max_width_deg, band_gap_deg, edge_check_deg
+    )
     yaws = _grid(n0, offset, period)
     final, status = _check_evaluation(yaws, evaluate(normalize_yaw(yaws)))
     evaluations, calls = n0, 1

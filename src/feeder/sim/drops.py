@@ -50,6 +50,7 @@ velocity of a part held by the compliant contact can keep a residual of ~1 mm/s.
 from __future__ import annotations
 
 import argparse
+import functools
 import hashlib
 import json
 import math
@@ -707,6 +708,27 @@ def design_record(design: Design, order: int) -> tuple[dict, dict]:
     return arrays, summary
 
 
+def simulate_adaptive(run, geom, seed: int, budget: int, preset: dict, adaptive: dict | None):
+    """The adaptive design's drops: ``run(yaws)`` simulates one batch (a round of refinement) and
+    returns :func:`run_drops`'s result. Returns the sorted initial yaws, the drops' results, the
+    design arrays and the design summary (:func:`design_record`)."""
+    if adaptive is None:
+        raise FeederError("the adaptive design needs its settings (sim.adaptive)")
+    if int(preset["lanes"]) != 1:
+        raise FeederError(f"the adaptive design needs lanes: 1 (one part per world), the preset has {preset['lanes']}")
+    order = symmetry_order(geom, adaptive.get("symmetry", "auto"))
+    diags = []
+
+    def evaluate(yaws):
+        res = run(yaws)
+        diags.append(res["diag"])
+        return res["final_yaw_deg"], res["status"]
+
+    design = run_design(evaluate, seed, budget, adaptive, order)
+    out = {"final_yaw_deg": design.final, "status": design.status, "diag": diags}
+    return (design.yaws, out, *design_record(design, order))
+
+
 def simulate(
     geom,
     loc1: Fence,
@@ -739,25 +761,18 @@ def simulate(
     t0, c0 = time.perf_counter(), time.process_time()
     extra, design_meta = {}, None
     if yaw_sampling == "adaptive":
-        if adaptive is None:
-            raise FeederError("the adaptive design needs its settings (sim.adaptive)")
-        if int(preset["lanes"]) != 1:
-            raise FeederError(
-                f"the adaptive design needs lanes: 1 (one part per world), the preset has {preset['lanes']}"
-            )
-        order = symmetry_order(geom, adaptive.get("symmetry", "auto"))
-        diags = []
-
-        def evaluate(yaws):
-            res = run_drops(
-                geom, loc1, loc2, yaws, scene, preset, probe_x=probe_x, check_fences=check_fences, prune=prune
-            )
-            diags.append(res["diag"])
-            return res["final_yaw_deg"], res["status"]
-
-        design = run_design(evaluate, s, int(drops), adaptive, order)
-        y0, out = design.yaws, {"final_yaw_deg": design.final, "status": design.status, "diag": diags}
-        extra, design_meta = design_record(design, order)
+        run = functools.partial(
+            run_drops,
+            geom,
+            loc1,
+            loc2,
+            scene=scene,
+            preset=preset,
+            probe_x=probe_x,
+            check_fences=check_fences,
+            prune=prune,
+        )
+        y0, out, extra, design_meta = simulate_adaptive(run, geom, s, int(drops), preset, adaptive)
     else:
         y0 = initial_yaws(s, int(drops), yaw_sampling)
         out = run_drops(
@@ -803,7 +818,7 @@ def simulate(
 # --------------------------------------------------------------------------------------------
 # CLI
 # --------------------------------------------------------------------------------------------
-def main(argv: list[str]) -> int:
+def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="feeder simulate", description=__doc__.splitlines()[0])
     parser.add_argument("--part", required=True, help="parts/<id>.stl")
     parser.add_argument("--loc1", required=True, help="none | straight:ANGLE | curved:ANGLE (downstream)")
@@ -839,7 +854,11 @@ def main(argv: list[str]) -> int:
     )
     parser.add_argument("--settings", default=None, help="JSON {scene, presets}; default config/config.yaml")
     parser.add_argument("--out", required=True, help="output .npz")
-    args = parser.parse_args(argv)
+    return parser
+
+
+def main(argv: list[str]) -> int:
+    args = _parser().parse_args(argv)
 
     loc1, loc2 = parse_location(args.loc1), parse_location(args.loc2)
     if args.drops < 1:
