@@ -82,6 +82,9 @@ for fig, (data, caption, category, options) in FIGURE_TABLE.items():
         conda:
             "../envs/feeder.yaml"
         params:
+            figure=fig,
             options=cli_options(options),
         shell:
-            f"feeder figure {fig} --data {{input.data}} {{params.options}} --out {{output}} > {{log}} 2>&1"
+            # no loop variable in here: Snakemake evaluates the shell string again when the job runs,
+            # after the loop has moved on, so the figure's name comes in as a param
+            "feeder figure {params.figure} --data {input.data} {params.options} --out {output} > {log} 2>&1"
