@@ -208,3 +208,26 @@ def test_shift_pmf_matches_shifting_the_yaws_and_conserves_mass():
     np.testing.assert_array_equal(L.shift_pmf(np.zeros(360), 12.5), np.zeros(360))  # zeros stay zeros
     with pytest.raises(FeederError):
         L.shift_pmf(p, float("nan"))
+
+
+# ---------------------------------------------------------------- circular W1
+def test_circular_w1_hand_values_and_wrap_around():
+    a, b = np.zeros(360), np.zeros(360)
+    a[359], b[1] = 1.0, 1.0  # point masses 2 degrees apart across 0/360
+    assert L.w1(L.cdf(a), L.cdf(b)) == pytest.approx(358.0)
+    assert L.circular_w1(L.cdf(a), L.cdf(b)) == pytest.approx(2.0)
+    c = np.zeros(360)
+    c[[10, 190]] = 0.5  # two opposite halves against a point between them: each half moves 90
+    d = np.zeros(360)
+    d[100] = 1.0
+    assert L.circular_w1(L.cdf(c), L.cdf(d)) == pytest.approx(90.0)
+    assert L.circular_w1(L.cdf(a), L.cdf(a)) == 0.0
+
+
+def test_circular_w1_does_not_depend_on_where_the_circle_is_cut():
+    rng = np.random.default_rng(3)
+    p, q = rng.dirichlet(np.ones(72)), rng.dirichlet(np.ones(72))
+    base = L.circular_w1(L.cdf(p), L.cdf(q))
+    for k in (1, 17, 50):
+        assert L.circular_w1(L.cdf(np.roll(p, k)), L.cdf(np.roll(q, k))) == pytest.approx(base)
+    assert base <= L.w1(L.cdf(p), L.cdf(q)) + 1e-12

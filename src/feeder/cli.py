@@ -20,6 +20,10 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "bench-sim": ("feeder.bench.accuracy", "accuracy-vs-time sweep of simulation settings"),
     "bench-jams": ("feeder.bench.jams", "ok and jam rates of every fence angle of the grid"),
     "bench-yaws": ("feeder.bench.yaws", "sampling error against drops for random and golden initial yaws"),
+    "bench-designs": (
+        "feeder.bench.designs",
+        "each initial-yaw design's label against a dense reference, and its cost",
+    ),
     "bench-cost": ("feeder.bench.cost", "project the simulation stage's CPU and wall time from a sample of its jobs"),
     "bench-scheduler": ("feeder.bench.scheduler", "CPU the snakemake process spends scheduling simulation jobs"),
     "scene-table": ("feeder.sim.scene", "Table 1: every physical parameter of the simulated scene"),

@@ -16,7 +16,12 @@ BENCH_TARGETS = [
     "results/figures/yaw_sampling.png",
     "results/tables/sim_cost.csv",
     "results/figures/sim_cost.png",
+    "results/tables/label_designs.csv",
+    "results/tables/label_designs_summary.csv",
+    "results/figures/label_designs.png",
 ]
+# the design bench's configurations: one simulation job each (resumable), raw data kept
+DESIGN_KEYS = [e["key"] for e in design_bench_entries(config)]
 
 
 rule bench:
@@ -118,3 +123,46 @@ rule bench_cost:
         ),
     shell:
         "feeder bench-cost --settings '{params.settings}' --out-csv {output.sample} --out-summary {output.summary} > {log} 2>&1"
+
+
+rule bench_designs_run:
+    """One configuration of the design bench: dense reference, adaptive runs, paired check (feeder bench-designs run)."""
+    input:
+        code("bench-designs"),
+    output:
+        "results/bench/designs/{key}.npz",
+    log:
+        "logs/bench_designs/{key}.log",
+    benchmark:
+        "benchmarks/bench_designs/{key}.tsv"
+    conda:
+        "../envs/feeder.yaml"
+    params:
+        settings=settings_json("scene", "parts.dir", "sim.presets", "sim.bench", "sim.design_bench", "sim.adaptive"),
+    shell:
+        "feeder bench-designs run --key {wildcards.key} --settings '{params.settings}' --out {output} > {log} 2>&1"
+
+
+rule bench_designs:
+    """Every initial-yaw design's label against the dense reference, and its cost (feeder bench-designs table)."""
+    input:
+        code("bench-designs"),
+        runs=expand("results/bench/designs/{key}.npz", key=DESIGN_KEYS),
+    output:
+        rows=report("results/tables/label_designs.csv", caption="../report/label_designs.rst", category="Simulation"),
+        summary=report(
+            "results/tables/label_designs_summary.csv",
+            caption="../report/label_designs_summary.rst",
+            category="Simulation",
+        ),
+    log:
+        "logs/bench_designs/table.log",
+    benchmark:
+        "benchmarks/bench_designs/table.tsv"
+    conda:
+        "../envs/feeder.yaml"
+    params:
+        settings=settings_json("labels", "sim.design_bench", "sim.adaptive"),
+    shell:
+        "feeder bench-designs table {input.runs} --settings '{params.settings}'"
+        " --out-csv {output.rows} --out-summary {output.summary} > {log} 2>&1"

@@ -212,6 +212,17 @@ def w1(cdf_a, cdf_b, bin_width_deg: float | None = None) -> np.ndarray:
     return np.abs(a - b).sum(axis=-1) * width
 
 
+def circular_w1(cdf_a, cdf_b, bin_width_deg: float | None = None) -> np.ndarray:
+    """Wasserstein-1 on the circle, in degrees: the W1 of :func:`w1` minimised over where the
+    circle is cut, ``min_c Σ|F_a − F_b − c| · w``, reached at ``c`` = the median of ``F_a − F_b``
+    (Rabin, Delon & Gousseau 2011). Unlike :func:`w1` it does not depend on where 0° falls: two
+    peaks 2° apart either side of 0° are 2° apart, not 358°."""
+    a, b = _pair(cdf_a, cdf_b)
+    width = FULL_TURN_DEG / a.shape[-1] if bin_width_deg is None else float(bin_width_deg)
+    d = a - b
+    return np.abs(d - np.median(d, axis=-1, keepdims=True)).sum(axis=-1) * width
+
+
 def ks(cdf_a, cdf_b) -> np.ndarray:
     """Kolmogorov–Smirnov distance max|F_a − F_b| over the bins."""
     a, b = _pair(cdf_a, cdf_b)

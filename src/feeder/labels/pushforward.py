@@ -612,19 +612,14 @@ def label_cdf_bound(design: Design, ok_mass: float) -> float:
     return float(min(1.0, u if all_ok else 1.5 * u / ok_mass))
 
 
-def emulate_drops(design: Design, n: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
-    """``n`` i.i.d. drops through the interpolated map, for studies that need i.i.d. drops.
-
-    Initial yaws are uniform on [0, 360) from ``numpy.random.default_rng(seed)``; each is mapped
-    by the rule of :func:`pushforward_pmf` (linear along the shorter arc inside agreeing ok
-    intervals; the nearer end's outcome inside disagreeing ones). Returns ``(final_deg, status)``
-    in drop order; final yaws are in [0, 360), NaN for failed drops.
-    """
-    if int(n) != n or n < 0:
-        raise FeederError(f"emulate_drops: n must be a non-negative integer, got {n!r}")
+def map_yaws(design: Design, beta) -> tuple[np.ndarray, np.ndarray]:
+    """The interpolated drop map at initial yaws ``beta`` (degrees, any real values): linear along
+    the shorter arc inside agreeing ok intervals, the nearer end's outcome inside disagreeing ones
+    (the rule of :func:`pushforward_pmf`). Returns ``(final_deg, status)``; final yaws in [0, 360),
+    NaN for failed drops."""
     d = unfold(design)
     iv = _intervals(d.yaws, d.final, d.status, FULL_TURN_DEG, d.tolerance_deg)
-    beta = np.random.default_rng(seed).uniform(0.0, FULL_TURN_DEG, int(n))
+    beta = np.asarray(beta, dtype=np.float64)
     # position relative to the first sample, in [0, 360): intervals tile [y0, y0 + 360)
     rel = np.mod(beta - d.yaws[0], FULL_TURN_DEG) + d.yaws[0]
     k = np.clip(np.searchsorted(d.yaws, rel, side="right") - 1, 0, d.yaws.size - 1)
@@ -636,3 +631,16 @@ def emulate_drops(design: Design, n: int, seed: int) -> tuple[np.ndarray, np.nda
     final = np.where(agree, lin, np.where(right, iv.final_b[k], iv.final_a[k]))
     final = np.where(status == OK, final, np.nan)
     return final, status
+
+
+def emulate_drops(design: Design, n: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    """``n`` i.i.d. drops through the interpolated map, for studies that need i.i.d. drops.
+
+    Initial yaws are uniform on [0, 360) from ``numpy.random.default_rng(seed)``; each is mapped
+    by :func:`map_yaws`. Returns ``(final_deg, status)`` in drop order; final yaws are in
+    [0, 360), NaN for failed drops.
+    """
+    if int(n) != n or n < 0:
+        raise FeederError(f"emulate_drops: n must be a non-negative integer, got {n!r}")
+    beta = np.random.default_rng(seed).uniform(0.0, FULL_TURN_DEG, int(n))
+    return map_yaws(design, beta)
