@@ -21,6 +21,12 @@ from feeder.sim.record import SimRecord, load_sim, write_sim
 PART = str(ROOT / "parts" / "rect-a2.stl")
 
 
+def simulate_rect(out, *args) -> int:
+    """`feeder simulate` of the 2:1 rectangle on one straight fence (coarse preset)."""
+    base = ["simulate", "--part", PART, "--loc1", "straight:45", "--loc2", "none", "--preset", "coarse"]
+    return feeder([*base, *args, "--out", str(out)])
+
+
 def step_map(yaws):
     """Two basins and a jam arc: β < 120 → 30°, 120 ≤ β < 300 → 200°, else jammed."""
     yaws = np.asarray(yaws)
@@ -97,29 +103,7 @@ def test_labels_pmf_cli_reads_every_design(tmp_path, capsys, design):
     sim_file, out = tmp_path / "s.npz", tmp_path / "pmf.csv"
     drops = "16" if design == "adaptive" else "6"
     extra = ["--n0", "4", "--min-width-deg", "5"] if design == "adaptive" else []
-    assert (
-        feeder(
-            [
-                "simulate",
-                "--part",
-                PART,
-                "--loc1",
-                "straight:45",
-                "--loc2",
-                "none",
-                "--drops",
-                drops,
-                "--preset",
-                "coarse",
-                "--yaw-sampling",
-                design,
-                *extra,
-                "--out",
-                str(sim_file),
-            ]
-        )
-        == 0
-    )
+    assert simulate_rect(sim_file, "--drops", drops, "--yaw-sampling", design, *extra) == 0
     capsys.readouterr()
     assert feeder(["labels", "pmf", str(sim_file), "--out", str(out)]) == 0
     summary = json.loads(capsys.readouterr().out)
@@ -147,24 +131,7 @@ def test_labels_pmf_cli_reads_every_design(tmp_path, capsys, design):
 )
 def test_adaptive_bad_input_is_one_line_and_writes_nothing(tmp_path, capsys, args, message):
     out = tmp_path / "s.npz"
-    code = feeder(
-        [
-            "simulate",
-            "--part",
-            PART,
-            "--loc1",
-            "straight:45",
-            "--loc2",
-            "none",
-            "--preset",
-            "coarse",
-            "--yaw-sampling",
-            "adaptive",
-            *args,
-            "--out",
-            str(out),
-        ]
-    )
+    code = simulate_rect(out, "--yaw-sampling", "adaptive", *args)
     err = capsys.readouterr().err.strip()
     assert code == 2 and message in err and "\n" not in err and "Traceback" not in err
     assert not out.exists()
