@@ -11,6 +11,7 @@ import pytest
 from workflow_helpers import ROOT
 
 from feeder.bench import designs as B
+from feeder.bench import reference as R
 from feeder.config import load_study_config
 from feeder.errors import FeederError
 
@@ -21,71 +22,65 @@ def settings():
 
 def test_entries_cover_the_panel_and_the_library_with_file_safe_keys():
     cfg = settings()
-    keys = [e["key"] for e in B.entries(cfg)]
+    keys = [e["key"] for e in R.entries(cfg)]
     assert keys == ["rect-40x20__straight45_none", "tri-40x25__curved45_straight30", "rect-a2__straight45_none"]
     cfg["sim"]["design_bench"]["library"].append(["rect-a2", "straight:45", "none"])
     with pytest.raises(FeederError, match="listed twice"):
-        B.entries(cfg)
+        R.entries(cfg)
 
 
 def test_reference_grid_covers_one_symmetry_period_evenly():
-    yaws, period, offset = B.reference_grid(4, 2880, seed=7)
+    yaws, period, offset = R.reference_grid(4, 2880, seed=7)
     assert period == 90.0 and yaws.size == 720 and 0 <= offset < 0.125
     np.testing.assert_allclose(np.diff(yaws), 0.125)
     assert yaws[-1] < offset + 90.0
 
 
-def _file(tmp_path, step_at=120.0):
-    """A reference of a step map (β < step → 30°, else 200°), an adaptive run and a paired check
-    whose real drops disagree with the map at one of four yaws."""
+def _files(tmp_path, step_at=120.0):
+    """A reference of a step map (β < step → 30°, else 200°) whose paired real drops disagree
+    with the map at one of four yaws, and an adaptive run of four samples."""
     ref = np.arange(0, 360, 0.5) + 0.1
     final = np.where(ref < step_at, 30.0, 200.0)
-    meta = {
-        "entry": {"key": "x__straight30_none"},
-        "symmetry_order": 1,
-        "period_deg": 360.0,
-        "offset_deg": 0.1,
-        "budgets": [
-            {
-                "budget": 4,
-                "design": {
-                    "period_deg": 360.0,
-                    "offset_deg": 0.1,
-                    "tolerance_deg": 2.0,
-                    "min_width_deg": 0.5,
-                    "max_width_deg": 90.0,
-                    "band_gap_deg": 2.0,
-                    "edge_check_deg": 1.0,
-                    "calls": 1,
-                },
-            }
-        ],
-    }
-    ada = np.array([0.1, 90.1, 180.1, 270.1])
-    path = tmp_path / "x.npz"
+    entry = {"key": "x__straight30_none"}
+    meta = {"entry": entry, "symmetry_order": 1, "period_deg": 360.0, "offset_deg": 0.1, "preset": "fast"}
+    reference, adaptive = tmp_path / "ref.npz", tmp_path / "ada.npz"
     np.savez(
-        path,
+        reference,
         ref_initial=ref,
         ref_final=final,
         ref_status=np.full(ref.size, "ok"),
         ref_cpu_s=np.float64(7.2),
+        paired_initial=np.array([10.0, 100.0, 200.0, 300.0]),
+        paired_final=np.array([30.2, 30.0, 200.0, 20.0]),  # the last drop flipped basin
+        paired_status=np.array(["ok", "ok", "ok", "ok"]),
+        meta=np.array(json.dumps(meta)),
+    )
+    design = {
+        "period_deg": 360.0,
+        "offset_deg": 0.1,
+        "tolerance_deg": 2.0,
+        "min_width_deg": 0.5,
+        "max_width_deg": 90.0,
+        "band_gap_deg": 2.0,
+        "edge_check_deg": 1.0,
+        "calls": 1,
+    }
+    ada = np.array([0.1, 90.1, 180.1, 270.1])
+    np.savez(
+        adaptive,
         adaptive4_initial=ada,
         adaptive4_final=np.where(ada < step_at, 30.0, 200.0),
         adaptive4_status=np.full(4, "ok"),
         adaptive4_cpu_s=np.float64(0.04),
-        paired_initial=np.array([10.0, 100.0, 200.0, 300.0]),
-        paired_final=np.array([30.2, 30.0, 200.0, 20.0]),
-        paired_status=np.array(["ok", "ok", "ok", "ok"]),
-        paired_mapped_final=np.array([30.0, 30.0, 200.0, 200.0]),
-        paired_mapped_status=np.array(["ok", "ok", "ok", "ok"]),
-        meta=np.array(json.dumps(meta)),
+        meta=np.array(json.dumps({"entry": entry, "budgets": [{"budget": 4, "design": design}]})),
     )
-    return path
+    return reference, adaptive
 
 
 def test_paired_check_counts_basin_flips_drop_by_drop(tmp_path):
-    with np.load(_file(tmp_path)) as z:
-        check = B.paired_check(z)
+    reference, _ = _files(tmp_path)
+    with np.load(reference) as z:
+        check = B.paired_check(z, B.reference_design(z, 2.0))
     assert check["paired_same_status"] == 1.0 and check["paired_same_basin"] == 0.75
     assert check["paired_median_dyaw_deg"] == pytest.approx(0.0)  # median of 0.2, 0, 0 among same-basin drops
 
@@ -93,7 +88,7 @@ def test_paired_check_counts_basin_flips_drop_by_drop(tmp_path):
 def test_table_rows_measure_each_design_against_the_reference(tmp_path):
     cfg = settings()
     cfg["sim"]["design_bench"] |= {"drop_levels": [20, 400], "repeats": 4}
-    frame = pd.DataFrame(B.entry_rows(_file(tmp_path), cfg))
+    frame = pd.DataFrame(B.entry_rows(*_files(tmp_path), cfg))
     ref = frame[frame.design == "reference"].iloc[0]
     assert ref.sup_cdf == 0.0 and ref.simulations == 720 and ref.cpu_s == 7.2
     ada = frame[frame.design == "adaptive"].iloc[0]

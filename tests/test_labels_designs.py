@@ -16,6 +16,7 @@ from feeder.labels import metrics as L
 from feeder.labels import pmf as P
 from feeder.labels.pushforward import pushforward_pmf, refine
 from feeder.sim import drops as sim
+from feeder.sim import simulate as simulate_cli
 from feeder.sim.record import SimRecord, load_sim, write_sim
 
 PART = str(ROOT / "parts" / "rect-a2.stl")
@@ -37,7 +38,7 @@ def step_map(yaws):
 
 def adaptive_record(tmp_path, evaluate=step_map):
     design = refine(evaluate, n0=8, budget=48, offset_deg=3.0)
-    arrays, summary = sim.design_record(design, 1)
+    arrays, summary = simulate_cli.design_record(design, 1)
     meta = {"part": "x", "config_id": "straight30_none", "seed": 0, "yaw_sampling": "adaptive", "design": summary}
     path = tmp_path / "a.npz"
     write_sim(

@@ -407,3 +407,27 @@ def test_emulated_drops_unfold_symmetric_designs():
     ok = status == "ok"
     assert np.mean(status == "jammed") == pytest.approx(masses["jammed"], abs=0.005)
     assert sup_cdf(L.histogram(final[ok], BINS) / ok.sum(), pmf) <= 0.01
+
+
+def test_a_steep_smooth_map_is_resolved_not_bisected_as_jumps():
+    """With no fence in reach the map is the identity: 22.5° of final yaw between grid samples is
+    a slope, not a jump. Refinement stops after the first round of midpoint checks, the label is
+    the exact uniform push-forward, and nothing is left unresolved."""
+    calls = []
+
+    def identity(yaws):
+        calls.append(len(yaws))
+        return np.asarray(yaws, dtype=float) % 360.0, np.full(len(yaws), "ok")
+
+    design = P.refine(identity, n0=16, budget=64, offset_deg=3.0)
+    assert design.label_bound == 0.0 and design.evaluations == 32
+    pmf, masses = P.pushforward_pmf(design, 360, 0.0)
+    np.testing.assert_allclose(pmf, np.full(360, 1.0 / 360.0), atol=1e-12)
+    # a jump inside a steep map is still a jump: identity with a 90° step at 200°
+    stepped = P.refine(
+        lambda y: ((np.asarray(y) + 90.0 * (np.asarray(y) >= 200.0)) % 360.0, np.full(len(y), "ok")),
+        n0=16,
+        budget=96,
+        offset_deg=3.0,
+    )
+    assert 0 < stepped.label_bound <= 3 * 0.5 / 360.0 + 1e-12

@@ -20,6 +20,7 @@ from feeder.sim import drops as sim
 from feeder.sim import record
 from feeder.sim import scene as sc
 from feeder.sim.fences import Fence, parse_location
+from feeder.sim.simulate import simulate
 
 ROOT = Path(__file__).resolve().parents[1]
 CFG = yaml.safe_load((ROOT / "config" / "config.yaml").read_text())
@@ -281,7 +282,7 @@ def test_table1_without_settings_runs_outside_the_project_root(tmp_path):
 # simulation: no fences, determinism, the CLI
 # ------------------------------------------------------------------------------------------
 def test_no_fences_final_equals_initial_without_physics():
-    res = sim.simulate(RECT, Fence("none"), Fence("none"), 300, 0, SCENE, FAST)
+    res = simulate(RECT, Fence("none"), Fence("none"), 300, 0, SCENE, FAST)
     assert np.array_equal(res["final_yaw_deg"], res["initial_yaw_deg"])
     assert set(res["status"]) == {"ok"}
     assert res["diag"]["plan_fences"] == []
@@ -290,9 +291,9 @@ def test_no_fences_final_equals_initial_without_physics():
 def test_unreachable_fence_is_not_built_and_changes_nothing():
     small = shape_part("rect-20x10", 0.005)
     # a curved fence at 0° ends 0.04 m from the centre line: a part of radius 11 mm never meets it
-    res = sim.simulate(small, Fence("curved", 0.0), Fence("none"), 6, 0, SCENE, FAST)
+    res = simulate(small, Fence("curved", 0.0), Fence("none"), 6, 0, SCENE, FAST)
     assert res["diag"]["plan_fences"] == []
-    full = sim.simulate(small, Fence("curved", 0.0), Fence("none"), 6, 0, SCENE, FAST, prune=False)
+    full = simulate(small, Fence("curved", 0.0), Fence("none"), 6, 0, SCENE, FAST, prune=False)
     assert full["diag"]["plan_fences"] == ["loc1"]
     assert set(full["status"]) == {"ok"}
     d = np.abs((full["final_yaw_deg"] - res["final_yaw_deg"] + 180) % 360 - 180)
@@ -461,7 +462,7 @@ def test_status_checks_in_their_order():
 
 
 def test_sim_file_round_trip(tmp_path):
-    res = sim.simulate(RECT, Fence("none"), Fence("none"), 5, 0, SCENE, FAST)
+    res = simulate(RECT, Fence("none"), Fence("none"), 5, 0, SCENE, FAST)
     path = tmp_path / "sim.npz"
     record.write_sim(path, res)
     with np.load(path) as z:
@@ -558,8 +559,8 @@ def test_compliant_belt_makes_the_outcome_independent_of_the_ride_before_the_fen
     just before the fences instead of at the belt start). A compliant belt fixes the split."""
     scene, part = _compliant(), shape_part("c-40x30x8", 0.005)
     l1, l2 = parse_location("straight:45"), parse_location("straight:30")
-    short = sim.simulate(part, l1, l2, 12, 1, scene, FAST)
-    full = sim.simulate(part, l1, l2, 12, 1, scene, dict(FAST, full_path=True, skip_slides=False))
+    short = simulate(part, l1, l2, 12, 1, scene, FAST)
+    full = simulate(part, l1, l2, 12, 1, scene, dict(FAST, full_path=True, skip_slides=False))
     d = (short["final_yaw_deg"] - full["final_yaw_deg"] + 180.0) % 360.0 - 180.0
     assert np.isfinite(d).all() and np.median(np.abs(d)) < 0.5
 

@@ -25,6 +25,7 @@ from feeder.parts.shapes import mirror_part, mod180_dist, shape_part
 from feeder.sim import body as simbody
 from feeder.sim import drops as sim
 from feeder.sim.fences import parse_location
+from feeder.sim.simulate import simulate
 
 ROOT = Path(__file__).resolve().parents[1]
 CFG = yaml.safe_load((ROOT / "config" / "config.yaml").read_text())
@@ -60,7 +61,7 @@ def _floor(a, b):
 
 def _sim(shape, loc1, loc2, drops, seed=0, preset=FAST, scene=SCENE, **kw):
     geom = shape if not isinstance(shape, str) else shape_part(shape, 0.005)
-    return sim.simulate(geom, parse_location(loc1), parse_location(loc2), drops, seed, scene, preset, **kw)
+    return simulate(geom, parse_location(loc1), parse_location(loc2), drops, seed, scene, preset, **kw)
 
 
 # ------------------------------------------------------------------------------------------

@@ -1,4 +1,4 @@
-"""The simulator's outputs pinned bit for bit (``feeder.sim.drops.simulate``).
+"""The simulator's outputs pinned bit for bit (``feeder.sim.simulate.simulate``).
 
 A refactoring of the simulation code must not change one bit of what it computes: each run below
 is pinned by the SHA-256 of its final and initial yaws (``ndarray.tobytes()``), its exact status
@@ -24,8 +24,8 @@ import yaml
 
 from feeder.parts.geometry import load_part
 from feeder.parts.shapes import shape_part
-from feeder.sim.drops import simulate
 from feeder.sim.fences import parse_location
+from feeder.sim.simulate import simulate
 
 ROOT = Path(__file__).resolve().parents[1]
 CFG = yaml.safe_load((ROOT / "config" / "config.yaml").read_text())

@@ -16,10 +16,11 @@ from feeder.errors import FeederError
 COMMANDS: dict[str, tuple[str, str]] = {
     "parts": ("feeder.parts.library", "generate the part library / write the catalog"),
     "features": ("feeder.parts.features", "print the 45 DFT shape features of a part (.xyz or .stl)"),
-    "simulate": ("feeder.sim.drops", "simulate drops of one part through one fence configuration"),
+    "simulate": ("feeder.sim.simulate", "simulate drops of one part through one fence configuration"),
     "bench-sim": ("feeder.bench.accuracy", "accuracy-vs-time sweep of simulation settings"),
     "bench-jams": ("feeder.bench.jams", "ok and jam rates of every fence angle of the grid"),
     "bench-yaws": ("feeder.bench.yaws", "sampling error against drops for random and golden initial yaws"),
+    "bench-reference": ("feeder.bench.reference", "the design bench's dense reference of one configuration"),
     "bench-designs": (
         "feeder.bench.designs",
         "each initial-yaw design's label against a dense reference, and its cost",

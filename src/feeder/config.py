@@ -130,3 +130,20 @@ def resolved_yaml(
     cfg = compose_config(name, overrides, config_dir)
     keep = OmegaConf.create({k: cfg[k] for k in cfg if k not in drop})
     return OmegaConf.to_yaml(OmegaConf.create(OmegaConf.to_container(keep, resolve=True)))
+
+
+def add_settings_options(parser):
+    """``--settings JSON`` (what the workflow passes) and ``--configfile OVERLAY`` (repeatable) on a
+    command's parser; :func:`study_settings` reads them. Returns the parser."""
+    parser.add_argument("--settings", default=None, help="JSON of the config sections (the workflow passes it)")
+    parser.add_argument("--configfile", action="append", default=None, help="an overlay of config/config.yaml")
+    return parser
+
+
+def study_settings(args) -> dict:
+    """The settings named by :func:`add_settings_options`: the JSON, else config/config.yaml of
+    the study (:func:`study_root`) with the overlays laid on top."""
+    if args.settings:
+        return parse_settings(args.settings)
+    overlays = [str(Path(f).resolve()) for f in args.configfile or []]
+    return load_study_config(*overlays, root=study_root())

@@ -125,12 +125,30 @@ rule bench_cost:
         "feeder bench-cost --settings '{params.settings}' --out-csv {output.sample} --out-summary {output.summary} > {log} 2>&1"
 
 
+rule bench_reference:
+    """The design bench's dense reference of one configuration, and its paired drops (feeder bench-reference run)."""
+    input:
+        code("bench-reference"),
+    output:
+        "results/bench/designs/reference/{key}.npz",
+    log:
+        "logs/bench_reference/{key}.log",
+    benchmark:
+        "benchmarks/bench_reference/{key}.tsv"
+    conda:
+        "../envs/feeder.yaml"
+    params:
+        settings=settings_json("scene", "parts.dir", "sim.presets", "sim.bench", "sim.design_bench"),
+    shell:
+        "feeder bench-reference run --key {wildcards.key} --settings '{params.settings}' --out {output} > {log} 2>&1"
+
+
 rule bench_designs_run:
-    """One configuration of the design bench: dense reference, adaptive runs, paired check (feeder bench-designs run)."""
+    """The adaptive design of one configuration at every budget (feeder bench-designs run)."""
     input:
         code("bench-designs"),
     output:
-        "results/bench/designs/{key}.npz",
+        "results/bench/designs/adaptive/{key}.npz",
     log:
         "logs/bench_designs/{key}.log",
     benchmark:
@@ -147,7 +165,8 @@ rule bench_designs:
     """Every initial-yaw design's label against the dense reference, and its cost (feeder bench-designs table)."""
     input:
         code("bench-designs"),
-        runs=expand("results/bench/designs/{key}.npz", key=DESIGN_KEYS),
+        references=expand("results/bench/designs/reference/{key}.npz", key=DESIGN_KEYS),
+        adaptive=expand("results/bench/designs/adaptive/{key}.npz", key=DESIGN_KEYS),
     output:
         rows=report("results/tables/label_designs.csv", caption="../report/label_designs.rst", category="Simulation"),
         summary=report(
@@ -164,5 +183,5 @@ rule bench_designs:
     params:
         settings=settings_json("labels", "sim.design_bench", "sim.adaptive"),
     shell:
-        "feeder bench-designs table {input.runs} --settings '{params.settings}'"
-        " --out-csv {output.rows} --out-summary {output.summary} > {log} 2>&1"
+        "feeder bench-designs table --references {input.references} --adaptive {input.adaptive}"
+        " --settings '{params.settings}' --out-csv {output.rows} --out-summary {output.summary} > {log} 2>&1"

@@ -5,7 +5,7 @@ import json
 
 from snakemake.utils import validate
 
-from feeder.bench.designs import entries as design_bench_entries
+from feeder.bench.reference import entries as design_bench_entries
 from feeder.labels.grid import configurations
 from feeder.sim.fences import parse_config_id
 from feeder.parts.library import list_parts

@@ -40,8 +40,8 @@ def _run(job):
     """Worker: one (setting, seed, panel entry) simulation → yaws, statuses, CPU seconds."""
     name, preset, seed, idx, entry, scene, thickness = job
     from feeder.parts.shapes import shape_part
-    from feeder.sim.drops import simulate
     from feeder.sim.fences import parse_location
+    from feeder.sim.simulate import simulate
 
     shape, loc1, loc2 = entry
     geom = shape_part(shape, thickness)

@@ -4,17 +4,17 @@ With one part per world a drop's outcome is a function of its initial yaw, so a 
 label is the push-forward of the uniform initial yaw through that map. This bench measures how
 close each design gets to it, and at what cost:
 
-* ``feeder bench-designs run``, one job per configuration (resumable: one file each):
-  - the **reference**: an evenly spaced grid of ``reference_yaws`` initial yaws per full turn
-    (0.125° apart at 2,880), simulated over one period of the part's rotational symmetry, its
-    label the push-forward of the sampled map (:func:`feeder.labels.pmf.record_design`'s grid
-    rule);
-  - the **adaptive** design, simulated for real at each budget of ``adaptive_budgets``;
-  - a **paired check** of the reference map: ``paired_drops`` independent initial yaws simulated
-    for real and compared drop by drop with what the reference map gives at the same yaws
-    (same-status and same-basin fractions, median |Δ final yaw|): how well the sampled map
-    stands in for the simulator between its samples.
-* ``feeder bench-designs table``: every design's label against the reference label:
+* ``feeder bench-reference run`` (:mod:`feeder.bench.reference`), one job per configuration: the
+  **reference**, an evenly spaced grid of ``reference_yaws`` initial yaws per full turn (0.125°
+  apart at 2,880) over one period of the part's rotational symmetry, whose label is the
+  push-forward of the sampled map (the grid rule of :func:`feeder.labels.pmf.record_design`),
+  and ``paired_drops`` independent drops simulated for real;
+* ``feeder bench-designs run``, one job per configuration: the **adaptive** design, simulated for
+  real at each budget of ``adaptive_budgets`` (a change to the refinement reruns only these);
+* ``feeder bench-designs table``: every design's label against the reference label, and a
+  **paired check** of the reference map: the real paired drops against what the map gives at the
+  same initial yaws (same-status and same-basin fractions, median |Δ final yaw|), which says how
+  well the sampled map stands in for the simulator between its samples:
   - ``adaptive`` from its real runs;
   - ``random``, ``golden`` and ``grid`` at each of ``drop_levels`` drops, ``repeats`` seeded
     realisations each, **emulated** through the reference map (the drops a design would simulate,
@@ -31,12 +31,9 @@ Raw data stay in the per-configuration files (docs/data.md), so a new statistic 
 from __future__ import annotations
 
 import argparse
-import hashlib
 import json
 import math
-import re
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -48,87 +45,21 @@ SAME_BASIN_DEG = 5.0  # |Δ final yaw| on the circle below which two ok drops en
 
 
 # ----------------------------------------------------------------------------------------------
-# Configurations
+# The adaptive runs of one configuration (simulation)
 # ----------------------------------------------------------------------------------------------
-def entries(settings: dict) -> list[dict]:
-    """The bench's configurations: the simulation bench's panel (shape specs) and
-    ``sim.design_bench.library`` (part ids of ``parts.dir``), each with a file-safe key."""
-    sim = settings["sim"]
-    out = [{"kind": "shape", "part": e[0], "loc1": e[1], "loc2": e[2]} for e in sim["bench"]["panel"]]
-    out += [{"kind": "part", "part": e[0], "loc1": e[1], "loc2": e[2]} for e in sim["design_bench"]["library"]]
-    for e in out:
-        e["key"] = entry_key(e)
-    keys = [e["key"] for e in out]
-    if len(set(keys)) != len(keys):
-        raise FeederError("sim.design_bench: a configuration is listed twice")
-    return out
-
-
-def entry_key(entry: dict) -> str:
-    """``rect-40x20__straight45_none``: part and fence configuration, file-safe."""
-    fences = "_".join(str(entry[k]).replace(":", "") for k in ("loc1", "loc2"))
-    return re.sub(r"[^A-Za-z0-9._-]", "-", f"{entry['part']}__{fences}")
-
-
-def entry_geometry(entry: dict, settings: dict):
-    if entry["kind"] == "shape":
-        from feeder.parts.shapes import shape_part
-
-        return shape_part(entry["part"], float(settings["sim"]["bench"]["thickness"]))
-    from feeder.parts.geometry import load_part
-
-    path = Path(settings["parts"]["dir"]) / f"{entry['part']}.stl"
-    if not path.is_file():
-        raise FeederError(f"sim.design_bench.library: part file {path} not found")
-    return load_part(path)
-
-
-def _seed(*tokens) -> int:
-    return int.from_bytes(hashlib.sha256("|".join(map(str, tokens)).encode()).digest()[:8], "little")
-
-
-# ----------------------------------------------------------------------------------------------
-# One configuration (simulation)
-# ----------------------------------------------------------------------------------------------
-def reference_grid(order: int, reference_yaws: int, seed: int) -> tuple[np.ndarray, float, float]:
-    """Initial yaws of the reference over one symmetry period: ``reference_yaws / order`` evenly
-    spaced yaws with a seeded offset. Returns (yaws, period, offset)."""
-    period = 360.0 / order
-    n = max(2, int(round(reference_yaws / order)))
-    offset = float(np.random.default_rng(seed).uniform(0.0, period / n))
-    return offset + period * np.arange(n) / n, period, offset
-
-
-def run_entry(entry: dict, settings: dict) -> dict:
-    """Simulate one configuration's reference, adaptive runs and paired check: the arrays of its file."""
-    from feeder.labels.pushforward import design_from_samples, map_yaws
-    from feeder.parts.symmetry import rotational_order
-    from feeder.sim.drops import get_preset, run_drops, simulate
+def run_adaptive(entry: dict, settings: dict) -> dict:
+    """The adaptive design at every budget of ``adaptive_budgets``, simulated for real: the arrays
+    of the configuration's adaptive file (one ``adaptive<budget>_*`` group each, and ``meta``)."""
+    from feeder.bench.reference import entry_geometry
+    from feeder.sim.drops import get_preset
     from feeder.sim.fences import parse_location
+    from feeder.sim.simulate import simulate
 
     db, scene = settings["sim"]["design_bench"], settings["scene"]
     preset = get_preset(settings["sim"]["presets"], db["preset"])
     geom = entry_geometry(entry, settings)
     loc1, loc2 = parse_location(entry["loc1"]), parse_location(entry["loc2"])
-    order = rotational_order(geom.outline)
-    yaws, period, offset = reference_grid(order, int(db["reference_yaws"]), _seed(entry["key"], "reference"))
-    c0 = time.process_time()
-    ref = run_drops(geom, loc1, loc2, yaws, scene, preset)
-    out = {
-        "ref_initial": yaws,
-        "ref_final": ref["final_yaw_deg"],
-        "ref_status": ref["status"].astype(str),
-        "ref_cpu_s": np.float64(time.process_time() - c0),
-    }
-    meta = {
-        "entry": entry,
-        "symmetry_order": order,
-        "period_deg": period,
-        "offset_deg": offset,
-        "preset": db["preset"],
-        "budgets": [],
-        "adaptive": settings["sim"]["adaptive"],
-    }
+    out, budgets = {}, []
     for budget in db["adaptive_budgets"]:
         res = simulate(
             geom,
@@ -149,31 +80,9 @@ def run_entry(entry: dict, settings: dict) -> dict:
             f"{tag}_status": res["status"],
             f"{tag}_cpu_s": res["cpu_s"],
         }
-        meta["budgets"].append({"budget": int(budget), "design": json.loads(str(res["meta"]))["design"]})
-    beta = np.random.default_rng(_seed(entry["key"], "paired")).uniform(0.0, 360.0, int(db["paired_drops"]))
-    real = run_drops(geom, loc1, loc2, beta, scene, preset)
-    ref_design = design_from_samples(
-        yaws,
-        ref["final_yaw_deg"],
-        ref["status"],
-        period_deg=period,
-        offset_deg=offset,
-        tolerance_deg=float(settings["sim"]["adaptive"]["tolerance_deg"]),
-        min_width_deg=period / yaws.size,
-        max_width_deg=period / yaws.size,
-        band_gap_deg=0.0,
-        edge_check_deg=0.0,
-    )
-    mapped_final, mapped_status = map_yaws(ref_design, beta)
-    out |= {
-        "paired_initial": beta,
-        "paired_final": real["final_yaw_deg"],
-        "paired_status": real["status"].astype(str),
-        "paired_mapped_final": mapped_final,
-        "paired_mapped_status": mapped_status.astype(str),
-        "meta": np.array(json.dumps(meta, sort_keys=True)),
-    }
-    return out
+        budgets.append({"budget": int(budget), "design": json.loads(str(res["meta"]))["design"]})
+    meta = {"entry": entry, "preset": db["preset"], "budgets": budgets, "adaptive": settings["sim"]["adaptive"]}
+    return out | {"meta": np.array(json.dumps(meta, sort_keys=True))}
 
 
 # ----------------------------------------------------------------------------------------------
@@ -211,13 +120,15 @@ def distances(pmf, ref_pmf) -> dict[str, float]:
     }
 
 
-def paired_check(z) -> dict[str, float]:
-    """The reference map against real drops at the same initial yaws."""
-    from feeder.labels.pushforward import circular_distance
+def paired_check(z, ref_design) -> dict[str, float]:
+    """The reference map against the real drops of the reference file at the same initial yaws:
+    same-status and same-basin fractions, median |Δ final yaw| among same-basin drops."""
+    from feeder.labels.pushforward import circular_distance, map_yaws
 
-    same_status = z["paired_status"] == z["paired_mapped_status"]
+    mapped_final, mapped_status = map_yaws(ref_design, z["paired_initial"])
+    same_status = z["paired_status"] == mapped_status
     both_ok = same_status & (z["paired_status"] == "ok")
-    d = circular_distance(z["paired_final"][both_ok], z["paired_mapped_final"][both_ok])
+    d = circular_distance(z["paired_final"][both_ok], mapped_final[both_ok])
     same_basin = same_status.copy()
     same_basin[both_ok] = d < SAME_BASIN_DEG
     return {
@@ -240,74 +151,100 @@ def emulated_label(ref_design, design: str, drops: int, seed: int, bins: int, si
     return sim_label(rec, bins, sigma)
 
 
-def entry_rows(path: Path, settings: dict) -> list[dict]:
-    """Rows of one configuration: the reference's own, the adaptive runs and every emulated design."""
-    from feeder.labels.pmf import sim_label
+def _row(base: dict, design: str, drops: int, repeat: int, cpu_s: float, label_of, ref_pmf) -> dict:
+    """One row: ``label_of()`` gives the design's label; a label with no ok drop at all (every
+    simulated or emulated drop failed) is a row with NaN distances and ok mass 0."""
+    from feeder.errors import FeederError
+
+    row = {**base, "design": design, "drops": int(drops), "repeat": repeat, "cpu_s": cpu_s}
+    try:
+        label = label_of()
+    except FeederError:
+        return {
+            **row,
+            "simulations": int(drops),
+            "ok_mass": 0.0,
+            "label_bound": math.nan,
+            **dict.fromkeys(METRICS, math.nan),
+        }
+    return {
+        **row,
+        "simulations": label.simulations,
+        "ok_mass": label.ok_mass,
+        "label_bound": label.cdf_bound,
+        **(distances(label.pmf, ref_pmf) if ref_pmf is not None else dict.fromkeys(METRICS, math.nan)),
+    }
+
+
+def _load(path: Path) -> dict:
+    with np.load(path, allow_pickle=False) as z:
+        return {k: z[k] for k in z.files}
+
+
+def entry_rows(reference: Path, adaptive: Path, settings: dict) -> list[dict]:
+    """Rows of one configuration (its reference file and its adaptive file): the reference's own,
+    the adaptive runs and every emulated design. A configuration whose reference has no ok drop
+    (every initial yaw jams) has no label to compare with: its rows carry NaN distances."""
+    from feeder.bench.reference import seed_of
+    from feeder.labels.pmf import Label, sim_label
     from feeder.labels.pushforward import label_cdf_bound, pushforward_pmf
     from feeder.sim.record import SimRecord
 
     db, labels = settings["sim"]["design_bench"], settings["labels"]
     bins, sigma = int(labels["bins"]), float(labels["sigma_bins"])
-    with np.load(path, allow_pickle=False) as z:
-        z = {k: z[k] for k in z.files}
-    meta = json.loads(str(z["meta"]))
+    z, runs = _load(reference), _load(adaptive)
+    meta, run_meta = json.loads(str(z["meta"])), json.loads(str(runs["meta"]))
+    if run_meta["entry"]["key"] != meta["entry"]["key"]:
+        raise FeederError(
+            f"{adaptive} is configuration {run_meta['entry']['key']}, {reference} is {meta['entry']['key']}"
+        )
     ref = reference_design(z, float(settings["sim"]["adaptive"]["tolerance_deg"]))
-    ref_pmf, ref_masses = pushforward_pmf(ref, bins, sigma)
     n_ref = int(z["ref_initial"].size)
     cpu_per_drop = float(z["ref_cpu_s"]) / n_ref
-    base = {"config": meta["entry"]["key"], "symmetry_order": meta["symmetry_order"], **paired_check(z)}
-    rows = [
-        {
-            **base,
-            "design": "reference",
-            "drops": n_ref,
-            "repeat": 0,
-            "simulations": n_ref,
-            "cpu_s": float(z["ref_cpu_s"]),
-            "ok_mass": ref_masses.get("ok", 0.0),
-            "label_bound": label_cdf_bound(ref, ref_masses["ok"]),
-            **distances(ref_pmf, ref_pmf),
-        }
-    ]
-    for b in meta["budgets"]:
+    base = {"config": meta["entry"]["key"], "symmetry_order": meta["symmetry_order"], **paired_check(z, ref)}
+
+    def ref_label():
+        pmf, masses = pushforward_pmf(ref, bins, sigma)
+        return Label(pmf, masses, label_cdf_bound(ref, masses["ok"]), "reference", n_ref)
+
+    rows = [_row(base, "reference", n_ref, 0, float(z["ref_cpu_s"]), ref_label, None)]
+    ref_pmf = None if rows[0]["ok_mass"] == 0.0 else ref_label().pmf
+    if ref_pmf is not None:
+        rows[0] |= distances(ref_pmf, ref_pmf)
+    for b in run_meta["budgets"]:
         tag = f"adaptive{b['budget']}"
         rec = SimRecord(
-            yaws=z[f"{tag}_final"],
-            ok=z[f"{tag}_status"] == "ok",
+            yaws=runs[f"{tag}_final"],
+            ok=runs[f"{tag}_status"] == "ok",
             meta={"yaw_sampling": "adaptive", "design": b["design"]},
-            initial=z[f"{tag}_initial"],
-            status=z[f"{tag}_status"],
+            initial=runs[f"{tag}_initial"],
+            status=runs[f"{tag}_status"],
         )
-        label = sim_label(rec, bins, sigma)
         rows.append(
-            {
-                **base,
-                "design": "adaptive",
-                "drops": b["budget"],
-                "repeat": 0,
-                "simulations": label.simulations,
-                "cpu_s": float(z[f"{tag}_cpu_s"]),
-                "ok_mass": label.ok_mass,
-                "label_bound": label.cdf_bound,
-                **distances(label.pmf, ref_pmf),
-            }
+            _row(
+                base,
+                "adaptive",
+                b["budget"],
+                0,
+                float(runs[f"{tag}_cpu_s"]),
+                lambda rec=rec: sim_label(rec, bins, sigma),
+                ref_pmf,
+            )
         )
     for design in EMULATED_DESIGNS:
         for drops in db["drop_levels"]:
             for r in range(int(db["repeats"])):
-                label = emulated_label(ref, design, int(drops), _seed(base["config"], design, drops, r), bins, sigma)
+                seed = seed_of(base["config"], design, drops, r)
                 rows.append(
-                    {
-                        **base,
-                        "design": design,
-                        "drops": int(drops),
-                        "repeat": r,
-                        "simulations": int(drops),
-                        "cpu_s": cpu_per_drop * int(drops),
-                        "ok_mass": label.ok_mass,
-                        "label_bound": label.cdf_bound,
-                        **distances(label.pmf, ref_pmf),
-                    }
+                    _row(
+                        base,
+                        design,
+                        drops,
+                        r,
+                        cpu_per_drop * int(drops),
+                        lambda d=design, n=int(drops), s=seed: emulated_label(ref, d, n, s, bins, sigma),
+                        ref_pmf,
+                    )
                 )
     return rows
 
@@ -342,49 +279,34 @@ def summary(frame):
 # ----------------------------------------------------------------------------------------------
 # CLI
 # ----------------------------------------------------------------------------------------------
-def _settings(args) -> dict:
-    from feeder.config import load_study_config, parse_settings, study_root
-
-    if args.settings:
-        return parse_settings(args.settings)
-    overlays = [str(Path(f).resolve()) for f in args.configfile or []]
-    return load_study_config(*overlays, root=study_root())
-
-
 def main(argv: list[str]) -> int:
-    parser = argparse.ArgumentParser(prog="feeder bench-designs", description=__doc__.splitlines()[0])
-    sub = parser.add_subparsers(dest="cmd", required=True)
-    for name in ("run", "table", "list"):
-        p = sub.add_parser(name)
-        p.add_argument("--settings", default=None, help="JSON of the config sections (the workflow passes it)")
-        p.add_argument("--configfile", action="append", default=None, help="an overlay of config/config.yaml")
-        if name == "run":
-            p.add_argument("--key", required=True, help="configuration key (feeder bench-designs list)")
-            p.add_argument("--out", required=True, type=Path)
-        if name == "table":
-            p.add_argument("files", nargs="+", type=Path)
-            p.add_argument(
-                "--out-csv", required=True, type=Path, help="one row per configuration, design, drops, repeat"
-            )
-            p.add_argument("--out-summary", required=True, type=Path, help="means over configurations")
-    args = parser.parse_args(argv)
-    settings = _settings(args)
-    if "design_bench" not in settings.get("sim", {}):
-        raise FeederError("settings lack section sim.design_bench")
+    from feeder.bench.reference import entry_by_key
+    from feeder.config import add_settings_options, study_settings
     from feeder.io import write_csv, write_npz
 
-    if args.cmd == "list":
-        print("\n".join(e["key"] for e in entries(settings)))
-        return 0
+    parser = argparse.ArgumentParser(prog="feeder bench-designs", description=__doc__.splitlines()[0])
+    sub = parser.add_subparsers(dest="cmd", required=True)
+    run = add_settings_options(sub.add_parser("run", help="the adaptive design of one configuration"))
+    run.add_argument("--key", required=True, help="configuration key (feeder bench-reference list)")
+    run.add_argument("--out", required=True, type=Path)
+    table = add_settings_options(sub.add_parser("table", help="every design against the references"))
+    table.add_argument("--references", nargs="+", required=True, type=Path, help="reference files")
+    table.add_argument("--adaptive", nargs="+", required=True, type=Path, help="adaptive files, in the same order")
+    table.add_argument("--out-csv", required=True, type=Path, help="one row per configuration, design, drops, repeat")
+    table.add_argument("--out-summary", required=True, type=Path, help="means over configurations")
+    args = parser.parse_args(argv)
+    settings = study_settings(args)
+    if "design_bench" not in settings.get("sim", {}):
+        raise FeederError("settings lack section sim.design_bench")
     if args.cmd == "run":
-        entry = {e["key"]: e for e in entries(settings)}.get(args.key)
-        if entry is None:
-            raise FeederError(f"no configuration {args.key!r} in the design bench (feeder bench-designs list)")
-        write_npz(args.out, **run_entry(entry, settings))
+        write_npz(args.out, **run_adaptive(entry_by_key(settings, args.key), settings))
         return 0
     import pandas as pd
 
-    frame = pd.DataFrame([r for f in args.files for r in entry_rows(f, settings)])
+    if len(args.references) != len(args.adaptive):
+        raise FeederError("--references and --adaptive must name the same configurations")
+    pairs = zip(args.references, args.adaptive, strict=True)
+    frame = pd.DataFrame([r for ref, ada in pairs for r in entry_rows(ref, ada, settings)])
     write_csv(args.out_csv, frame)
     means = summary(frame)
     write_csv(args.out_summary, means)

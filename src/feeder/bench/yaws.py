@@ -34,8 +34,8 @@ def _run(job):
     """Worker: one (role, design, seed, panel entry) simulation → role, design, index, yaws, CPU seconds."""
     role, design, drops, seed, idx, entry, scene, preset, thickness = job
     from feeder.parts.shapes import shape_part
-    from feeder.sim.drops import simulate
     from feeder.sim.fences import parse_location
+    from feeder.sim.simulate import simulate
 
     shape, loc1, loc2 = entry
     geom = shape_part(shape, thickness)

@@ -182,8 +182,25 @@ def _intervals(yaws, final, status, period: float, tolerance: float) -> _Interva
     ok = status == OK
     with np.errstate(invalid="ignore"):
         close = circular_distance(final, final_b) <= tolerance
-    agree = same & (~ok | close)
+        linear = _continues_linearly(final, final_b, end - yaws, same & ok, tolerance)
+    agree = same & (~ok | close | linear)
     return _Intervals(yaws, end, final, final_b, status, status_b, agree)
+
+
+def _continues_linearly(final_a, final_b, width, ok_pair, tolerance: float) -> np.ndarray:
+    """Ok intervals whose change of final yaw is what both neighbouring ok intervals' slopes
+    predict, within ``tolerance``: a steep but smooth stretch of the map (with no fence in reach
+    the map is the identity, 22.5° of final yaw over 22.5° of β), not a jump. A jump differs
+    from the slopes beside it (flat basins), so it never passes."""
+    delta = wrap180(final_b - final_a)
+    slope = delta / width
+    if delta.size < 3:
+        return np.zeros(delta.size, dtype=bool)
+
+    def predicted_by(shift: int) -> np.ndarray:  # shift 1: the left neighbour, -1: the right one
+        return np.roll(ok_pair, shift) & (np.abs(delta - np.roll(slope, shift) * width) <= tolerance)
+
+    return ok_pair & predicted_by(1) & predicted_by(-1)
 
 
 def _runs(mask: np.ndarray) -> list[np.ndarray]:

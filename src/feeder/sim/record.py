@@ -1,6 +1,6 @@
 """Simulation files ``results/sim/<part>/<config>.npz`` (docs/data.md): writing and checked reading.
 
-:func:`write_sim` writes what :func:`feeder.sim.drops.simulate` returns, less its in-memory
+:func:`write_sim` writes what :func:`feeder.sim.simulate.simulate` returns, less its in-memory
 diagnostics: the keys :data:`SIM_KEYS`. :func:`load_sim` reads a file back for the labels,
 checked; anything unusable is a one-line :class:`BadData` naming the file.
 """
@@ -18,12 +18,12 @@ from feeder.errors import FeederError
 
 # the keys of a simulation file, in the order they are written (docs/data.md)
 SIM_KEYS = ("final_yaw_deg", "initial_yaw_deg", "status", "wall_s", "cpu_s", "meta")
-# what an adaptive design adds (feeder.sim.drops.design_record)
+# what an adaptive design adds (feeder.sim.simulate.design_record)
 DESIGN_KEYS = ("unresolved_deg", "unchecked_deg", "label_bound")
 
 
 def write_sim(path, result: dict) -> None:
-    """Write one configuration's simulation file (atomically) from :func:`feeder.sim.drops.simulate`'s
+    """Write one configuration's simulation file (atomically) from :func:`feeder.sim.simulate.simulate`'s
     result; its ``diag`` stays in memory."""
     from feeder.io import write_npz
 
