@@ -20,8 +20,11 @@ BENCH_TARGETS = [
     "results/tables/label_designs_summary.csv",
     "results/figures/label_designs.png",
 ]
-# the design bench's configurations: one simulation job each (resumable), raw data kept
+# the design bench's configurations: one simulation job each (resumable), raw data kept, in a
+# directory named by the preset and the reference's resolution, so a smaller run (smoke) never
+# overwrites the committed references
 DESIGN_KEYS = [e["key"] for e in design_bench_entries(config)]
+DESIGN_DIR = "results/bench/designs/{preset}-{reference_yaws}".format(**config["sim"]["design_bench"])
 
 
 rule bench:
@@ -130,7 +133,7 @@ rule bench_reference:
     input:
         code("bench-reference"),
     output:
-        "results/bench/designs/reference/{key}.npz",
+        f"{DESIGN_DIR}/reference/{{key}}.npz",
     log:
         "logs/bench_reference/{key}.log",
     benchmark:
@@ -148,7 +151,7 @@ rule bench_designs_run:
     input:
         code("bench-designs"),
     output:
-        "results/bench/designs/adaptive/{key}.npz",
+        f"{DESIGN_DIR}/adaptive/{{key}}.npz",
     log:
         "logs/bench_designs/{key}.log",
     benchmark:
@@ -165,8 +168,8 @@ rule bench_designs:
     """Every initial-yaw design's label against the dense reference, and its cost (feeder bench-designs table)."""
     input:
         code("bench-designs"),
-        references=expand("results/bench/designs/reference/{key}.npz", key=DESIGN_KEYS),
-        adaptive=expand("results/bench/designs/adaptive/{key}.npz", key=DESIGN_KEYS),
+        references=expand(f"{DESIGN_DIR}/reference/{{key}}.npz", key=DESIGN_KEYS),
+        adaptive=expand(f"{DESIGN_DIR}/adaptive/{{key}}.npz", key=DESIGN_KEYS),
     output:
         rows=report("results/tables/label_designs.csv", caption="../report/label_designs.rst", category="Simulation"),
         summary=report(
