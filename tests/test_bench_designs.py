@@ -111,3 +111,33 @@ def test_unknown_configuration_is_a_one_line_error(capsys):
         main(["bench-designs", "run", "--configfile", "config/smoke.yaml", "--key", "nope", "--out", "/tmp/x.npz"]) == 2
     )
     assert "no configuration 'nope'" in capsys.readouterr().err
+
+
+def test_summary_leaves_out_configurations_without_a_reference_label_and_scores_missing_labels():
+    def rows(config, values, no_label=()):
+        return [
+            {
+                "config": config,
+                "design": "random",
+                "drops": 50,
+                "repeat": r,
+                "simulations": 50,
+                "cpu_s": 1.0,
+                "no_label": r in no_label,
+                "sup_cdf": v,
+                "w1_deg": v,
+                "circular_w1_deg": v,
+                "js": v,
+            }
+            for r, v in enumerate(values)
+        ]
+
+    frame = pd.DataFrame(
+        rows("easy", [0.01, 0.03])
+        + rows("hard", [0.5, B.NO_LABEL["sup_cdf"]], no_label=(1,))
+        + rows("noref", [np.nan] * 2)
+    )
+    out = B.summary(frame).iloc[0]
+    assert out.configurations == 2 and out.excluded_configurations == 1 and out.no_label == 1
+    assert out.sup_cdf == pytest.approx(np.mean([(0.01 + 0.5) / 2, (0.03 + 1.0) / 2]))
+    assert out.sup_cdf_lo < out.sup_cdf < out.sup_cdf_hi

@@ -431,3 +431,40 @@ def test_a_steep_smooth_map_is_resolved_not_bisected_as_jumps():
         offset_deg=3.0,
     )
     assert 0 < stepped.label_bound <= 3 * 0.5 / 360.0 + 1e-12
+
+
+def test_two_basins_half_a_turn_apart_alternating_are_never_a_slope():
+    """Alternating outcomes 180° apart wrap to changes of one sign; they must stay jumps (the
+    review's counterexample: finals 10, 190.3, 10.5, 190.6, ... on a 30° grid)."""
+    yaws = np.arange(12) * 30.0
+    final = np.where(np.arange(12) % 2 == 0, 10.0, 190.3) + 0.3 * np.arange(12) / 2
+    design = P.design_from_samples(
+        yaws,
+        final % 360.0,
+        np.full(12, "ok"),
+        period_deg=360.0,
+        offset_deg=0.0,
+        tolerance_deg=2.0,
+        min_width_deg=30.0,
+        max_width_deg=30.0,
+    )
+    assert design.label_bound == pytest.approx(1.0)  # every interval unresolved
+    pmf, _ = P.pushforward_pmf(design, 360, 0.0)
+    assert pmf[(pmf > 1e-12)].size <= 12  # all mass on sampled outcomes, none smeared between basins
+
+
+def test_a_slope_from_a_narrow_noisy_neighbour_does_not_hide_a_jump():
+    """A 9.7° jump across an 11.25° interval beside two 0.35° neighbours with 0.3° of noise."""
+    yaws = np.array([0.0, 0.35, 11.6, 11.95, 180.0])
+    final = np.array([10.0, 10.3, 20.0, 20.0, 10.0])
+    design = P.design_from_samples(
+        yaws,
+        final,
+        np.full(5, "ok"),
+        period_deg=360.0,
+        offset_deg=0.0,
+        tolerance_deg=2.0,
+        min_width_deg=0.25,
+        max_width_deg=400.0,
+    )
+    assert design.label_bound >= 11.25 / 360.0 - 1e-12

@@ -22,7 +22,7 @@ close each design gets to it, and at what cost:
   Columns per configuration and design: simulations, CPU seconds (real for the reference and the
   adaptive design; for emulated designs, drops × the reference's CPU per drop), sup|ΔCDF|, W1 on
   the CDF, circular W1 (:func:`feeder.labels.metrics.circular_w1`), JS (bits) and the label's
-  own bound. Rows ``config == "mean"`` average over configurations, with a 95 % interval over the
+  own bound. Rows ``config == "mean"`` average over configurations, with a 95 % t-interval of the mean over the
   emulated realisations.
 
 Raw data stay in the per-configuration files (docs/data.md), so a new statistic needs no rerun.
@@ -139,7 +139,8 @@ def paired_check(z, ref_design) -> dict[str, float]:
 
 
 def emulated_label(ref_design, design: str, drops: int, seed: int, bins: int, sigma: float):
-    """The label ``design`` would give with ``drops`` drops (seeded), its drops mapped through the reference."""
+    """The label ``design`` would give with ``drops`` drops (seeded), its drops mapped through the
+    reference; None when every drop fails."""
     from feeder.labels.pmf import sim_label
     from feeder.labels.pushforward import map_yaws
     from feeder.sim.drops import initial_yaws
@@ -147,33 +148,28 @@ def emulated_label(ref_design, design: str, drops: int, seed: int, bins: int, si
 
     beta = initial_yaws(seed, drops, design)
     final, status = map_yaws(ref_design, beta)
+    if not (status == "ok").any():
+        return None  # every drop failed: the design gives no label
     rec = SimRecord(yaws=final, ok=status == "ok", meta={"yaw_sampling": design}, initial=beta, status=status)
     return sim_label(rec, bins, sigma)
 
 
-def _row(base: dict, design: str, drops: int, repeat: int, cpu_s: float, label_of, ref_pmf) -> dict:
-    """One row: ``label_of()`` gives the design's label; a label with no ok drop at all (every
-    simulated or emulated drop failed) is a row with NaN distances and ok mass 0."""
-    from feeder.errors import FeederError
+# a label that does not exist (every drop of the design failed) scores the worst value of each metric
+NO_LABEL = {"sup_cdf": 1.0, "w1_deg": 360.0, "circular_w1_deg": 180.0, "js": 1.0}
 
-    row = {**base, "design": design, "drops": int(drops), "repeat": repeat, "cpu_s": cpu_s}
-    try:
-        label = label_of()
-    except FeederError:
-        return {
-            **row,
-            "simulations": int(drops),
-            "ok_mass": 0.0,
-            "label_bound": math.nan,
-            **dict.fromkeys(METRICS, math.nan),
-        }
-    return {
-        **row,
-        "simulations": label.simulations,
-        "ok_mass": label.ok_mass,
-        "label_bound": label.cdf_bound,
-        **(distances(label.pmf, ref_pmf) if ref_pmf is not None else dict.fromkeys(METRICS, math.nan)),
-    }
+
+def _row(base: dict, design: str, drops: int, repeat: int, cpu_s: float, label, ref_pmf) -> dict:
+    """One row of a design's ``label`` (None: no drop of the design was ok, scored as
+    :data:`NO_LABEL`) against the reference label ``ref_pmf`` (None: the reference has no ok
+    drop, so the configuration has no label to compare with: NaN distances)."""
+    row = {**base, "design": design, "drops": int(drops), "repeat": repeat, "cpu_s": cpu_s, "no_label": label is None}
+    if ref_pmf is None:
+        scores = dict.fromkeys(METRICS, math.nan)
+    else:
+        scores = dict(NO_LABEL) if label is None else distances(label.pmf, ref_pmf)
+    if label is None:
+        return {**row, "simulations": int(drops), "ok_mass": 0.0, "label_bound": math.nan, **scores}
+    return {**row, "simulations": label.simulations, "ok_mass": label.ok_mass, "label_bound": label.cdf_bound, **scores}
 
 
 def _load(path: Path) -> dict:
@@ -203,49 +199,29 @@ def entry_rows(reference: Path, adaptive: Path, settings: dict) -> list[dict]:
     cpu_per_drop = float(z["ref_cpu_s"]) / n_ref
     base = {"config": meta["entry"]["key"], "symmetry_order": meta["symmetry_order"], **paired_check(z, ref)}
 
-    def ref_label():
+    ref_label = None
+    if (z["ref_status"] == "ok").any():
         pmf, masses = pushforward_pmf(ref, bins, sigma)
-        return Label(pmf, masses, label_cdf_bound(ref, masses["ok"]), "reference", n_ref)
-
-    rows = [_row(base, "reference", n_ref, 0, float(z["ref_cpu_s"]), ref_label, None)]
-    ref_pmf = None if rows[0]["ok_mass"] == 0.0 else ref_label().pmf
-    if ref_pmf is not None:
-        rows[0] |= distances(ref_pmf, ref_pmf)
+        ref_label = Label(pmf, masses, label_cdf_bound(ref, masses["ok"]), "reference", n_ref)
+    ref_pmf = None if ref_label is None else ref_label.pmf
+    rows = [_row(base, "reference", n_ref, 0, float(z["ref_cpu_s"]), ref_label, ref_pmf)]
     for b in run_meta["budgets"]:
         tag = f"adaptive{b['budget']}"
+        status = runs[f"{tag}_status"]
         rec = SimRecord(
             yaws=runs[f"{tag}_final"],
-            ok=runs[f"{tag}_status"] == "ok",
+            ok=status == "ok",
             meta={"yaw_sampling": "adaptive", "design": b["design"]},
             initial=runs[f"{tag}_initial"],
-            status=runs[f"{tag}_status"],
+            status=status,
         )
-        rows.append(
-            _row(
-                base,
-                "adaptive",
-                b["budget"],
-                0,
-                float(runs[f"{tag}_cpu_s"]),
-                lambda rec=rec: sim_label(rec, bins, sigma),
-                ref_pmf,
-            )
-        )
+        label = sim_label(rec, bins, sigma) if rec.ok.any() else None
+        rows.append(_row(base, "adaptive", b["budget"], 0, float(runs[f"{tag}_cpu_s"]), label, ref_pmf))
     for design in EMULATED_DESIGNS:
         for drops in db["drop_levels"]:
             for r in range(int(db["repeats"])):
-                seed = seed_of(base["config"], design, drops, r)
-                rows.append(
-                    _row(
-                        base,
-                        design,
-                        drops,
-                        r,
-                        cpu_per_drop * int(drops),
-                        lambda d=design, n=int(drops), s=seed: emulated_label(ref, d, n, s, bins, sigma),
-                        ref_pmf,
-                    )
-                )
+                label = emulated_label(ref, design, int(drops), seed_of(base["config"], design, drops, r), bins, sigma)
+                rows.append(_row(base, design, drops, r, cpu_per_drop * int(drops), label, ref_pmf))
     return rows
 
 
@@ -253,25 +229,34 @@ METRICS = ("sup_cdf", "w1_deg", "circular_w1_deg", "js")
 
 
 def summary(frame):
-    """Mean over configurations per design and drop count; for emulated designs a 95 % interval
-    of that mean over the realisations (each realisation's mean over configurations)."""
+    """Per design and drop count, the mean over configurations, and for emulated designs a 95 %
+    t-interval of that mean over the seeded realisations. Configurations whose reference has no
+    ok drop (NaN distances) are left out of every mean and counted in ``excluded_configurations``;
+    a realisation that gives no label scores :data:`NO_LABEL` and is counted in ``no_label``."""
     import pandas as pd
+    from scipy import stats
 
+    usable = frame.dropna(subset=list(METRICS))
+    excluded = frame["config"].nunique() - usable["config"].nunique()
     rows = []
-    for (design, drops), g in frame.groupby(["design", "drops"], sort=True):
-        per_rep = g.groupby("repeat")[list(METRICS)].mean()
+    for (design, drops), g in usable.groupby(["design", "drops"], sort=True):
+        per_rep = g.groupby("repeat")[list(METRICS)].mean()  # every realisation covers the same configurations
+        k = len(per_rep)
         row = {
             "config": "mean",
             "design": design,
             "drops": drops,
             "configurations": g["config"].nunique(),
+            "excluded_configurations": excluded,
+            "realisations": k,
+            "no_label": int(g["no_label"].sum()),
             "simulations": g["simulations"].mean(),
             "cpu_s": g["cpu_s"].mean(),
         }
         for m in METRICS:
-            row[m] = float(per_rep[m].mean())
-            lo, hi = np.quantile(per_rep[m], [0.025, 0.975]) if len(per_rep) > 1 else (math.nan, math.nan)
-            row[f"{m}_lo"], row[f"{m}_hi"] = float(lo), float(hi)
+            mean = float(per_rep[m].mean())
+            half = float(stats.t.ppf(0.975, k - 1) * per_rep[m].std(ddof=1) / math.sqrt(k)) if k > 1 else math.nan
+            row[m], row[f"{m}_lo"], row[f"{m}_hi"] = mean, mean - half, mean + half
         rows.append(row)
     return pd.DataFrame(rows)
 

@@ -83,7 +83,7 @@ def run_reference(entry: dict, settings: dict) -> dict:
     """One configuration's reference over one symmetry period and its paired drops: the arrays
     of its reference file (docs/data.md)."""
     from feeder.parts.symmetry import rotational_order
-    from feeder.sim.drops import get_preset, run_drops
+    from feeder.sim.drops import get_preset, run_each
     from feeder.sim.fences import parse_location
 
     db, scene = settings["sim"]["design_bench"], settings["scene"]
@@ -93,10 +93,10 @@ def run_reference(entry: dict, settings: dict) -> dict:
     order = rotational_order(geom.outline)
     yaws, period, offset = reference_grid(order, int(db["reference_yaws"]), seed_of(entry["key"], "reference"))
     c0 = time.process_time()
-    ref = run_drops(geom, loc1, loc2, yaws, scene, preset)
+    ref = run_each(geom, loc1, loc2, yaws, scene, preset)  # a world each: the map of the yaw alone
     cpu = time.process_time() - c0
     beta = np.random.default_rng(seed_of(entry["key"], "paired")).uniform(0.0, 360.0, int(db["paired_drops"]))
-    real = run_drops(geom, loc1, loc2, beta, scene, preset)
+    real = run_each(geom, loc1, loc2, beta, scene, preset)
     meta = {"entry": entry, "symmetry_order": order, "period_deg": period, "offset_deg": offset, "preset": db["preset"]}
     return {
         "ref_initial": yaws,

@@ -218,16 +218,19 @@ def _label_arrays(rows: _Rows, levels: np.ndarray, bins: int, sigma: float, emul
     """Per kept row: the yaws (NaN-padded), full and partial-level PMFs, ok drops per level and
     the raw fence vector."""
     n, n_levels = len(rows.kept), levels.size
-    drops = np.array([r.yaws.size for r in rows.recs])
+    # the drops in drop order: the simulated ones of a drawn design, the emulated i.i.d. ones of a
+    # sampled map (its samples are unequally weighted and sorted by initial yaw: no prefix of them
+    # is a sample of the label), so the convergence study reads drops of one kind
+    drop_lists = [level_drops(rec, emulated) for rec in rows.recs]
+    drops = np.array([d.size for d, _ in drop_lists])
     yaw_mat = np.full((n, drops.max()), np.nan)
     pmf = np.empty((n, bins))
     pmf_levels = np.empty((n, n_levels, bins))
     n_ok_levels = np.empty((n, n_levels), dtype=np.int64)
     feeder_raw = np.empty((n, N_FEEDER))
-    for i, (row, rec) in enumerate(zip(rows.kept, rows.recs, strict=True)):
-        yaw_mat[i, : rec.yaws.size] = rec.yaws
+    for i, (row, rec, (drop_yaws, drop_ok)) in enumerate(zip(rows.kept, rows.recs, drop_lists, strict=True)):
+        yaw_mat[i, : drop_yaws.size] = drop_yaws
         pmf[i] = sim_label(rec, bins, sigma).pmf
-        drop_yaws, drop_ok = level_drops(rec, emulated)
         pmf_levels[i], n_ok_levels[i] = L.partial_pmfs(drop_yaws, levels, bins, sigma, ok=drop_ok)
         feeder_raw[i] = feeder_vector(*parse_config_id(row.config_id))
     return {

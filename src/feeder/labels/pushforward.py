@@ -20,7 +20,8 @@ Everything is a pure numpy function. Conventions:
   for ``P = 360 / n`` when the part has n-fold rotational symmetry, see
   :mod:`feeder.parts.symmetry` and :func:`unfold`).
 * Two ends of an interval *agree* when they have the same status and, if that status is ``ok``,
-  their final yaws are at most ``tolerance_deg`` apart on the circle. Inside an agreeing ok
+  their final yaws are at most ``tolerance_deg`` apart on the circle, or the interval continues
+  its neighbours' slopes (a steep smooth stretch, see :func:`_continues_linearly`). Inside an agreeing ok
   interval ``f`` is taken to be linear in β along the shorter arc between the two final yaws;
   inside an agreeing failed interval every drop has that status. A *disagreeing* interval is
   unresolved: its mass is split half to each end's outcome (the left half of the interval takes
@@ -77,6 +78,8 @@ DEFAULT_SIGMA = 1.0  # bins, as the workflow's labels
 _PERIOD_REL_TOL = 1e-9  # |n · period − 360| allowed, relative to 360
 _POINT_IMAGE_DEG = 1e-12  # a linear segment shorter than this is a point mass
 _ALL_OK_SLACK = 1e-12  # ok mass this close to 1 means every sampled drop was ok
+MAX_SMOOTH_TURN_DEG = 90.0  # a change of final yaw larger than this across one interval is never a slope
+_WIDTH_DECIMALS = 9  # widths rounded to this many decimals before ranking (ties decided by rule, not round-off)
 _WIDTH_SLACK = 1e-9  # relative: a width within round-off of a threshold is not "wider"
 
 
@@ -190,17 +193,24 @@ def _intervals(yaws, final, status, period: float, tolerance: float) -> _Interva
 def _continues_linearly(final_a, final_b, width, ok_pair, tolerance: float) -> np.ndarray:
     """Ok intervals whose change of final yaw is what both neighbouring ok intervals' slopes
     predict, within ``tolerance``: a steep but smooth stretch of the map (with no fence in reach
-    the map is the identity, 22.5° of final yaw over 22.5° of β), not a jump. A jump differs
-    from the slopes beside it (flat basins), so it never passes."""
+    the map is the identity, 22.5° of final yaw over 22.5° of β), not a jump between flat basins.
+
+    Guards against what could pass for a slope: a change of more than ``MAX_SMOOTH_TURN_DEG``
+    (two basins half a turn apart alternate with wrapped changes of one sign), and a neighbour
+    narrower than half the interval (a slope from a short neighbour extrapolates its noise).
+    A staircase with exactly one sample per step still aliases into a ramp; the midpoint checks
+    of ``max_width_deg`` sample every interval at least that finely."""
     delta = wrap180(final_b - final_a)
     slope = delta / width
     if delta.size < 3:
         return np.zeros(delta.size, dtype=bool)
+    turn_ok = ok_pair & (np.abs(delta) <= MAX_SMOOTH_TURN_DEG)
 
     def predicted_by(shift: int) -> np.ndarray:  # shift 1: the left neighbour, -1: the right one
-        return np.roll(ok_pair, shift) & (np.abs(delta - np.roll(slope, shift) * width) <= tolerance)
+        wide = np.roll(width, shift) >= 0.5 * width
+        return np.roll(turn_ok, shift) & wide & (np.abs(delta - np.roll(slope, shift) * width) <= tolerance)
 
-    return ok_pair & predicted_by(1) & predicted_by(-1)
+    return turn_ok & predicted_by(1) & predicted_by(-1)
 
 
 def _runs(mask: np.ndarray) -> list[np.ndarray]:
@@ -405,7 +415,8 @@ def refine(
         if not want.any():
             break
         idx = np.flatnonzero(want)
-        order = np.lexsort((iv.start[idx], iv.agree[idx], -width[idx]))  # last key is primary
+        ranked = -np.round(width[idx], _WIDTH_DECIMALS)
+        order = np.lexsort((iv.start[idx], iv.agree[idx], ranked))  # last key is primary
         take = idx[order[: budget - evaluations]]
         new = mid[take]
         new = np.where(new >= offset + period, new - period, new)

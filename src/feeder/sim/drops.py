@@ -632,3 +632,22 @@ def run_drops(
             bar.close()
         world.close()
     return out
+
+
+def run_each(geom, loc1: Fence, loc2: Fence, yaws0: np.ndarray, scene: dict, preset: dict, **options) -> dict:
+    """Every drop in a world of its own (:func:`run_drops` once per initial yaw): a drop's outcome
+    is then a function of its initial yaw alone. In a shared world it is not quite: a drop that
+    follows another one (a jammed one, measured) can end a few hundredths of a degree elsewhere.
+    Building a world costs next to nothing beside a drop (measured: six drops alone and in one
+    world, 2.04 s of CPU either way). Returns what :func:`run_drops` returns, the diagnostics
+    concatenated per drop (``plan_fences`` once)."""
+    runs = [run_drops(geom, loc1, loc2, np.array([y], dtype=np.float64), scene, preset, **options) for y in yaws0]
+    if not runs:
+        return empty_results(0)
+    diag = {k: np.concatenate([r["diag"][k] for r in runs]) for k in runs[0]["diag"] if k != "plan_fences"}
+    diag["plan_fences"] = runs[0]["diag"].get("plan_fences", [])
+    return {
+        "final_yaw_deg": np.concatenate([r["final_yaw_deg"] for r in runs]),
+        "status": np.concatenate([r["status"] for r in runs]),
+        "diag": diag,
+    }

@@ -21,7 +21,7 @@ import numpy as np
 from feeder.errors import FeederError
 from feeder.labels.pushforward import DEFAULT_MIN_WIDTH_DEG, DEFAULT_N0, DEFAULT_TOLERANCE_DEG, Design, refine
 from feeder.parts.symmetry import check_order, rotational_order
-from feeder.sim.drops import STATUSES, YAW_SAMPLINGS, drop_seed, get_preset, initial_yaws, run_drops
+from feeder.sim.drops import STATUSES, YAW_SAMPLINGS, drop_seed, get_preset, initial_yaws, run_drops, run_each
 from feeder.sim.fences import Fence, config_id, parse_location
 from feeder.sim.scene import load_settings
 
@@ -105,7 +105,9 @@ def simulate_adaptive(run, geom, seed: int, budget: int, preset: dict, adaptive:
 
     design = run_design(evaluate, seed, budget, adaptive, order)
     out = {"final_yaw_deg": design.final, "status": design.status, "diag": diags}
-    return (design.yaws, out, *design_record(design, order))
+    arrays, summary = design_record(design, order)
+    summary |= {"n0": int(adaptive["n0"]), "symmetry": adaptive.get("symmetry", "auto")}
+    return design.yaws, out, arrays, summary
 
 
 def simulate(
@@ -128,7 +130,8 @@ def simulate(
 
     ``drops`` is the number of simulations; for ``adaptive`` it is the budget (at most that many),
     and ``adaptive`` holds the design's settings (``sim.adaptive``: n0, tolerance_deg,
-    min_width_deg, symmetry). The adaptive design needs one part per world (``lanes: 1``): only
+    min_width_deg, symmetry). The sampled maps (``grid``, ``adaptive``) run every drop in a world of
+    its own (:func:`feeder.sim.drops.run_each`), and the adaptive design needs ``lanes: 1``: only
     then is a drop's outcome a function of its initial yaw alone.
     """
     if int(drops) != drops or drops < 1:
@@ -141,7 +144,7 @@ def simulate(
     extra, design_meta = {}, None
     if yaw_sampling == "adaptive":
         run = functools.partial(
-            run_drops,
+            run_each,
             geom,
             loc1,
             loc2,
@@ -154,14 +157,14 @@ def simulate(
         y0, out, extra, design_meta = simulate_adaptive(run, geom, s, int(drops), preset, adaptive)
     else:
         y0 = initial_yaws(s, int(drops), yaw_sampling)
-        out = run_drops(
+        # a sampled map (grid) needs each drop's outcome to depend on its yaw alone: a world each
+        out = (run_each if yaw_sampling == "grid" else functools.partial(run_drops, progress=progress))(
             geom,
             loc1,
             loc2,
             y0,
             scene,
             preset,
-            progress=progress,
             probe_x=probe_x,
             check_fences=check_fences,
             prune=prune,
