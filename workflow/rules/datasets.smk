@@ -55,7 +55,7 @@ rule datasets_build:
     conda:
         "../envs/feeder.yaml"
     params:
-        settings=settings_json("sim", "labels", "datasets"),
+        settings=settings_json("sim.min_ok_mass", "labels", "datasets"),
     shell:
         "feeder datasets build --configurations {input.configurations} --features-dir results/features"
         " --sim-dir results/sim --settings '{params.settings}' --out {output} > {log} 2>&1"
