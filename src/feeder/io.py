@@ -9,11 +9,14 @@ import io
 import json
 import os
 import tempfile
+import zipfile
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+
+from feeder.errors import FeederError
 
 
 def _umask() -> int:
@@ -89,3 +92,20 @@ def markdown_table(frame, caption: str) -> str:
     rule = "|" + "|".join("---" for _ in frame.columns) + "|"
     body = ["| " + " | ".join(cell(v) for v in row) + " |" for row in frame.itertuples(index=False)]
     return "\n".join([caption, "", head, rule, *body]) + "\n"
+
+
+def read_npz(path: str | os.PathLike, keys=(), what: str = "npz file") -> dict:
+    """An NPZ file's arrays as a dict holding at least ``keys``; a missing, unreadable or short
+    file is a one-line :class:`FeederError` naming ``what`` and the path."""
+    path = Path(path)
+    if not path.is_file():
+        raise FeederError(f"{what} {path} is missing")
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            data = {k: z[k] for k in z.files}
+    except (OSError, ValueError, EOFError, zipfile.BadZipFile) as err:
+        raise FeederError(f"{what} {path} is not a readable NPZ file ({err})".replace("\n", " ")) from None
+    missing = [k for k in keys if k not in data]
+    if missing:
+        raise FeederError(f"{what} {path} lacks the array(s) {', '.join(missing)}")
+    return data

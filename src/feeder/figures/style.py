@@ -91,18 +91,7 @@ def read_csv(path: str | os.PathLike, columns: list[str] | tuple[str, ...]):
 
 def read_npz(path: str | os.PathLike, keys: list[str] | tuple[str, ...]) -> dict[str, np.ndarray]:
     """A figure's NPZ data file as a dict with at least ``keys``."""
-    path = Path(path)
-    if not path.is_file():
-        raise FeederError(f"figure data {path} is missing")
-    try:
-        with np.load(path, allow_pickle=False) as z:
-            data = {k: z[k] for k in z.files}
-    except (OSError, ValueError) as err:
-        raise FeederError(f"figure data {path} is not an NPZ file ({err})".replace("\n", " ")) from None
-    missing = [k for k in keys if k not in data]
-    if missing:
-        raise FeederError(f"figure data {path} lacks the array(s) {', '.join(missing)}")
-    return data
+    return io.read_npz(path, keys, what="figure data")
 
 
 def parser(name: str, doc: str | None, data_help: str) -> argparse.ArgumentParser:

@@ -20,7 +20,6 @@ import json
 import logging
 import math
 import sys
-import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -324,16 +323,7 @@ def load_dataset(path, keys: tuple[str, ...] = DATASET_KEYS) -> dict[str, np.nda
     arrays checked (shapes against ``pmf``, finite values) and the id columns (part, config_id,
     split) as str arrays. Every problem is a one-line :class:`FeederError` naming the file."""
     path = Path(path)
-    if not path.is_file():
-        raise FeederError(f"dataset file {path} is missing")
-    try:
-        with np.load(path, allow_pickle=False) as z:
-            data = {k: z[k] for k in z.files}
-    except (OSError, ValueError, EOFError, zipfile.BadZipFile) as err:
-        raise FeederError(f"{path}: not a readable dataset npz ({err})") from None
-    missing = [k for k in keys if k not in data]
-    if missing:
-        raise FeederError(f"{path}: dataset lacks keys {', '.join(missing)}")
+    data = fio.read_npz(path, keys, what="dataset file")
     _check_dataset(path, data)
     for key in ("part", "config_id", "split"):
         if key in data:
