@@ -72,7 +72,15 @@ def _files(tmp_path, step_at=120.0):
         adaptive4_final=np.where(ada < step_at, 30.0, 200.0),
         adaptive4_status=np.full(4, "ok"),
         adaptive4_cpu_s=np.float64(0.04),
-        meta=np.array(json.dumps({"entry": entry, "budgets": [{"budget": 4, "design": design}]})),
+        meta=np.array(
+            json.dumps(
+                {
+                    "entry": entry,
+                    "adaptive": {"n0": 4, "tolerance_deg": 2.0, "min_width_deg": 0.5, "symmetry": "auto"},
+                    "budgets": [{"budget": 4, "design": design}],
+                }
+            )
+        ),
     )
     return reference, adaptive
 
@@ -102,6 +110,24 @@ def test_table_rows_measure_each_design_against_the_reference(tmp_path):
     means = B.summary(frame)
     rnd = means[(means.design == "random") & (means.drops == 20)].iloc[0]
     assert rnd.sup_cdf_lo <= rnd.sup_cdf <= rnd.sup_cdf_hi and rnd.configurations == 1
+
+
+def test_emulated_adaptive_refines_the_reference_map_and_finds_its_jumps(tmp_path):
+    """The adaptive design run on the reference map: a step map is exact up to the bisection width
+    (each of its two jumps misplaces at most half of min_width), at any offset, within budget."""
+    cfg = settings()
+    cfg["sim"]["design_bench"] |= {"drop_levels": [20], "repeats": 3}
+    frame = pd.DataFrame(B.entry_rows(*_files(tmp_path), cfg))
+    emu = frame[frame.design == "adaptive_emulated"]
+    assert len(emu) == 3 and (emu.drops == 4).all() and (emu.simulations == 4).all()  # the file's budget 4
+    with np.load(_files(tmp_path)[0]) as z:
+        ref = B.reference_design(z, 2.0)
+    adaptive = {"n0": 8, "tolerance_deg": 2.0, "min_width_deg": 0.5}
+    for seed in range(3):
+        label = B.emulated_adaptive(ref, 1, 64, seed, adaptive, 360, 0.0)
+        assert label.simulations <= 64
+        mass_30 = label.pmf[30]  # the basin of β < 120: a third of the turn
+        assert mass_30 == pytest.approx(1.0 / 3.0, abs=2 * 0.25 / 360 + 1e-9)
 
 
 def test_unknown_configuration_is_a_one_line_error(capsys):
@@ -141,3 +167,35 @@ def test_summary_leaves_out_configurations_without_a_reference_label_and_scores_
     assert out.configurations == 2 and out.excluded_configurations == 1 and out.no_label == 1
     assert out.sup_cdf == pytest.approx(np.mean([(0.01 + 0.5) / 2, (0.03 + 1.0) / 2]))
     assert out.sup_cdf_lo < out.sup_cdf < out.sup_cdf_hi
+
+
+def test_a_killed_reference_run_goes_on_from_its_checkpoint(tmp_path):
+    """Chunks are saved as they finish; a rerun simulates only what is left and returns what an
+    uninterrupted run returns; a checkpoint of another run (fingerprint) is not used."""
+    yaws = np.arange(10, dtype=np.float64)
+    calls = []
+
+    def run_chunk(chunk, fail_after=None):
+        calls.append(chunk.tolist())
+        if fail_after is not None and len(calls) > fail_after:
+            raise KeyboardInterrupt  # the session's hard stop
+        return 2.0 * chunk, np.full(chunk.size, "ok")
+
+    whole = R.run_resumable(run_chunk, yaws, None, "a", every=3)
+    ckpt = tmp_path / "ref.npz.partial.npz"
+    calls.clear()
+    with pytest.raises(KeyboardInterrupt):
+        R.run_resumable(lambda c: run_chunk(c, fail_after=2), yaws, ckpt, "a", every=3)
+    assert ckpt.is_file()
+    calls.clear()
+    final, status, cpu = R.run_resumable(run_chunk, yaws, ckpt, "a", every=3)
+    assert calls == [[6.0, 7.0, 8.0], [9.0]]  # two chunks were saved; only the rest is simulated
+    np.testing.assert_array_equal(final, whole[0])
+    assert (status == "ok").all() and cpu >= 0
+    calls.clear()
+    R.run_resumable(run_chunk, yaws, ckpt, "other settings", every=3)
+    assert calls[0] == [0.0, 1.0, 2.0]  # another run's checkpoint: start over
+    ckpt.write_bytes(b"not an npz")
+    calls.clear()
+    R.run_resumable(run_chunk, yaws, ckpt, "a", every=3)
+    assert calls[0] == [0.0, 1.0, 2.0]  # an unreadable checkpoint: start over

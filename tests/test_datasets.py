@@ -371,6 +371,23 @@ def test_dkw_inside_band_for_exchangeable_drops():
     assert table2.loc[table2.level_pct == 10, "fraction_inside_band"].item() < 0.05
 
 
+def test_partial_levels_are_compared_with_the_full_run_not_with_the_exact_label():
+    """For a sampled map the label is the exact push-forward while the drops are emulated: JS(P_N,
+    P_full) must take the 100 % level of those drops (the paper's quantity), which equals the label
+    only for drawn designs."""
+    full = np.array([[0.5, 0.5, 0, 0, 0, 0, 0, 0]])
+    half = np.array([[1.0, 0, 0, 0, 0, 0, 0, 0]])
+    exact = np.array([[0.25, 0.75, 0, 0, 0, 0, 0, 0]])
+    ds = {"pmf": exact, "pmf_levels": np.stack([half, full], axis=1), "levels_pct": np.array([50, 100])}
+    np.testing.assert_array_equal(C.full_run_pmf(ds), full)
+    js = C.js_by_level(ds)
+    assert js[0, 1] == 0.0  # the full run against itself
+    assert js[0, 0] == pytest.approx(L.js_divergence(half[0], full[0]))  # not against the exact label
+    assert L.js_divergence(half[0], exact[0]) > js[0, 0]
+    no_full = {**ds, "pmf_levels": ds["pmf_levels"][:, :1], "levels_pct": np.array([50])}
+    np.testing.assert_array_equal(C.full_run_pmf(no_full), exact)  # no 100 % level: the label
+
+
 # ---------------------------------------------------------------- bad data
 def _break(path, how):
     if how == "missing":

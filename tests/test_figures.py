@@ -213,10 +213,12 @@ def _yaws(path):
 def _sim_cost(path):
     pd.DataFrame(
         {
-            "part": ["rect", "rect", "crescent"],
-            "config_id": ["straight30_none", "none_curved60", "straight30_none"],
-            "drops": [20, 20, 20],
-            "ms_per_drop": [80.0, 120.0, 1500.0],
+            "part": ["rect", "rect", "crescent"] * 2,
+            "config_id": ["straight30_none", "none_curved60", "straight30_none"] * 2,
+            "yaw_sampling": ["adaptive"] * 3 + ["random"] * 3,
+            "design_drops": [64] * 3 + [1000] * 3,
+            "drops": [30, 64, 41, 20, 20, 20],
+            "ms_per_drop": [90.0, 130.0, 1600.0, 80.0, 120.0, 1500.0],
         }
     ).to_csv(path, index=False)
 
@@ -238,8 +240,28 @@ def _label_designs(path):
     pd.DataFrame(rows).to_csv(path, index=False)
 
 
+def _label_emulation(path):
+    rng = np.random.default_rng(0)
+    rows = [
+        {
+            "config": f"c{i}",
+            "n_drops": n,
+            "source": src,
+            "repeat": r,
+            "js": float(rng.gamma(2, 2.0 / n)),
+            "usable": i < 9,
+        }
+        for i in range(10)
+        for n in (50, 100, 500)
+        for src, repeats in (("real", 1), ("emulated", 3))
+        for r in range(repeats)
+    ]
+    pd.DataFrame(rows).to_csv(path, index=False)
+
+
 CASES = {
     "label_designs": ("label_designs_summary.csv", _label_designs, []),
+    "label_emulation": ("label_emulation.csv", _label_emulation, []),
     "fig6_dft_reconstruction": ("fig6.npz", _fig6, []),
     "s1_dft_mse": ("s1.csv", _s1, ["--chosen", "15"]),
     "fig4_js_vs_drops": ("fig4.csv", _fig4, []),

@@ -25,6 +25,10 @@ COMMANDS: dict[str, tuple[str, str]] = {
         "feeder.bench.designs",
         "each initial-yaw design's label against a dense reference, and its cost",
     ),
+    "bench-emulation": (
+        "feeder.bench.emulation",
+        "JS(P_N, P_all) of drops emulated through the adaptive design against real independent drops",
+    ),
     "bench-cost": ("feeder.bench.cost", "project the simulation stage's CPU and wall time from a sample of its jobs"),
     "bench-scheduler": ("feeder.bench.scheduler", "CPU the snakemake process spends scheduling simulation jobs"),
     "scene-table": ("feeder.sim.scene", "Table 1: every physical parameter of the simulated scene"),

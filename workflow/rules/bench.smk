@@ -6,6 +6,9 @@
 #   results/tables/yaw_sampling.csv           (+ figure)  distance to a large reference against drops
 #   results/tables/jam_rates.csv              (+ figure)  ok and jam rates of each fence angle
 #   results/tables/sim_cost.csv, sim_cost_sample.csv (+ figure)  the stage's projected cost
+#   results/tables/label_emulation*.csv       (+ figure)  emulated i.i.d. drops against real ones
+
+from feeder.bench.emulation import entries as emulation_bench_entries, run_settings as emulation_run_settings
 
 BENCH_TARGETS = [
     "results/tables/sim_accuracy_vs_time.csv",
@@ -19,12 +22,19 @@ BENCH_TARGETS = [
     "results/tables/label_designs.csv",
     "results/tables/label_designs_summary.csv",
     "results/figures/label_designs.png",
+    "results/tables/label_emulation.csv",
+    "results/tables/label_emulation_summary.csv",
+    "results/figures/label_emulation.png",
 ]
 # the design bench's configurations: one simulation job each (resumable), raw data kept, in a
 # directory named by the preset and the reference's resolution, so a smaller run (smoke) never
 # overwrites the committed references
 DESIGN_KEYS = [e["key"] for e in design_bench_entries(config)]
 DESIGN_DIR = "results/bench/designs/{preset}-{reference_yaws}".format(**config["sim"]["design_bench"])
+# the emulation bench's configurations: one simulation job each, raw data kept; a job's settings
+# hold its own configuration only, so adding one to the list reruns no other
+EMULATION_KEYS = [e["key"] for e in emulation_bench_entries(config)]
+EMULATION_DIR = "results/bench/emulation/{preset}".format(**config["sim"]["emulation_bench"])
 
 
 rule bench:
@@ -122,6 +132,7 @@ rule bench_cost:
             "sim.drops",
             "sim.base_seed",
             "sim.yaw_sampling",
+            "sim.adaptive",
             "sim.cost_bench",
         ),
     shell:
@@ -188,3 +199,49 @@ rule bench_designs:
     shell:
         "feeder bench-designs table --references {input.references} --adaptive {input.adaptive}"
         " --settings '{params.settings}' --out-csv {output.rows} --out-summary {output.summary} > {log} 2>&1"
+
+
+rule bench_emulation_run:
+    """Real independent drops and the adaptive design of one configuration (feeder bench-emulation run)."""
+    input:
+        code("bench-emulation"),
+        part=lambda wildcards: "{}/{}.stl".format(config["parts"]["dir"], wildcards.key.split("__")[0]),
+    output:
+        f"{EMULATION_DIR}/{{key}}.npz",
+    log:
+        "logs/bench_emulation/{key}.log",
+    benchmark:
+        "benchmarks/bench_emulation/{key}.tsv"
+    conda:
+        "../envs/feeder.yaml"
+    params:
+        settings=lambda wildcards: emulation_run_settings(config, wildcards.key),
+    shell:
+        "feeder bench-emulation run --key {wildcards.key} --settings '{params.settings}' --out {output} > {log} 2>&1"
+
+
+rule bench_emulation:
+    """JS(P_N, P_all) of emulated against real drops, and the two-sample tests (feeder bench-emulation table)."""
+    input:
+        code("bench-emulation"),
+        runs=expand(f"{EMULATION_DIR}/{{key}}.npz", key=EMULATION_KEYS),
+    output:
+        rows=report(
+            "results/tables/label_emulation.csv", caption="../report/label_emulation.rst", category="Simulation"
+        ),
+        summary=report(
+            "results/tables/label_emulation_summary.csv",
+            caption="../report/label_emulation_summary.rst",
+            category="Simulation",
+        ),
+    log:
+        "logs/bench_emulation/table.log",
+    benchmark:
+        "benchmarks/bench_emulation/table.tsv"
+    conda:
+        "../envs/feeder.yaml"
+    params:
+        settings=settings_json("labels", "sim.min_ok_mass", "sim.emulation_bench"),
+    shell:
+        "feeder bench-emulation table --runs {input.runs} --settings '{params.settings}'"
+        " --out-csv {output.rows} --out-summary {output.summary} > {log} 2>&1"

@@ -54,6 +54,7 @@ FIGURE_TABLE = {
     "yaw_sampling": (f"{TABLES}/yaw_sampling.csv", "yaw_sampling", "Simulation", {}),
     "sim_cost": (f"{TABLES}/sim_cost_sample.csv", "sim_cost_figure", "Cost", {}),
     "label_designs": (f"{TABLES}/label_designs_summary.csv", "label_designs_figure", "Simulation", {}),
+    "label_emulation": (f"{TABLES}/label_emulation.csv", "label_emulation_figure", "Simulation", {}),
     "fig4_js_vs_drops": ("results/figdata/fig4_js_vs_drops.csv", "fig4_js_vs_drops", "Datasets", {}),
     "fig5_js_hist": ("results/figdata/fig5_js_hist.npz", "fig5_js_hist", "Datasets", {}),
     "fig9_example_pmfs": ("results/figdata/fig9_example_pmfs.npz", "fig9_example_pmfs", "Datasets", {}),

@@ -15,7 +15,11 @@ close each design gets to it, and at what cost:
   **paired check** of the reference map: the real paired drops against what the map gives at the
   same initial yaws (same-status and same-basin fractions, median |Δ final yaw|), which says how
   well the sampled map stands in for the simulator between its samples:
-  - ``adaptive`` from its real runs;
+  - ``adaptive`` from its real runs (one realisation: the offset of seed ``design_bench.seed``);
+  - ``adaptive_emulated``: the same refinement (the real runs' settings) at each budget,
+    ``repeats`` seeded offsets, each simulation replaced by the reference map
+    (:func:`emulated_adaptive`), so the adaptive design gets an interval like the others; the
+    real run says whether the emulation is faithful;
   - ``random``, ``golden`` and ``grid`` at each of ``drop_levels`` drops, ``repeats`` seeded
     realisations each, **emulated** through the reference map (the drops a design would simulate,
     mapped by :func:`feeder.labels.pushforward.map_yaws`). The paired check says how exact that is.
@@ -154,6 +158,22 @@ def emulated_label(ref_design, design: str, drops: int, seed: int, bins: int, si
     return sim_label(rec, bins, sigma)
 
 
+def emulated_adaptive(ref_design, order: int, budget: int, seed: int, adaptive: dict, bins: int, sigma: float):
+    """The label the adaptive design (``sim.adaptive``, at most ``budget`` simulations, offset from
+    ``seed``) would give if the reference map were the simulator: the same refinement as a real
+    run (:func:`feeder.sim.simulate.run_design`), each simulation replaced by the reference map at
+    that initial yaw (:func:`feeder.labels.pushforward.map_yaws`). None when every sample failed."""
+    from feeder.labels.pmf import Label
+    from feeder.labels.pushforward import label_cdf_bound, map_yaws, pushforward_pmf
+    from feeder.sim.simulate import run_design
+
+    design = run_design(lambda yaws: map_yaws(ref_design, yaws), seed, budget, adaptive, order)
+    if not (design.status == "ok").any():
+        return None
+    pmf, masses = pushforward_pmf(design, bins, sigma)
+    return Label(pmf, masses, label_cdf_bound(design, masses["ok"]), "adaptive", int(design.evaluations))
+
+
 # a label that does not exist (every drop of the design failed) scores the worst value of each metric
 NO_LABEL = {"sup_cdf": 1.0, "w1_deg": 360.0, "circular_w1_deg": 180.0, "js": 1.0}
 
@@ -217,6 +237,14 @@ def entry_rows(reference: Path, adaptive: Path, settings: dict) -> list[dict]:
         )
         label = sim_label(rec, bins, sigma) if rec.ok.any() else None
         rows.append(_row(base, "adaptive", b["budget"], 0, float(runs[f"{tag}_cpu_s"]), label, ref_pmf))
+    order = round(360.0 / float(meta["period_deg"]))
+    for b in run_meta["budgets"]:
+        budget = int(b["budget"])
+        for r in range(int(db["repeats"])):
+            seed = seed_of(base["config"], "adaptive", budget, r)
+            label = emulated_adaptive(ref, order, budget, seed, run_meta["adaptive"], bins, sigma)
+            sims = budget if label is None else label.simulations
+            rows.append(_row(base, "adaptive_emulated", budget, r, cpu_per_drop * sims, label, ref_pmf))
     for design in EMULATED_DESIGNS:
         for drops in db["drop_levels"]:
             for r in range(int(db["repeats"])):

@@ -7,6 +7,11 @@ for real, so that the map can be checked drop by drop against the simulator
 (:mod:`feeder.bench.designs`). The configurations are the simulation bench's panel
 (``sim.bench.panel``, shape specs) and ``sim.design_bench.library`` (part ids). This module needs
 only the simulator: a change to how designs are refined or labelled reruns no reference.
+
+A reference of a many-piece part takes hours (crescent-a: 2,880 drops of ~2.4 s), longer than a
+session may last, so a run saves its progress every ``CHECKPOINT_DROPS`` drops beside its output
+(``<out>.partial.npz``, removed when the output is written) and a rerun of the same job goes on
+from there with the same result (:func:`run_resumable`).
 """
 
 from __future__ import annotations
@@ -15,6 +20,7 @@ import argparse
 import hashlib
 import json
 import re
+import sys
 import time
 from pathlib import Path
 
@@ -72,6 +78,55 @@ def reference_grid(order: int, reference_yaws: int, seed: int) -> tuple[np.ndarr
     return offset + period * np.arange(n) / n, period, offset
 
 
+CHECKPOINT_DROPS = 64  # reference drops between two checkpoints (a few minutes of the dearest part)
+
+
+def checkpoint_path(out: Path) -> Path:
+    """Where a reference run keeps its progress: beside its output, removed once it is written."""
+    out = Path(out)
+    return out.with_name(out.name + ".partial.npz")
+
+
+def run_resumable(run_chunk, yaws, checkpoint: Path | None, fingerprint: str, every: int = CHECKPOINT_DROPS, log=None):
+    """Simulate ``yaws`` in consecutive chunks of ``every`` with ``run_chunk(yaws) -> (final,
+    status)``, saving the results so far to ``checkpoint`` (atomically) after each chunk. A run
+    that finds a checkpoint with the same ``fingerprint`` (what the run depends on) goes on from
+    where it stopped; one with another fingerprint is ignored and overwritten. Drops in worlds
+    of their own depend on their yaw alone, so a resumed run equals an uninterrupted one.
+    Returns ``(final, status, cpu_s)``, the CPU seconds summed over every run that contributed.
+    ``log(done, total)`` is called after each chunk."""
+    from feeder.io import read_npz, write_npz
+
+    yaws = np.asarray(yaws, dtype=np.float64)
+    final, status, cpu, done = np.full(yaws.size, np.nan), np.full(yaws.size, "", dtype="<U16"), 0.0, 0
+    if checkpoint is not None and Path(checkpoint).is_file():
+        try:
+            saved = read_npz(checkpoint, ("fingerprint", "done", "final", "status", "cpu_s"), "checkpoint")
+        except FeederError:  # unreadable: start over (it is rewritten after the first chunk)
+            saved = {"fingerprint": np.array("")}
+        if str(saved["fingerprint"]) == fingerprint:
+            done = int(saved["done"])
+            final[:done], status[:done], cpu = saved["final"], saved["status"], float(saved["cpu_s"])
+    while done < yaws.size:
+        c0 = time.process_time()
+        f, st = run_chunk(yaws[done : done + every])
+        cpu += time.process_time() - c0
+        final[done : done + len(f)], status[done : done + len(f)] = f, st
+        done += len(f)
+        if checkpoint is not None and done < yaws.size:
+            write_npz(
+                checkpoint,
+                fingerprint=np.array(fingerprint),
+                done=np.int64(done),
+                final=final[:done],
+                status=status[:done],
+                cpu_s=np.float64(cpu),
+            )
+        if log is not None:
+            log(done, yaws.size)
+    return final, status, cpu
+
+
 def entry_by_key(settings: dict, key: str) -> dict:
     entry = {e["key"]: e for e in entries(settings)}.get(key)
     if entry is None:
@@ -79,9 +134,10 @@ def entry_by_key(settings: dict, key: str) -> dict:
     return entry
 
 
-def run_reference(entry: dict, settings: dict) -> dict:
+def run_reference(entry: dict, settings: dict, checkpoint: Path | None = None) -> dict:
     """One configuration's reference over one symmetry period and its paired drops: the arrays
-    of its reference file (docs/data.md)."""
+    of its reference file (docs/data.md). With ``checkpoint``, progress is saved there and a
+    killed run goes on from it (:func:`run_resumable`); progress is logged to stderr."""
     from feeder.parts.symmetry import rotational_order
     from feeder.sim.drops import get_preset, run_each
     from feeder.sim.fences import parse_location
@@ -92,16 +148,26 @@ def run_reference(entry: dict, settings: dict) -> dict:
     loc1, loc2 = parse_location(entry["loc1"]), parse_location(entry["loc2"])
     order = rotational_order(geom.outline)
     yaws, period, offset = reference_grid(order, int(db["reference_yaws"]), seed_of(entry["key"], "reference"))
-    c0 = time.process_time()
-    ref = run_each(geom, loc1, loc2, yaws, scene, preset)  # a world each: the map of the yaw alone
-    cpu = time.process_time() - c0
+
+    def run_chunk(chunk):  # a world each: the map of the yaw alone
+        res = run_each(geom, loc1, loc2, chunk, scene, preset)
+        return res["final_yaw_deg"], res["status"].astype(str)
+
+    fingerprint = json.dumps({"entry": entry, "preset": preset, "scene": scene, "yaws": yaws.tolist()}, sort_keys=True)
+    final, status, cpu = run_resumable(
+        run_chunk,
+        yaws,
+        checkpoint,
+        hashlib.sha256(fingerprint.encode()).hexdigest(),
+        log=lambda done, total: print(f"{entry['key']}: {done}/{total} reference drops", file=sys.stderr, flush=True),
+    )
     beta = np.random.default_rng(seed_of(entry["key"], "paired")).uniform(0.0, 360.0, int(db["paired_drops"]))
     real = run_each(geom, loc1, loc2, beta, scene, preset)
     meta = {"entry": entry, "symmetry_order": order, "period_deg": period, "offset_deg": offset, "preset": db["preset"]}
     return {
         "ref_initial": yaws,
-        "ref_final": ref["final_yaw_deg"],
-        "ref_status": ref["status"].astype(str),
+        "ref_final": final,
+        "ref_status": status,
         "ref_cpu_s": np.float64(cpu),
         "paired_initial": beta,
         "paired_final": real["final_yaw_deg"],
@@ -125,5 +191,7 @@ def main(argv: list[str]) -> int:
     if args.cmd == "list":
         print("\n".join(e["key"] for e in entries(settings)))
         return 0
-    write_npz(args.out, **run_reference(entry_by_key(settings, args.key), settings))
+    checkpoint = checkpoint_path(args.out)
+    write_npz(args.out, **run_reference(entry_by_key(settings, args.key), settings, checkpoint))
+    checkpoint.unlink(missing_ok=True)
     return 0

@@ -1,7 +1,8 @@
 """What a label costs under each initial-yaw design: mean sup|ΔCDF| (left) and circular W1 on
 the CDF (right) of each design's label to the dense reference, against simulations per
-configuration, log–log; bands are 95 % intervals over the emulated realisations, dots the
-adaptive design at its budgets (real simulations).
+configuration, log–log; bands are 95 % intervals over the emulated realisations (random,
+golden, grid, and ``adaptive_emulated``: the adaptive refinement run on the reference map); the
+line ``adaptive`` is the adaptive design simulated for real at its budgets (one realisation).
 
 Data: ``results/tables/label_designs_summary.csv`` (``feeder bench-designs table``): one row per
 design and drop count with ``simulations``, ``sup_cdf``, ``circular_w1_deg`` and their ``_lo`` /

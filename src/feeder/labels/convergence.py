@@ -18,9 +18,22 @@ from feeder.labels import metrics as L
 from feeder.labels.grid import hash_seed
 
 
+def full_run_pmf(ds: dict) -> np.ndarray:
+    """(N, bins) PMF of all of each configuration's drops: the 100 % level.
+
+    For a drawn design (random, golden) it is the label itself. For a grid or adaptive design
+    the label is the exact push-forward, while the drops are i.i.d. ones emulated through the
+    sampled map; the paper's partial-iteration study compares a prefix with all of those drops
+    (JS(P_N, P_1000)), not with the exact label, which a prefix of N drops approaches more slowly
+    than it approaches its own full run. ``ds["pmf"]`` when no 100 % level was built (or no levels given)."""
+    full = np.flatnonzero(np.asarray(ds.get("levels_pct", ())) == 100)
+    return ds["pmf_levels"][:, int(full[0])] if full.size else ds["pmf"]
+
+
 def js_by_level(ds: dict) -> np.ndarray:
-    """(N, L) JS divergence in bits between each partial-level PMF and the full-run PMF."""
-    return L.js_divergence(ds["pmf_levels"], ds["pmf"][:, None, :])
+    """(N, L) JS divergence in bits between each partial-level PMF and the full-run PMF
+    (:func:`full_run_pmf`)."""
+    return L.js_divergence(ds["pmf_levels"], full_run_pmf(ds)[:, None, :])
 
 
 def bootstrap_js_floor(ds: dict, level_index: int, n_boot: int, quantile: float, seed: int, bins: int, sigma: float):
@@ -28,6 +41,7 @@ def bootstrap_js_floor(ds: dict, level_index: int, n_boot: int, quantile: float,
     replacement) of its full-run ok yaws of the size of its ok drops at that level, smooth them
     the same way and take JS to the full PMF. Returns (floor = pooled quantile, all values)."""
     n_ok_lvl = ds["n_ok_levels"][:, level_index]
+    full_pmf = full_run_pmf(ds)
     vals = []
     for i in range(len(ds["part"])):
         yaws = ds["final_yaw_deg"][i]
@@ -38,7 +52,7 @@ def bootstrap_js_floor(ds: dict, level_index: int, n_boot: int, quantile: float,
         rng = np.random.default_rng(hash_seed(seed, "bootstrap", ds["part"][i], ds["config_id"][i], level_index))
         draws = rng.multinomial(n, hist / hist.sum(), size=n_boot).astype(np.float64)
         boot = L.wrapped_gaussian_smooth(draws, sigma)
-        vals.append(L.js_divergence(boot, ds["pmf"][i]))
+        vals.append(L.js_divergence(boot, full_pmf[i]))
     vals = np.concatenate(vals) if vals else np.zeros(0)
     floor = float(np.quantile(vals, quantile)) if vals.size else float("nan")
     return floor, vals
