@@ -6,7 +6,8 @@ switched off by the ``onstart`` hook (``scheduling.local_rate_limit: false``, th
 measures the CPU the snakemake process itself spends (its own threads, from /proc, children
 excluded) against the CPU of the jobs (everything it waited for, from wait4). Few drops per job make the jobs
 short so that scheduling is a large, measurable share; the per-job figure carries over to
-longer jobs.
+longer jobs. The jobs draw ``--drops`` independent random drops whatever the study's design
+(an adaptive job's length is not set by its budget).
 
     feeder bench-scheduler --configfile config/paper50.yaml --jobs 300 --drops 2 \\
         --out results/tables/bench_scheduler.csv
@@ -74,7 +75,8 @@ def run_variant(
     copy_study(study, work)
     overlay = work / "config" / "_bench_scheduler.yaml"
     overlay.write_text(
-        f"sim:\n  drops: {drops}\n  min_ok_mass: 0.001\n"
+        # a fixed design of `drops` drops (an adaptive budget below its start grid is refused)
+        f"sim:\n  drops: {drops}\n  yaw_sampling: random\n  min_ok_mass: 0.001\n"
         f"scheduling:\n  local_rate_limit: {str(local_rate_limit).lower()}\n"
     )
     snakemake = str(Path(sys.executable).parent / "snakemake")
