@@ -16,6 +16,10 @@ def test_unknown_command_exits_2(capsys):
     assert "unknown command" in capsys.readouterr().err
 
 
-def test_help_lists_commands(capsys):
+def test_help_lists_every_command_with_its_description(capsys):
+    from feeder.cli import COMMANDS
+
     assert main(["--help"]) == 0
-    assert "simulate" in capsys.readouterr().out
+    lines = capsys.readouterr().out.splitlines()
+    for name, (_, help_) in COMMANDS.items():
+        assert any(line.split()[:1] == [name] and line.rstrip().endswith(help_) for line in lines), name

@@ -65,7 +65,14 @@ def test_predict_csv_matches_model(model_dir, tmp_path):
 
 
 def test_predict_to_stdout(model_dir, capsys):
-    P.main(
+    """The printed table holds the model's own forward pass for that part and fence pair."""
+    import io
+
+    from feeder.labels.dataset import feeder_vector
+    from feeder.learn.models import TrainedModel
+    from feeder.sim.fences import parse_location
+
+    code = P.main(
         [
             "--model",
             str(model_dir / "m3"),
@@ -78,7 +85,13 @@ def test_predict_to_stdout(model_dir, capsys):
         ]
     )
     out = capsys.readouterr()
-    assert out.out.startswith("angle_deg,pmf,cdf") and "ms" in out.err
+    assert code == 0 and out.out.startswith("angle_deg,pmf,cdf") and "ms" in out.err
+    df = pd.read_csv(io.StringIO(out.out))
+    data = load_dataset(model_dir / "ds.npz")
+    fv = feeder_vector(parse_location("curved:45"), parse_location("straight:20"))
+    pmf, _ = TrainedModel.load(model_dir / "m3").predict(data["part_raw"][:1], fv[None])
+    assert len(df) == 360 and np.allclose(df.pmf, pmf[0], atol=1e-6)
+    assert np.allclose(df.cdf, np.cumsum(pmf[0]), atol=1e-5)
 
 
 @pytest.mark.parametrize("loc1", ["straight:95", "wedge:3", "straight"])
