@@ -117,6 +117,38 @@ def test_groupkfold_trains_one_model_per_fold(trained, tmp_path):
         assert np.isfinite(sub.r2_mean).all()
 
 
+def test_groupkfold_never_trains_on_a_held_out_part(trained, tmp_path, monkeypatch):
+    """Every row is predicted by a model (and baselines) fitted without any row of its part."""
+    import feeder.learn.train as T
+
+    root, ds, _ = trained
+    data = load_dataset(ds)
+    cfg = compose_config("train", small_overrides(ds, tmp_path / "unused", "m3", epochs=1))
+    seen = {"fit": [], "baseline": []}
+    real_fit, real_baselines = T.fit, E.baseline_predictions
+
+    def spy_fit(cfg, data, train, **kw):
+        seen["fit"].append(np.asarray(train).copy())
+        return real_fit(cfg, data, train, **kw)
+
+    def spy_baselines(data, train):
+        seen["baseline"].append(np.asarray(train).copy())
+        return real_baselines(data, train)
+
+    monkeypatch.setattr(T, "fit", spy_fit)
+    monkeypatch.setattr(E, "baseline_predictions", spy_baselines)
+    E.groupkfold(data, cfg, progress=False)
+    folds = np.unique(data["group_fold"])
+    assert len(seen["fit"]) == len(seen["baseline"]) == folds.size
+    tested = np.zeros(len(data["part"]), dtype=int)
+    for train, train_b in zip(seen["fit"], seen["baseline"], strict=True):
+        np.testing.assert_array_equal(train, train_b)
+        held_out = ~train
+        tested += held_out
+        assert not set(data["part"][train]) & set(data["part"][held_out])
+    assert (tested == 1).all()  # each row held out exactly once
+
+
 def test_figure_data_and_figures(trained, tmp_path):
     from feeder.cli import main as cli
     from feeder.labels.metrics import r2_cdf
