@@ -79,17 +79,12 @@ RUN_KEYS = (
 def entries(settings: dict) -> list[dict]:
     """The bench's configurations (``sim.emulation_bench.configurations``: part ids of
     ``parts.dir`` with two fence locations), each with a file-safe key (``part__config``)."""
-    from feeder.bench.reference import entry_key
+    from feeder.bench.reference import keyed_entries
 
     out = [
         {"kind": "part", "part": e[0], "loc1": e[1], "loc2": e[2]} for e in bench_settings(settings)["configurations"]
     ]
-    for e in out:
-        e["key"] = entry_key(e)
-    keys = [e["key"] for e in out]
-    if len(set(keys)) != len(keys):
-        raise FeederError("sim.emulation_bench.configurations: a configuration is listed twice")
-    return out
+    return keyed_entries(out, "sim.emulation_bench.configurations")
 
 
 def bench_settings(settings: dict) -> dict:

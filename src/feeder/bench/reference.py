@@ -35,12 +35,18 @@ def entries(settings: dict) -> list[dict]:
     sim = settings["sim"]
     out = [{"kind": "shape", "part": e[0], "loc1": e[1], "loc2": e[2]} for e in sim["bench"]["panel"]]
     out += [{"kind": "part", "part": e[0], "loc1": e[1], "loc2": e[2]} for e in sim["design_bench"]["library"]]
-    for e in out:
+    return keyed_entries(out, "sim.design_bench")
+
+
+def keyed_entries(entries: list[dict], where: str) -> list[dict]:
+    """``entries`` (``kind``, ``part``, ``loc1``, ``loc2``) each with its file-safe ``key``
+    (:func:`entry_key`); a configuration listed twice is a FeederError naming ``where``."""
+    for e in entries:
         e["key"] = entry_key(e)
-    keys = [e["key"] for e in out]
+    keys = [e["key"] for e in entries]
     if len(set(keys)) != len(keys):
-        raise FeederError("sim.design_bench: a configuration is listed twice")
-    return out
+        raise FeederError(f"{where}: a configuration is listed twice")
+    return entries
 
 
 def entry_key(entry: dict) -> str:
