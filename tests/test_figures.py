@@ -395,3 +395,21 @@ def test_style_edit_reruns_only_that_figure(tmp_path):
         "draw_s1_dft_mse",
         "draw_fig6_dft_reconstruction",
     }
+
+
+def test_label_designs_plots_each_designs_means_against_its_simulations(tmp_path):
+    """The figure's lines are the summary's numbers: one line per design (reference left out),
+    x = simulations, y = the metric of each panel, in order of simulations."""
+    from feeder.figures import label_designs
+
+    csv = tmp_path / "s.csv"
+    _label_designs(csv)
+    df = pd.read_csv(csv)
+    fig = label_designs.draw(df)
+    for ax, col in zip(fig.axes, ("sup_cdf", "circular_w1_deg"), strict=True):
+        lines = {line.get_label(): line for line in ax.get_lines()}
+        assert set(lines) == set(df.design)
+        for design, sub in df.groupby("design"):
+            sub = sub.sort_values("simulations")
+            np.testing.assert_allclose(lines[design].get_xdata(), sub.simulations)
+            np.testing.assert_allclose(lines[design].get_ydata(), sub[col])
