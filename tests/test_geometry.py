@@ -225,7 +225,7 @@ def _write_bad(tmp_path, kind):
         ("slanted", "not an extrusion along z"),
         ("ring", "more than one boundary loop"),
         ("garbage", "not an STL"),
-        ("millimetres", "must be in metres"),
+        ("millimetres", "is the file in millimetres"),
     ],
 )
 def test_bad_stl_is_one_line_error_naming_the_file(tmp_path, kind, msg):

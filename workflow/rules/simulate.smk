@@ -25,6 +25,7 @@ rule simulate:
         preset=config["sim"]["preset"],
         drops=config["sim"]["drops"],
         seed=config["sim"]["base_seed"],
+        units=config["parts"]["units"],
         yaw_sampling=config["sim"]["yaw_sampling"],
         design=design_options(),
         loc1=fence_location(0),
@@ -32,7 +33,7 @@ rule simulate:
     shell:
         "feeder simulate --part {input.part} --loc1 {params.loc1} --loc2 {params.loc2}"
         " --drops {params.drops} --seed {params.seed} --yaw-sampling {params.yaw_sampling} {params.design}"
-        " --preset {params.preset}"
+        " --preset {params.preset} --units {params.units}"
         " --settings '{params.settings}' --out {output} > {log} 2>&1"
 
 

@@ -33,6 +33,9 @@ from feeder.errors import FeederError
 _REL_TOL = 1e-6
 # Plausibility bound for an STL in metres: a part wider than this is almost surely in millimetres.
 MAX_PART_SIZE_M = 1.0
+# What one unit of a part file is, in metres (``--units`` / ``parts.units``; ``auto`` picks one).
+UNITS_M = {"m": 1.0, "mm": 1e-3}
+UNIT_CHOICES = ("auto", *UNITS_M)
 
 
 # --------------------------------------------------------------------------------------------
@@ -306,8 +309,7 @@ def _read_ascii(data: bytes, path: Path) -> np.ndarray:
         raise FeederError(f"{path}: ASCII STL has no facets")
     if n_facets != n_endfacets or len(verts) != 3 * n_facets or "endsolid" not in text.lower():
         raise FeederError(
-            f"{path}: truncated ASCII STL ({n_facets} facets, {n_endfacets} complete, "
-            f"{len(verts)} vertices)"
+            f"{path}: truncated ASCII STL ({n_facets} facets, {n_endfacets} complete, {len(verts)} vertices)"
         )
     return _finite(np.asarray(verts, dtype=np.float64).reshape(-1, 3, 3), path)
 
@@ -352,8 +354,10 @@ def _outline_from_mesh(tris: np.ndarray, path: Path) -> tuple[np.ndarray, float]
     rkeys = directed[:, 1].astype(np.int64) * len(verts) + directed[:, 0]
     uniq, counts = np.unique(keys, return_counts=True)
     if np.any(counts > 1):
-        raise FeederError(f"{path}: STL is not a valid closed surface (an edge is used twice in "
-                          f"the same direction: inconsistent orientation or non-manifold)")
+        raise FeederError(
+            f"{path}: STL is not a valid closed surface (an edge is used twice in "
+            f"the same direction: inconsistent orientation or non-manifold)"
+        )
     if not np.all(np.isin(rkeys, uniq)):
         open_edges = int(np.sum(~np.isin(rkeys, uniq)))
         raise FeederError(f"{path}: STL is not watertight ({open_edges} open edges)")
@@ -376,8 +380,9 @@ def _outline_from_mesh(tris: np.ndarray, path: Path) -> tuple[np.ndarray, float]
     side = ~(ftop | fbot)
     xy = verts[:, :2]
     f_xy = xy[faces]
-    cross = ((f_xy[:, 1, 0] - f_xy[:, 0, 0]) * (f_xy[:, 2, 1] - f_xy[:, 0, 1])
-             - (f_xy[:, 1, 1] - f_xy[:, 0, 1]) * (f_xy[:, 2, 0] - f_xy[:, 0, 0]))
+    cross = (f_xy[:, 1, 0] - f_xy[:, 0, 0]) * (f_xy[:, 2, 1] - f_xy[:, 0, 1]) - (f_xy[:, 1, 1] - f_xy[:, 0, 1]) * (
+        f_xy[:, 2, 0] - f_xy[:, 0, 0]
+    )
     if np.any(np.abs(cross[side]) > tol * size):
         raise FeederError(f"{path}: not an extrusion along z (a side facet is not vertical)")
     if not ftop.any() or not fbot.any():
@@ -428,20 +433,41 @@ def read_outline(path: str | os.PathLike) -> tuple[np.ndarray, float]:
     return _outline_from_mesh(read_stl(path), path)
 
 
-def load_part(path: str | os.PathLike) -> PartGeometry:
-    """Read ``<id>.stl`` (metres, extruded along z) into a :class:`PartGeometry`.
+def file_units(size: float, units: str) -> str:
+    """The units of a part file whose outline is ``size`` file units across: ``units`` itself
+    when it is ``m`` or ``mm``; for ``auto``, millimetres when the part would be wider than
+    ``MAX_PART_SIZE_M`` metres (CAD tools export millimetres by default), else metres."""
+    if units not in UNIT_CHOICES:
+        raise FeederError(f"units must be one of {', '.join(UNIT_CHOICES)}, got {units!r}")
+    if units != "auto":
+        return units
+    return "mm" if size > MAX_PART_SIZE_M else "m"
 
-    The outline is shifted so that it sits in the STL's own x-y frame (no recentring); the
-    thickness is the z extent. Any defect is a one-line FeederError naming the file.
+
+def load_part(path: str | os.PathLike, units: str = "m") -> PartGeometry:
+    """Read ``<id>.stl`` (extruded along z) into a :class:`PartGeometry` in metres.
+
+    ``units``: ``m``, ``mm`` or ``auto`` (:func:`file_units`). The outline is scaled to metres and
+    stays in the STL's own x-y frame (no recentring); the thickness is the z extent. A part wider
+    than ``MAX_PART_SIZE_M`` once in metres, or any defect, is a one-line FeederError naming the file.
     """
+    return load_part_units(path, units)[0]
+
+
+def load_part_units(path: str | os.PathLike, units: str = "m") -> tuple[PartGeometry, str]:
+    """:func:`load_part` and the units the file was read in (what ``auto`` chose)."""
     path = Path(path)
     outline, thickness = read_outline(path)
     size = float(np.max(np.ptp(outline, axis=0)))
-    if size > MAX_PART_SIZE_M:
-        raise FeederError(f"{path}: part is {size:g} m across; STL files must be in metres "
-                          f"(is it in millimetres?)")
+    unit = file_units(size, units)
+    scale = UNITS_M[unit]
+    if size * scale > MAX_PART_SIZE_M:
+        raise FeederError(
+            f"{path}: part is {size * scale:g} m across read as {unit}; "
+            f"is the file in millimetres? (--units mm, or auto)"
+        )
     try:
-        return PartGeometry.from_polygon(path.stem, outline, thickness)
+        return PartGeometry.from_polygon(path.stem, outline * scale, thickness * scale), unit
     except FeederError as err:
         raise FeederError(f"{path}: {err}") from err
 

@@ -212,6 +212,12 @@ def _parser() -> argparse.ArgumentParser:
         help="simulations; for --yaw-sampling adaptive the budget (at most this many)",
     )
     parser.add_argument("--seed", type=int, default=0, help="base seed")
+    parser.add_argument(
+        "--units",
+        default="auto",
+        choices=("auto", "m", "mm"),
+        help="units of the part file; auto: millimetres if the part would be wider than 1 m, else metres",
+    )
     parser.add_argument("--preset", default="fast")
     parser.add_argument(
         "--yaw-sampling",
@@ -247,12 +253,14 @@ def main(argv: list[str]) -> int:
         raise FeederError(f"--drops must be positive, got {args.drops}")
     scene, presets = load_settings(args.settings)
     preset = get_preset(presets, args.preset)
-    from feeder.parts.geometry import load_part
+    from feeder.parts.geometry import load_part_units
 
     path = Path(args.part)
     if not path.is_file():
         raise FeederError(f"part file {path} not found")
-    geom = load_part(path)
+    geom, unit = load_part_units(path, args.units)
+    if args.units == "auto":
+        print(f"{path}: read in {unit} (--units auto)", file=sys.stderr)
     try:
         design = {
             "n0": args.n0,
