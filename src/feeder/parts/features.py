@@ -71,19 +71,19 @@ from feeder.errors import FeederError
 class DFTSettings:
     """The method's settings: the paper's values (§3.2.1) plus our silhouette/STL choices."""
 
-    canvas_px: int = 500            # square canvas side
-    margin_px: int = 10             # white margin on every side
+    canvas_px: int = 500  # square canvas side
+    margin_px: int = 10  # white margin on every side
     canny_low: int = 100
     canny_high: int = 200
-    samples: int = 100              # spline samples = DFT length
+    samples: int = 100  # spline samples = DFT length
     spline_degree: int = 3
-    coefficients: int = 15          # kept coefficients (triplets)
+    coefficients: int = 15  # kept coefficients (triplets)
     closing_gap_factor: float = 0.75  # closing disc radius per px of largest nearest-neighbour gap
-    edge_bridge_px: int = 3         # square dilation of the Canny edges (bridges 1-px breaks)
-    min_outline_fill: float = 0.9   # the chosen contour must enclose this share of the silhouette
-    stl_cloud_points: int = 4000    # face cloud size sampled from an STL's top face
-    tie_ratio: float = 1.05         # eigenvalue ratio below which the axes count as tied
-    planar_rel_tol: float = 1e-3    # spread of the constant axis / in-plane extent
+    edge_bridge_px: int = 3  # square dilation of the Canny edges (bridges 1-px breaks)
+    min_outline_fill: float = 0.9  # the chosen contour must enclose this share of the silhouette
+    stl_cloud_points: int = 4000  # face cloud size sampled from an STL's top face
+    tie_ratio: float = 1.05  # eigenvalue ratio below which the axes count as tied
+    planar_rel_tol: float = 1e-3  # spread of the constant axis / in-plane extent
     collinear_rel_tol: float = 1e-6  # smallest / largest singular value of the 2D points
 
 
@@ -225,9 +225,7 @@ def _tie_axis(c: np.ndarray) -> np.ndarray:
     rectangle of the points (either side for a square); a rotation-covariant choice."""
     import shapely
 
-    rect = np.asarray(
-        shapely.minimum_rotated_rectangle(shapely.MultiPoint(c)).exterior.coords
-    )[:3]
+    rect = np.asarray(shapely.minimum_rotated_rectangle(shapely.MultiPoint(c)).exterior.coords)[:3]
     sides = [rect[1] - rect[0], rect[2] - rect[1]]
     side = max(sides, key=lambda v: float(np.hypot(*v)))
     return side / np.hypot(*side)
@@ -278,8 +276,9 @@ def contour_of(canvas: np.ndarray, source: str, settings: DFTSettings = DFT) -> 
     areas = [cv2.contourArea(c) for c in contours]
     filled = float(np.count_nonzero(canvas == 0))
     if max(areas) < settings.min_outline_fill * filled:
-        raise FeederError(f"{source}: outline extraction failed (contour encloses "
-                          f"{max(areas):.0f} of {filled:.0f} silhouette pixels)")
+        raise FeederError(
+            f"{source}: outline extraction failed (contour encloses {max(areas):.0f} of {filled:.0f} silhouette pixels)"
+        )
     best = contours[int(np.argmax(areas))].reshape(-1, 2).astype(np.float64)
     if len(best) <= settings.spline_degree:
         raise FeederError(f"{source}: outline too small to interpolate ({len(best)} pixels)")
@@ -404,16 +403,18 @@ def study_mse(paths: list[str], max_count: int):
         z = outline_samples(load_points(path), str(path))
         errs.append([reconstruction_mse(z, int(c)) for c in counts])
     e = np.asarray(errs)
-    return pd.DataFrame({
-        "n_coefficients": counts,
-        "mean_mse": e.mean(axis=0),
-        "std_mse": e.std(axis=0),
-        "q25_mse": np.quantile(e, 0.25, axis=0),
-        "median_mse": np.median(e, axis=0),
-        "q75_mse": np.quantile(e, 0.75, axis=0),
-        "max_mse": e.max(axis=0),
-        "n_parts": len(paths),
-    })
+    return pd.DataFrame(
+        {
+            "n_coefficients": counts,
+            "mean_mse": e.mean(axis=0),
+            "std_mse": e.std(axis=0),
+            "q25_mse": np.quantile(e, 0.25, axis=0),
+            "median_mse": np.median(e, axis=0),
+            "q75_mse": np.quantile(e, 0.75, axis=0),
+            "max_mse": e.max(axis=0),
+            "n_parts": len(paths),
+        }
+    )
 
 
 # --------------------------------------------------------------------------------------------

@@ -221,7 +221,7 @@ class PartGeometry:
     convex_pieces: list[np.ndarray] = field(repr=False)
 
     @classmethod
-    def from_polygon(cls, part_id: str, outline, thickness: float) -> "PartGeometry":
+    def from_polygon(cls, part_id: str, outline, thickness: float) -> PartGeometry:
         """Build from a vertex list (CW or CCW, closing duplicate optional), metres."""
         thickness = float(thickness)
         if not np.isfinite(thickness) or thickness <= 0:

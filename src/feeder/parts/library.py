@@ -27,8 +27,9 @@ import json
 import math
 import re
 import sys
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 
@@ -38,8 +39,19 @@ ID_RE = re.compile(r"^[A-Za-z0-9-]+$")
 LIBRARY_ID_RE = re.compile(r"^[a-z0-9]+(-[a-z0-9]+)*$")
 
 CATALOG_COLUMNS = [
-    "id", "family", "params", "thickness", "size", "n_points", "n_vertices", "area", "perimeter",
-    "aspect_ratio", "convexity", "compactness", "eigen_ratio",
+    "id",
+    "family",
+    "params",
+    "thickness",
+    "size",
+    "n_points",
+    "n_vertices",
+    "area",
+    "perimeter",
+    "aspect_ratio",
+    "convexity",
+    "compactness",
+    "eigen_ratio",
 ]
 
 
@@ -57,8 +69,7 @@ def list_parts(parts_dir: str | Path, include: str | list[str] = "all") -> list[
             continue
         if not ID_RE.match(path.stem):
             raise FeederError(
-                f"{path}: part file names must be letters, digits and '-' only (no '_', which "
-                f"separates fence tokens)"
+                f"{path}: part file names must be letters, digits and '-' only (no '_', which separates fence tokens)"
             )
         ids.append(path.stem)
     ids.sort()
@@ -68,9 +79,7 @@ def list_parts(parts_dir: str | Path, include: str | list[str] = "all") -> list[
         include = [include]
     missing = [i for i in include if i not in ids]
     if missing:
-        raise FeederError(
-            f"parts.include names part(s) with no STL in {parts_dir}: {', '.join(missing)}"
-        )
+        raise FeederError(f"parts.include names part(s) with no STL in {parts_dir}: {', '.join(missing)}")
     return sorted(set(include))
 
 
@@ -125,8 +134,23 @@ def _ibeam(p: dict, seg: int) -> np.ndarray:
     if not (2 * f < h and web < w):
         raise FeederError("ibeam needs 2*flange < height and web < width")
     x0, x1 = (w - web) / 2, (w + web) / 2
-    return np.array([[0, 0], [w, 0], [w, f], [x1, f], [x1, h - f], [w, h - f], [w, h], [0, h],
-                     [0, h - f], [x0, h - f], [x0, f], [0, f]], dtype=float)
+    return np.array(
+        [
+            [0, 0],
+            [w, 0],
+            [w, f],
+            [x1, f],
+            [x1, h - f],
+            [w, h - f],
+            [w, h],
+            [0, h],
+            [0, h - f],
+            [x0, h - f],
+            [x0, f],
+            [0, f],
+        ],
+        dtype=float,
+    )
 
 
 def _lshape(p: dict, seg: int) -> np.ndarray:
@@ -141,16 +165,16 @@ def _tshape(p: dict, seg: int) -> np.ndarray:
     if not (f < h and s < w):
         raise FeederError("tshape needs flange < height and stem < width")
     x0, x1 = (w - s) / 2, (w + s) / 2
-    return np.array([[x0, 0], [x1, 0], [x1, h - f], [w, h - f], [w, h], [0, h], [0, h - f],
-                     [x0, h - f]], dtype=float)
+    return np.array([[x0, 0], [x1, 0], [x1, h - f], [w, h - f], [w, h], [0, h], [0, h - f], [x0, h - f]], dtype=float)
 
 
 def _ushape(p: dict, seg: int) -> np.ndarray:
     w, h, wall, base = float(p["width"]), float(p["height"]), float(p["wall"]), float(p["base"])
     if not (2 * wall < w and base < h):
         raise FeederError("ushape needs 2*wall < width and base < height")
-    return np.array([[0, 0], [w, 0], [w, h], [w - wall, h], [w - wall, base], [wall, base],
-                     [wall, h], [0, h]], dtype=float)
+    return np.array(
+        [[0, 0], [w, 0], [w, h], [w - wall, h], [w - wall, base], [wall, base], [wall, h], [0, h]], dtype=float
+    )
 
 
 def _cross(p: dict, seg: int) -> np.ndarray:
@@ -158,8 +182,23 @@ def _cross(p: dict, seg: int) -> np.ndarray:
     if not (arm < w and arm < h):
         raise FeederError("cross needs arm < width and arm < height")
     x0, x1, y0, y1 = (w - arm) / 2, (w + arm) / 2, (h - arm) / 2, (h + arm) / 2
-    return np.array([[x0, 0], [x1, 0], [x1, y0], [w, y0], [w, y1], [x1, y1], [x1, h], [x0, h],
-                     [x0, y1], [0, y1], [0, y0], [x0, y0]], dtype=float)
+    return np.array(
+        [
+            [x0, 0],
+            [x1, 0],
+            [x1, y0],
+            [w, y0],
+            [w, y1],
+            [x1, y1],
+            [x1, h],
+            [x0, h],
+            [x0, y1],
+            [0, y1],
+            [0, y0],
+            [x0, y0],
+        ],
+        dtype=float,
+    )
 
 
 def _crescent(p: dict, seg: int) -> np.ndarray:
@@ -193,8 +232,12 @@ def _gear(p: dict, seg: int) -> np.ndarray:
     pts = []
     for i in range(n):
         c = np.pi / 2 + i * pitch
-        for ang, rad in [(c - fr * pitch / 2, rr), (c - ft * pitch / 2, rt),
-                         (c + ft * pitch / 2, rt), (c + fr * pitch / 2, rr)]:
+        for ang, rad in [
+            (c - fr * pitch / 2, rr),
+            (c - ft * pitch / 2, rt),
+            (c + ft * pitch / 2, rt),
+            (c + fr * pitch / 2, rr),
+        ]:
             pts.append([rad * np.cos(ang), rad * np.sin(ang)])
     return np.asarray(pts)
 
@@ -225,9 +268,21 @@ def _blob(p: dict, seg: int) -> np.ndarray:
 
 
 FAMILIES: dict[str, Callable[[dict, int], np.ndarray]] = {
-    "ngon": _ngon, "triangle": _triangle, "rect": _rect, "rrect": _rrect, "ellipse": _ellipse,
-    "ibeam": _ibeam, "lshape": _lshape, "tshape": _tshape, "ushape": _ushape, "cross": _cross,
-    "crescent": _crescent, "star": _star, "gear": _gear, "keyhole": _keyhole, "blob": _blob,
+    "ngon": _ngon,
+    "triangle": _triangle,
+    "rect": _rect,
+    "rrect": _rrect,
+    "ellipse": _ellipse,
+    "ibeam": _ibeam,
+    "lshape": _lshape,
+    "tshape": _tshape,
+    "ushape": _ushape,
+    "cross": _cross,
+    "crescent": _crescent,
+    "star": _star,
+    "gear": _gear,
+    "keyhole": _keyhole,
+    "blob": _blob,
 }
 
 
@@ -321,8 +376,7 @@ def build_part(entry: dict, spec: dict) -> dict[str, Any]:
         raise FeederError(f"part {pid}: {len(outline)} vertices > limits.max_vertices")
     metrics = shape_metrics(outline)
     area_cm2 = metrics["area"] / 100.0
-    n_target = int(np.clip(round(cloud["points_per_cm2"] * area_cm2), cloud["min_points"],
-                           cloud["max_points"]))
+    n_target = int(np.clip(round(cloud["points_per_cm2"] * area_cm2), cloud["min_points"], cloud["max_points"]))
     pts = face_cloud(outline, n_target)
     if not lim["points"][0] <= len(pts) <= lim["points"][1]:
         raise FeederError(f"part {pid}: face cloud has {len(pts)} points, outside the cloud limits")
@@ -352,8 +406,8 @@ def generate(spec_path: str | Path, out_dir: str | Path, progress: bool = True) 
     import pandas as pd
     from tqdm import tqdm
 
-    from feeder.parts.geometry import stl_bytes
     from feeder.io import write_bytes, write_csv, write_text
+    from feeder.parts.geometry import stl_bytes
 
     spec = load_spec(spec_path)
     out_dir = Path(out_dir)
@@ -362,8 +416,9 @@ def generate(spec_path: str | Path, out_dir: str | Path, progress: bool = True) 
     for entry in tqdm(spec["parts"], desc="parts", disable=not (progress and sys.stderr.isatty())):
         built.append(build_part(entry, spec))  # validate everything before writing anything
     for b in built:
-        write_bytes(out_dir / f"{b['id']}.stl",
-                    stl_bytes(b["outline_mm"] / 1000.0, b["thickness_mm"] / 1000.0, b["id"]))
+        write_bytes(
+            out_dir / f"{b['id']}.stl", stl_bytes(b["outline_mm"] / 1000.0, b["thickness_mm"] / 1000.0, b["id"])
+        )
         write_text(out_dir / f"{b['id']}.xyz", xyz_text(b["cloud_mm"], b["thickness_mm"]))
         rows.append(b["row"])
     frame = pd.DataFrame(rows, columns=CATALOG_COLUMNS).sort_values("id", kind="stable")
@@ -401,8 +456,12 @@ def _parser() -> argparse.ArgumentParser:
     f = sub.add_parser("fig6-data", help="outlines and their DFT reconstructions (Fig. 6 panel b data, .npz)")
     f.add_argument("paths", nargs="+", help=".xyz or .stl files, one panel each")
     f.add_argument("--out", required=True)
-    f.add_argument("--coefficients", type=int, default=None,
-                   help="coefficients kept (default: the feature count, feeder.parts.features.DFT)")
+    f.add_argument(
+        "--coefficients",
+        type=int,
+        default=None,
+        help="coefficients kept (default: the feature count, feeder.parts.features.DFT)",
+    )
     s = sub.add_parser("s1", help="reconstruction MSE vs number of coefficients (Fig. S1 table)")
     s.add_argument("paths", nargs="+", help=".xyz or .stl files of the library")
     s.add_argument("--table", required=True)
@@ -420,8 +479,8 @@ def main(argv: list[str]) -> int:
         print(json.dumps({"generated": len(ids), **summary}))
         return 0
     if args.cmd == "xyz":
-        from feeder.parts.geometry import face_cloud, load_part
         from feeder.io import write_text
+        from feeder.parts.geometry import face_cloud, load_part
 
         g = load_part(args.stl)
         pts = face_cloud(g.outline * 1000.0, args.points)
@@ -431,15 +490,15 @@ def main(argv: list[str]) -> int:
         print("\n".join(list_parts(args.dir, args.include if args.include else "all")))
         return 0
     if args.cmd == "fig6-data":
-        from feeder.parts.features import DFT, reconstruction_data
         from feeder.io import write_npz
+        from feeder.parts.features import DFT, reconstruction_data
 
         count = DFT.coefficients if args.coefficients is None else args.coefficients
         write_npz(args.out, **reconstruction_data(args.paths, count))
         return 0
     if args.cmd == "s1":
-        from feeder.parts.features import study_mse
         from feeder.io import write_csv
+        from feeder.parts.features import study_mse
 
         write_csv(args.table, study_mse(args.paths, args.max_coefficients))
         return 0

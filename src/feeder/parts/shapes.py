@@ -59,8 +59,19 @@ def outline_mm(spec: str) -> np.ndarray:
         need(3)
         w, h, t = v
         c = 0.5 * w
-        return np.array([(c - t / 2, 0), (c + t / 2, 0), (c + t / 2, h - t), (w, h - t), (w, h),
-                         (0, h), (0, h - t), (c - t / 2, h - t)], float)
+        return np.array(
+            [
+                (c - t / 2, 0),
+                (c + t / 2, 0),
+                (c + t / 2, h - t),
+                (w, h - t),
+                (w, h),
+                (0, h),
+                (0, h - t),
+                (c - t / 2, h - t),
+            ],
+            float,
+        )
     if family == "star":
         need(3)
         n, ro, ri = int(v[0]), v[1], v[2]

@@ -71,8 +71,7 @@ def symmetry_error(outline, n: int) -> float:
     return 0.0 if n == 1 else _error(poly, int(n))
 
 
-def rotational_order(outline, tolerance: float = DEFAULT_SYMMETRY_TOLERANCE,
-                     max_order: int = DEFAULT_MAX_ORDER) -> int:
+def rotational_order(outline, tolerance: float = DEFAULT_SYMMETRY_TOLERANCE, max_order: int = DEFAULT_MAX_ORDER) -> int:
     """The largest n ≤ ``max_order`` whose turn by 360/n about the area centroid maps the outline
     onto itself within ``tolerance`` (relative symmetry error); 1 when there is none.
 
@@ -94,5 +93,7 @@ def check_order(outline, n: int, tolerance: float = DEFAULT_SYMMETRY_TOLERANCE) 
     tol = _check_tolerance(tolerance)
     err = symmetry_error(outline, n)
     if err > tol:
-        raise FeederError(f"part has no {int(n)}-fold symmetry: turning it by {FULL_TURN_DEG / n:g}° about its "
-                          f"centroid moves its outline by {err:.3g} of its radius (tolerance {tol:g})")
+        raise FeederError(
+            f"part has no {int(n)}-fold symmetry: turning it by {FULL_TURN_DEG / n:g}° about its "
+            f"centroid moves its outline by {err:.3g} of its radius (tolerance {tol:g})"
+        )
