@@ -231,3 +231,21 @@ def test_circular_w1_does_not_depend_on_where_the_circle_is_cut():
     for k in (1, 17, 50):
         assert L.circular_w1(L.cdf(np.roll(p, k)), L.cdf(np.roll(q, k))) == pytest.approx(base)
     assert base <= L.w1(L.cdf(p), L.cdf(q)) + 1e-12
+
+
+def test_resting_orientations_are_the_modes_with_their_basin_mass():
+    from feeder.labels.metrics import resting_orientations as modes
+
+    def resting_orientations(pmf, top=None):
+        return np.asarray(modes(pmf, top)).ravel().tolist()
+
+    # 8 bins of 45 deg: peaks at bins 2 and 6, each collecting the bins that climb to it
+    two = [0.0, 0.1, 0.3, 0.1, 0.0, 0.2, 0.25, 0.05]
+    assert resting_orientations(two) == pytest.approx([112.5, 0.5, 292.5, 0.5])
+    assert resting_orientations(two, top=1)[0] in (112.5, 292.5)
+    # a flat peak across 0/360 is one orientation at 0 deg; empty bins are none
+    wrap = [0.4, 0.1, 0, 0, 0, 0, 0.1, 0.4]
+    assert resting_orientations(wrap) == pytest.approx([0.0, 1.0])
+    unequal = [0.1, 0.6, 0.1, 0.0, 0.0, 0.0, 0.2, 0.0]
+    assert resting_orientations(unequal) == pytest.approx([67.5, 0.8, 292.5, 0.2])
+    assert resting_orientations(np.full(4, 0.25)) == pytest.approx([180.0, 1.0])

@@ -64,6 +64,19 @@ def test_predict_csv_matches_model(model_dir, tmp_path):
     assert (tmp_path / "p.png").read_bytes()[:4] == b"\x89PNG"
 
 
+def test_predict_prints_the_most_likely_orientations_of_its_pmf(model_dir, tmp_path, capsys):
+    from feeder.labels.metrics import resting_orientations
+
+    out = tmp_path / "pmf.csv"
+    base = ["--model", str(model_dir / "m3"), "--features", str(model_dir / "p0.json")]
+    assert P.main([*base, "--loc1", "straight:30", "--loc2", "none", "--out", str(out)]) == 0
+    printed = capsys.readouterr().out.strip()
+    modes = resting_orientations(pd.read_csv(out).pmf.to_numpy(), P.TOP_ORIENTATIONS)
+    assert printed == "most likely final yaws (part frame): " + ", ".join(
+        f"{yaw:.1f} deg p={mass:.2f}" for yaw, mass in modes
+    )
+
+
 def test_predict_to_stdout(model_dir, capsys):
     """The printed table holds the model's own forward pass for that part and fence pair."""
     import io

@@ -268,3 +268,53 @@ def dkw_epsilon(n, alpha: float) -> np.ndarray:
     n = np.asarray(n, dtype=np.float64)
     with np.errstate(divide="ignore"):
         return np.sqrt(math.log(2.0 / alpha) / (2.0 * n))
+
+
+def resting_orientations(pmf, top: int | None = None) -> list[tuple[float, float]]:
+    """The modes of a circular PMF and the probability of each one's basin, largest first.
+
+    Every bin climbs to its higher neighbour (the higher one when both are higher; wrap-around at
+    0/360) until no neighbour is higher; bins that end on the same peak, or on one flat run of
+    equal peak bins, form one basin. Returns ``(yaw_deg, mass)`` per basin: the yaw is the centre
+    of the peak (bin centres, ``360 / bins`` degrees wide; the middle of a flat run), the mass
+    the basin's total PMF. A flat PMF is one basin. ``top`` keeps the largest ``top``.
+    """
+    p = np.asarray(pmf, dtype=np.float64)
+    n = p.size
+    if p.ndim != 1 or n < 1:
+        raise FeederError(f"resting_orientations: need a 1-D PMF, got shape {p.shape}")
+    width = FULL_TURN_DEG / n
+    left, right = np.roll(p, 1), np.roll(p, -1)
+    up = np.where(right >= left, (np.arange(n) + 1) % n, (np.arange(n) - 1) % n)
+    step = np.where(np.maximum(left, right) > p, up, np.arange(n))  # a peak stays
+    peak = np.arange(n)
+    for _ in range(n):  # at most n climbs
+        nxt = step[peak]
+        if np.array_equal(nxt, peak):
+            break
+        peak = nxt
+    # flat runs of peak bins are one peak: label each run by its first bin (circular)
+    is_peak = step == np.arange(n)
+    run_of = np.arange(n)
+    if is_peak.all():
+        run_of[:] = 0
+    else:
+        start = int(np.flatnonzero(~is_peak)[0])
+        for k in range(1, n + 1):
+            i = (start + k) % n
+            j = (i - 1) % n
+            if is_peak[i] and is_peak[j] and p[i] == p[j]:
+                run_of[i] = run_of[j]
+    owner = run_of[peak]
+    out = []
+    for r in np.unique(owner):
+        members = np.flatnonzero(run_of == r)  # the flat run of peak bins labelled r
+        members = members[is_peak[members]]
+        # the middle of the run along the circle, from its first bin r
+        length = members.size
+        centre = (r + 0.5 * (length - 1) + 0.5) * width % FULL_TURN_DEG
+        mass = float(p[owner == r].sum())
+        if mass > 0:  # a flat run of empty bins is no orientation
+            out.append((float(centre), mass))
+    out.sort(key=lambda t: -t[1])
+    return out if top is None else out[: int(top)]

@@ -26,6 +26,8 @@ import pandas as pd
 
 from feeder.errors import FeederError
 
+TOP_ORIENTATIONS = 3  # resting orientations feeder predict prints
+
 
 def part_vector(part: Path | None, features: Path | None) -> tuple[np.ndarray, float | None]:
     """(the 45 raw DFT values, ``frame_deg`` or None) of a part, from its geometry file or a features JSON."""
@@ -91,6 +93,15 @@ def plot(frame: pd.DataFrame, title: str):
     return fig
 
 
+def orientation_summary(frame, top: int = TOP_ORIENTATIONS) -> str:
+    """The most likely resting orientations of a predicted PMF (part frame) with their
+    probabilities (:func:`feeder.labels.metrics.resting_orientations`), one line."""
+    from feeder.labels.metrics import resting_orientations
+
+    modes = resting_orientations(frame["pmf"].to_numpy(), top)
+    return "most likely final yaws (part frame): " + ", ".join(f"{yaw:.1f} deg p={mass:.2f}" for yaw, mass in modes)
+
+
 def main(argv: list[str]) -> int:
     parser = argparse.ArgumentParser(prog="feeder predict", description=__doc__.split("\n")[0])
     parser.add_argument("--model", type=Path, required=True, help="trained model directory")
@@ -118,6 +129,8 @@ def main(argv: list[str]) -> int:
         write_csv(args.out, frame)
     else:
         sys.stdout.write(frame.to_csv(index=False, lineterminator="\n"))
+    # the summary a person reads: on stdout unless stdout carries the table
+    print(orientation_summary(frame), file=sys.stdout if args.out is not None else sys.stderr)
     if args.plot is not None:
         from feeder.io import save_figure
 
