@@ -197,3 +197,73 @@ def test_principal_frame_model_answers_in_the_part_frame(model_dir, tmp_path):
     np.testing.assert_allclose(got.cdf, np.cumsum(got.pmf), atol=1e-12)
     with pytest.raises(FeederError, match="frame_deg"):  # features without the frame
         P.main(base + ["--features", str(model_dir / "p0.json")])
+
+
+# ---------------------------------------------------------------- feeder recommend
+def test_window_probability_by_hand_with_wrap_around_and_symmetry():
+    from feeder.learn.recommend import window_probability
+
+    pmf = np.zeros(360)
+    pmf[[0, 5, 90, 180, 355]] = [0.1, 0.2, 0.3, 0.25, 0.15]  # bins [k, k + 1)
+    assert window_probability(pmf, 0.0, 10.0) == pytest.approx(0.1 + 0.2 + 0.15)  # straddles 0/360
+    assert window_probability(pmf, 0.0, 10.0, order=2) == pytest.approx(0.45 + 0.25)  # and 180 +- 10
+    assert window_probability(pmf, 90.5, 0.25) == pytest.approx(0.3 * 0.5)  # half of bin 90
+    assert window_probability(pmf, 45.0, 100.0, order=4) == pytest.approx(1.0)  # windows cover the circle
+    for bad in [
+        dict(target_deg=360.0, tolerance_deg=5),
+        dict(target_deg=0.0, tolerance_deg=0),
+        dict(target_deg=0.0, tolerance_deg=5, order=0),
+    ]:
+        with pytest.raises(FeederError):
+            window_probability(pmf, **bad)
+
+
+def test_recommend_ranks_configurations_by_the_models_own_predictions(model_dir, tmp_path, capsys):
+    from feeder.learn import recommend as R
+    from feeder.learn.models import TrainedModel
+
+    ids = ["straight30_none", "curved45_straight20", "none_curved10"]
+    out = tmp_path / "rank.csv"
+    base = ["--model", str(model_dir / "m3"), "--features", str(model_dir / "p0.json")]
+    argv = [*base, "--target", "90", "--tolerance", "15", "--symmetry", "2", "--configs", ",".join(ids)]
+    assert R.main([*argv, "--out", str(out), "--top", "2"]) == 0
+    ranked = pd.read_csv(out)
+    assert sorted(ranked.config_id) == sorted(ids) and ranked.probability.is_monotonic_decreasing
+    model = TrainedModel.load(model_dir / "m3")
+    data = load_dataset(model_dir / "ds.npz")
+    for _, row in ranked.iterrows():
+        frame = P.predict_frame(model, data["part_raw"][0], row.loc1, row.loc2)
+        want = R.window_probability(frame.pmf.to_numpy(), 90.0, 15.0, order=2)
+        assert row.probability == pytest.approx(want, abs=1e-9)
+    printed = capsys.readouterr().out
+    assert "within 15 deg of 90 deg, 2-fold symmetric" in printed and ranked.config_id[0] in printed
+
+
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["--target", "400", "--tolerance", "5"], "target must be in"),
+        (["--target", "0", "--tolerance", "-1"], "tolerance"),
+    ],
+)
+def test_recommend_bad_input_is_one_line_and_writes_nothing(model_dir, tmp_path, capsys, args, message):
+    from feeder.cli import main
+
+    out = tmp_path / "rank.csv"
+    argv = ["recommend", "--model", str(model_dir / "m3"), "--features", str(model_dir / "p0.json"), *args]
+    assert main([*argv, "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert message in err and "\n" not in err and not out.exists()
+
+
+def test_recommend_ranks_the_study_grid_by_default(model_dir, capsys):
+    from feeder.config import load_study_config
+    from feeder.learn import recommend as R
+
+    fences = load_study_config()["fences"]
+    grid = R.grid_configurations(fences)
+    s, c = len(fences["straight_angles"]), len(fences["curved_angles"])
+    assert len(grid) == len(set(grid)) == 2 * s + 2 * c + s * s + 2 * s * c + c * c  # the 8 combinations
+    base = ["--model", str(model_dir / "m3"), "--features", str(model_dir / "p0.json")]
+    assert R.main([*base, "--target", "0", "--tolerance", "10"]) == 0
+    assert f"{len(grid)} configurations" in capsys.readouterr().out

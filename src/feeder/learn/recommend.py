@@ -1,0 +1,159 @@
+"""Rank fence configurations for a part: ``feeder recommend``.
+
+The design question behind the study: which fences make a part leave at the orientation a
+station downstream wants? For one part, a trained model predicts the 360-bin PMF of every
+fence configuration of the study's grid (``fences`` in the Snakemake config: every type
+combination of ``fences.combos`` on the angle grids) or of a given list, in one batch, and ranks
+them by the predicted probability that the final yaw lies within ``--tolerance`` of ``--target``
+(:func:`window_probability`; modulo the part's rotational symmetry, since a part turned by
+360/n looks the same).
+
+    feeder recommend --model results/models/m3 --part my.stl --target 0 --tolerance 10
+
+Predictions are only as good as the model (its card says how it did on unseen parts);
+``feeder simulate`` a configuration to check one.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from feeder.errors import FeederError
+from feeder.labels.metrics import FULL_TURN_DEG
+
+DEFAULT_TOP = 10  # configurations printed
+
+
+def window_probability(pmf, target_deg: float, tolerance_deg: float, order: int = 1) -> np.ndarray:
+    """Probability that the yaw lies within ``tolerance_deg`` of ``target_deg`` or of any of its
+    turns by ``360 / order`` (a part with n-fold symmetry looks the same there), on the circle.
+
+    ``pmf``: (..., bins) over bins ``[i, i + 1) · 360 / bins``; a bin counts in proportion to its
+    overlap with the window(s), so the result is exact for a PMF uniform within bins. Overlapping
+    windows (``2 · tolerance ≥ 360 / order``) cover the whole circle: probability 1.
+    """
+    p = np.asarray(pmf, dtype=np.float64)
+    if not (math.isfinite(target_deg) and 0.0 <= target_deg < FULL_TURN_DEG):
+        raise FeederError(f"target must be in [0, 360), got {target_deg!r}")
+    if not (math.isfinite(tolerance_deg) and tolerance_deg > 0):
+        raise FeederError(f"tolerance must be > 0 degrees, got {tolerance_deg!r}")
+    if int(order) != order or order < 1:
+        raise FeederError(f"symmetry order must be a positive integer, got {order!r}")
+    bins = p.shape[-1]
+    width = FULL_TURN_DEG / bins
+    period = FULL_TURN_DEG / order
+    if 2 * tolerance_deg >= period:
+        return p.sum(axis=-1)
+    lo = np.arange(bins) * width
+    weight = np.zeros(bins)
+    for k in range(int(order)):
+        centre = target_deg + k * period
+        for shift in (-FULL_TURN_DEG, 0.0, FULL_TURN_DEG):  # the window may straddle 0/360
+            a, b = centre - tolerance_deg + shift, centre + tolerance_deg + shift
+            weight += np.clip(np.minimum(lo + width, b) - np.maximum(lo, a), 0.0, None) / width
+    return p @ np.clip(weight, 0.0, 1.0)
+
+
+def grid_configurations(fences: dict) -> list[str]:
+    """Every configuration id of the study's fence grid (``fences.combos`` on the angle grids)."""
+    from feeder.labels.grid import combo_grid
+
+    return [cid for combo in fences["combos"] for cid in combo_grid(fences, combo)]
+
+
+def rank(model, part_raw, frame_deg, config_ids, target_deg, tolerance_deg, order) -> pd.DataFrame:
+    """Every configuration's predicted probability of the target window, best first (ties in the
+    given order); columns ``config_id, loc1, loc2, probability, mode_deg`` (the PMF's largest bin,
+    part frame)."""
+    from feeder.labels import metrics as L
+    from feeder.labels.dataset import feeder_vector
+    from feeder.sim.fences import parse_config_id
+
+    if not config_ids:
+        raise FeederError("no fence configurations to rank")
+    pairs = [parse_config_id(c) for c in config_ids]
+    feeder_raw = np.stack([feeder_vector(f1, f2) for f1, f2 in pairs])
+    pmf, _ = model.predict(np.repeat(part_raw[None, :], len(pairs), axis=0), feeder_raw)
+    if model.label_frame == "principal":
+        if frame_deg is None:
+            raise FeederError(
+                "this model predicts in the parts' feature frame: give --part, or features with frame_deg"
+            )
+        pmf = L.shift_pmf(pmf, -float(frame_deg))
+    width = FULL_TURN_DEG / pmf.shape[1]
+    frame = pd.DataFrame(
+        {
+            "config_id": config_ids,
+            "loc1": [f1.spec for f1, _ in pairs],
+            "loc2": [f2.spec for _, f2 in pairs],
+            "probability": window_probability(pmf, target_deg, tolerance_deg, order),
+            "mode_deg": (np.argmax(pmf, axis=1) + 0.5) * width,
+        }
+    )
+    return frame.sort_values("probability", ascending=False, kind="stable").reset_index(drop=True)
+
+
+def main(argv: list[str]) -> int:
+    from feeder.config import load_study_config
+    from feeder.learn.models import TrainedModel
+    from feeder.learn.predict import part_vector
+
+    parser = argparse.ArgumentParser(prog="feeder recommend", description=__doc__.splitlines()[0])
+    parser.add_argument("--model", type=Path, required=True, help="trained model directory")
+    parser.add_argument("--part", type=Path, help="part geometry (.stl or .xyz)")
+    parser.add_argument("--features", type=Path, help="precomputed features JSON instead of --part")
+    parser.add_argument("--target", type=float, required=True, help="wanted final yaw, degrees in [0, 360)")
+    parser.add_argument("--tolerance", type=float, required=True, help="half-width of the window, degrees")
+    parser.add_argument(
+        "--symmetry",
+        default="auto",
+        help="rotational order of the part: auto (from --part's outline; 1 with --features) or N",
+    )
+    parser.add_argument("--configs", help="comma-separated configuration ids (default: the study's fence grid)")
+    parser.add_argument("--top", type=int, default=DEFAULT_TOP, help="configurations printed")
+    parser.add_argument("--out", type=Path, help="CSV of every ranked configuration")
+    args = parser.parse_args(argv)
+
+    window_probability(np.ones(1), args.target, args.tolerance)  # bad target/tolerance fail before any work
+    if args.top < 1:
+        raise FeederError(f"--top must be positive, got {args.top}")
+    if args.configs:
+        config_ids = [c.strip() for c in args.configs.split(",") if c.strip()]
+    else:
+        config_ids = grid_configurations(load_study_config()["fences"])
+    order = _order(args.symmetry, args.part)
+    model = TrainedModel.load(args.model)
+    part_raw, frame_deg = part_vector(args.part, args.features)
+    ranked = rank(model, part_raw, frame_deg, config_ids, args.target, args.tolerance, order)
+    if args.out is not None:
+        from feeder.io import write_csv
+
+        write_csv(args.out, ranked)
+    sym = f", {order}-fold symmetric" if order > 1 else ""
+    print(f"P(final yaw within {args.tolerance:g} deg of {args.target:g} deg{sym}), {len(ranked)} configurations:")
+    print(ranked.head(args.top).to_string(index=False, float_format=lambda v: f"{v:.3f}"))
+    return 0
+
+
+def _order(setting: str, part: Path | None) -> int:
+    if setting != "auto":
+        try:
+            order = int(setting)
+        except ValueError:
+            raise FeederError(f"--symmetry must be auto or a positive integer, got {setting!r}") from None
+        if order < 1:
+            raise FeederError(f"--symmetry must be auto or a positive integer, got {setting!r}")
+        return order
+    if part is None or part.suffix.lower() != ".stl" or not part.is_file():
+        print("feeder recommend: no STL to read the symmetry from: order 1", file=sys.stderr)
+        return 1
+    from feeder.parts.geometry import load_part
+    from feeder.parts.symmetry import rotational_order
+
+    return rotational_order(load_part(part, "auto").outline)
