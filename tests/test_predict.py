@@ -161,6 +161,23 @@ def test_predict_from_stl(model_dir, tmp_path):
     assert pd.read_csv(out).pmf.sum() == pytest.approx(1.0)
 
 
+def test_plot_draws_the_part_at_its_most_likely_yaw(tmp_path):
+    from feeder.labels.metrics import resting_orientations
+
+    square = np.array([[0.0, 0.0], [0.02, 0.0], [0.02, 0.01], [0.0, 0.01]])
+    pmf = np.zeros(360)
+    pmf[[30, 200]] = [0.7, 0.3]
+    frame = pd.DataFrame({"angle_deg": np.arange(360.0), "pmf": pmf, "cdf": np.cumsum(pmf)})
+    fig = P.plot(frame, "t", square)
+    part_ax = fig.axes[1]
+    yaw, _ = resting_orientations(pmf, 1)[0]
+    assert yaw == pytest.approx(30.5) and "30.5 deg" in part_ax.get_title()
+    drawn = np.column_stack(part_ax.get_lines()[0].get_data())[:-1]
+    np.testing.assert_allclose(drawn, P.rotated_outline(square, 30.5))
+    np.testing.assert_allclose(P.rotated_outline(square, 90.0)[0], [5.0, -10.0], atol=1e-9)  # by hand
+    assert len(P.plot(frame, "t").axes) == 2  # without a part: the PMF and its CDF axis only
+
+
 def test_principal_frame_model_answers_in_the_part_frame(model_dir, tmp_path):
     """A model trained on feature-frame labels: its PMF is moved back by the part's frame_deg."""
     from feeder.labels import metrics as L

@@ -73,13 +73,46 @@ def predict_frame(model, part_raw: np.ndarray, loc1: str, loc2: str, frame_deg: 
     return pd.DataFrame({"angle_deg": np.arange(bins) * (360.0 / bins), "pmf": pmf[0], "cdf": cdf[0]})
 
 
-def plot(frame: pd.DataFrame, title: str):
+def rotated_outline(outline, yaw_deg: float) -> np.ndarray:
+    """The outline (N, 2, metres, the part file's frame) turned by ``yaw_deg`` about the mean of
+    its vertices, in millimetres: how the part lies on the belt at that final yaw."""
+    pts = np.asarray(outline, dtype=np.float64)
+    pts = pts - pts.mean(axis=0)
+    a = np.radians(yaw_deg)
+    rot = np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]])
+    return 1e3 * pts @ rot.T
+
+
+def draw_part(ax, outline, frame: pd.DataFrame) -> None:
+    """The part at its most likely final yaw, the belt running up the page (+y)."""
+    from feeder.labels.metrics import resting_orientations
+
+    yaw, mass = resting_orientations(frame["pmf"].to_numpy(), 1)[0]
+    pts = rotated_outline(outline, yaw)
+    closed = np.vstack([pts, pts[:1]])
+    ax.fill(closed[:, 0], closed[:, 1], color="tab:blue", alpha=0.3)
+    ax.plot(closed[:, 0], closed[:, 1], color="tab:blue", lw=1)
+    r = float(np.max(np.abs(pts)))
+    ax.annotate("", xy=(1.15 * r, 0.8 * r), xytext=(1.15 * r, -0.8 * r), arrowprops={"arrowstyle": "->"})
+    ax.text(1.2 * r, 0, "belt", rotation=90, va="center", fontsize=8)
+    ax.set_aspect("equal")
+    ax.set_xlim(-1.3 * r, 1.45 * r)
+    ax.set_ylim(-1.2 * r, 1.2 * r)
+    ax.set_xlabel("mm")
+    ax.set_title(f"most likely: {yaw:.1f} deg (p={mass:.2f})", fontsize=9)
+
+
+def plot(frame: pd.DataFrame, title: str, outline=None):
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, ax = plt.subplots(figsize=(6, 3))
+    if outline is None:
+        fig, ax = plt.subplots(figsize=(6, 3))
+    else:
+        fig, (ax, part_ax) = plt.subplots(1, 2, figsize=(9, 3), gridspec_kw={"width_ratios": [2, 1]})
+        draw_part(part_ax, outline, frame)
     ax.bar(frame.angle_deg, frame.pmf, width=360.0 / len(frame), align="edge", color="tab:blue")
     ax.set_xlim(0, 360)
     ax.set_xlabel("final yaw [deg]")
@@ -135,6 +168,12 @@ def main(argv: list[str]) -> int:
         from feeder.io import save_figure
 
         name = (args.part or args.features).stem
-        save_figure(args.plot, plot(frame, f"{model.spec.name}: {name}, loc1 {args.loc1}, loc2 {args.loc2}"))
+        outline = None
+        if args.part is not None and args.part.suffix.lower() == ".stl":
+            from feeder.parts.geometry import load_part
+
+            outline = load_part(args.part, "auto").outline
+        title = f"{model.spec.name}: {name}, loc1 {args.loc1}, loc2 {args.loc2}"
+        save_figure(args.plot, plot(frame, title, outline))
     print(f"feeder predict: features {1e3 * (t1 - t0):.1f} ms, network {1e3 * (t2 - t1):.1f} ms", file=sys.stderr)
     return 0
