@@ -435,6 +435,26 @@ def test_bad_sim_file_exclude_mode_counts_it(tmp_path, how, caplog):
     assert t4.loc["Fences", "samples"] == (df.dataset == "fences").sum() - 1
 
 
+def test_table4_counts_an_excluded_test_row_on_test_and_reports_the_realised_shares(tmp_path):
+    """The split is made before exclusion: a bad Test row is a Test exclusion, not a Train one."""
+    cfg = small_config()
+    cfg["labels"]["on_bad"] = "exclude"
+    df, csv = make_world(tmp_path, cfg)
+    test_row = df.index[df.split == "test"][0]
+    _break(tmp_path / "sim" / df.part[test_row] / f"{df.config_id[test_row]}.npz", "missing")
+    assert run_build(tmp_path, csv, cfg) == 0
+    ds = D.load_dataset(tmp_path / "dataset.npz")
+    assert list(ds["excluded_split"]) == ["test"]
+    t4 = D.table4(ds).set_index("dataset")
+    assert t4.loc["Main (Test)", "excluded"] == 1 and t4.loc["Main (Train)", "excluded"] == 0
+    n_train, n_test = (df.split == "train").sum(), (df.split == "test").sum() - 1
+    assert t4.loc["Main (Test)", "share_of_main"] == pytest.approx(n_test / (n_train + n_test))
+    assert t4.loc["Main (Train)", "share_of_main"] == pytest.approx(n_train / (n_train + n_test))
+    assert np.isnan(t4.loc["Fences", "share_of_main"]) and (t4.excluded_note == "").all()
+    old = {k: v for k, v in ds.items() if k != "excluded_split"}  # a dataset from before the key
+    assert D.table4(old).loc[0, "excluded"] == 1 and "not recorded" in D.table4(old).loc[0, "excluded_note"]
+
+
 def test_bad_feature_file_is_an_error(tmp_path):
     cfg = small_config()
     df, csv = make_world(tmp_path, cfg)

@@ -177,11 +177,11 @@ def _row_sim(sim_dir: Path, row) -> SimRecord:
 @dataclass
 class _Rows:
     """The usable rows of a configuration table with their records (yaws in the label frame),
-    the features of their parts and the excluded rows (part, config_id, dataset, reason)."""
+    the features of their parts and the excluded rows (part, config_id, dataset, reason, split)."""
 
     kept: list
     recs: list[SimRecord]
-    excluded: list[tuple[str, str, str, str]]
+    excluded: list[tuple[str, str, str, str, str]]
     feats: dict[str, np.ndarray]  # raw DFT values per part
     frames: dict[str, float]  # frame_deg per part (0 in the part frame)
 
@@ -200,7 +200,7 @@ def _read_rows(configs: pd.DataFrame, features_dir: Path, sim_dir: Path, labels:
             if labels["on_bad"] != "exclude":
                 raise
             log.warning("excluded %s/%s: %s", row.part, row.config_id, err)
-            out.excluded.append((row.part, row.config_id, row.dataset, str(err)))
+            out.excluded.append((row.part, row.config_id, row.dataset, str(err), row.split))
             continue
         if row.part not in out.feats:
             out.feats[row.part] = load_features(features_dir / f"{row.part}.json")
@@ -267,7 +267,7 @@ def build_dataset(configs: pd.DataFrame, features_dir, sim_dir, settings: dict) 
     lab = _label_arrays(rows, levels, bins, sigma, int(labels["emulated_drops"]))
     parts = np.array([r.part for r in rows.kept])
     group_fold = _group_folds(parts, int(settings["datasets"]["group_folds"]))
-    ex = np.array(rows.excluded, dtype=str).reshape(-1, 4)
+    ex = np.array(rows.excluded, dtype=str).reshape(-1, 5)
     out = {
         "part": parts,
         "config_id": np.array([r.config_id for r in rows.kept]),
@@ -290,6 +290,7 @@ def build_dataset(configs: pd.DataFrame, features_dir, sim_dir, settings: dict) 
         "excluded_config_id": ex[:, 1],
         "excluded_dataset": ex[:, 2],
         "excluded_reason": ex[:, 3],
+        "excluded_split": ex[:, 4],
         "settings": np.array(json.dumps(settings, sort_keys=True)),
     }
     for key, arr in out.items():
@@ -341,23 +342,25 @@ _TABLE4_ROWS = [
     ("Parts", ("parts",), "Unseen part geometries with known fences", "P3"),
     ("Total (All)", SPLITS, "All datasets combined", ""),
 ]
-_EXCLUDED_OF = {"train": "main", "test": "main", "fences": "fences", "parts": "parts"}
 
 
 def table4(ds: dict) -> pd.DataFrame:
-    """Samples and unique parts per dataset; ``excluded`` counts bad configurations dropped
-    (Main exclusions are counted once, on the Main (Train) row, since the split is per row)."""
+    """Samples and unique parts per dataset; ``excluded``: bad configurations dropped from it,
+    counted by the split each row had before exclusion (the split is made first, per row);
+    ``share_of_main``: the realised Train and Test shares of the Main rows kept.
+
+    Datasets written before the split of excluded rows was kept (no ``excluded_split``) count
+    Main exclusions on the Main (Train) row, as they used to, and say so in ``excluded_note``."""
+    has_split = "excluded_split" in ds
+    ex_split = (
+        ds["excluded_split"]
+        if has_split
+        else np.where(ds["excluded_dataset"] == "main", "train", ds["excluded_dataset"])
+    )
+    n_main = int(np.isin(ds["split"], ("train", "test")).sum())
     rows = []
     for name, splits, purpose, protocol in _TABLE4_ROWS:
         sel = np.isin(ds["split"], splits)
-        if name == "Main (Train)":
-            ex = int(np.sum(ds["excluded_dataset"] == "main"))
-        elif name == "Main (Test)":
-            ex = 0
-        elif name == "Total (All)":
-            ex = int(ds["excluded_dataset"].size)
-        else:
-            ex = int(np.sum(ds["excluded_dataset"] == _EXCLUDED_OF[splits[0]]))
         rows.append(
             {
                 "dataset": name,
@@ -365,7 +368,9 @@ def table4(ds: dict) -> pd.DataFrame:
                 "unique_parts": int(np.unique(ds["part"][sel]).size),
                 "purpose": purpose,
                 "protocol": protocol,
-                "excluded": ex,
+                "excluded": int(np.isin(ex_split, splits).sum()),
+                "share_of_main": float(sel.sum() / n_main) if splits in (("train",), ("test",)) and n_main else np.nan,
+                "excluded_note": "" if has_split else "split of excluded rows not recorded: Main exclusions on Train",
             }
         )
     return pd.DataFrame(rows)
