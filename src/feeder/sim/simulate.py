@@ -259,7 +259,7 @@ def main(argv: list[str]) -> int:
     if not path.is_file():
         raise FeederError(f"part file {path} not found")
     geom, unit = load_part_units(path, args.units)
-    if args.units == "auto":
+    if args.units == "auto" and unit != "m":  # say so when auto did not read metres
         print(f"{path}: read in {unit} (--units auto)", file=sys.stderr)
     try:
         design = {
