@@ -4,7 +4,7 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: run test smoke bench lint dryrun lock clean-venv
+.PHONY: run test test-cluster smoke bench lint dryrun lock clean-venv
 
 # (Re)build the environment when it is missing or older than the lock or the package metadata.
 $(STAMP): environment.lock pyproject.toml
@@ -21,6 +21,14 @@ run: $(STAMP)
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -q
+
+# The smoke simulations through SLURM on a one-node cluster on this machine (root: installs Debian's
+# slurm-wlm and munge when missing), compared with a local run. `make test` runs it too when the
+# cluster can be brought up, and skips it otherwise.
+test-cluster: $(STAMP)
+	profiles/slurm-local/up.sh
+	FEEDER_REQUIRE_CLUSTER=1 FEEDER_CLUSTER_LOG=$(CURDIR)/results/cluster/slurm_smoke.log \
+		$(BIN)/python -m pytest -q tests/test_cluster.py
 
 # The benchmarks of the simulator (accuracy against time, yaw designs, jams, projected cost): hours.
 bench: $(STAMP)

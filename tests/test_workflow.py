@@ -72,7 +72,11 @@ def test_lint_and_dry_run_are_clean(tmp_path, configfile):
     extra = ("--configfile", configfile) if configfile else ()
     lint = snakemake(work, "--lint", *extra)
     assert lint.returncode == 0, lint.stdout[-3000:] + lint.stderr[-3000:]
-    assert planned_jobs(work, *extra), "the dry run plans no jobs"
+    jobs = planned_jobs(work, *extra)
+    assert jobs, "the dry run plans no jobs"
+    if configfile is None:  # `make run` on a fresh checkout schedules the study, never a benchmark
+        benches = sorted({rule for rule, _ in jobs if rule.startswith("bench")})
+        assert not benches, f"the default target schedules benchmarks: {benches}"
 
 
 def test_crash_midway_then_restart_gives_identical_outputs(smoke_run, tmp_path):
