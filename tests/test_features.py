@@ -6,6 +6,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import shapely
 
 from feeder.cli import main as cli
 from feeder.errors import FeederError
@@ -330,3 +331,175 @@ def test_frame_deg_is_none_for_a_face_outside_the_xy_plane(tmp_path):
     path.write_text("".join(f"7.5,{x},{y}\n" for x, y, _ in pts))
     assert features_of_file(path)["frame_deg"] is None
     assert features_of_file(PARTS / "tshape-a.xyz")["frame_deg"] is not None
+
+
+# ---------------------------------------------------------------- the fast path keeps every value
+# sha256 of as_vector(features) (little-endian float64) and frame_deg, recorded with the code before
+# the speed-ups of `feeder bench-predict` (scipy splprep/splev, cKDTree, binary_fill_holes, the
+# face lattice measured point by point): the features must stay bit-identical.
+PINNED_FEATURES = {
+    "rect-a2.stl": ("032bf8ef07d2e8f5f7152e349245c6246e36b2592713bad44ae1173bd962a10f", 180.00003641771144),
+    "gear20-a.stl": ("8ca460c4533a15800f66a9d2b939994cae0a80a4fba53be00e9f7d518a50a40a", 171.00000470409103),
+    "keyhole-a.xyz": ("65b61bce794f1adcf8d9689f08b2717fd25ddf946e7f8e55fe622858e3464255", 269.8966700919347),
+}
+# library parts whose contours and faces are compared with the straightforward implementations
+SAMPLE_PARTS = ["rect-a2", "crescent-a", "gear20-a", "blob-d", "keyhole-a", "tri-sliver", "star5-a", "ushape-deep"]
+
+
+@pytest.mark.parametrize("name", sorted(PINNED_FEATURES))
+def test_features_are_pinned_bit_for_bit(name):
+    import hashlib
+
+    feats = features_of_file(PARTS / name)
+    digest = hashlib.sha256(as_vector(feats).astype("<f8").tobytes()).hexdigest()
+    assert (digest, feats["frame_deg"]) == PINNED_FEATURES[name]
+
+
+def _contour(path):
+    from feeder.parts.features import contour_of, load_points, silhouette
+
+    return contour_of(silhouette(principal_align(load_points(path))), str(path))
+
+
+def test_spline_port_equals_scipy_on_library_contours():
+    """feeder.parts.fitpack gives scipy's splprep(s=0)/splev bit for bit (the features' step 5)."""
+    from scipy.interpolate import splev, splprep
+
+    from feeder.parts import fitpack
+    from feeder.parts.features import spline_samples
+
+    for name in SAMPLE_PARTS:
+        contour = _contour(PARTS / f"{name}.stl")
+        u = np.linspace(0.0, 1.0, len(contour))
+        (t_ref, c_ref, _), _ = splprep([contour[:, 0], contour[:, 1]], u=u, s=0, k=DFT.spline_degree)
+        t, c = fitpack.fit_interpolating(contour.T, u, DFT.spline_degree)
+        assert t.tobytes() == np.asarray(t_ref).tobytes(), name
+        assert c.tobytes() == np.asarray(c_ref)[:, : c.shape[1]].tobytes(), name
+        x_ref, y_ref = splev(np.linspace(0.0, 1.0, DFT.samples), (t_ref, c_ref, DFT.spline_degree))
+        z_ref = np.asarray(x_ref) + 1j * np.asarray(y_ref)
+        assert spline_samples(contour).tobytes() == (z_ref - z_ref.mean()).tobytes(), name
+
+
+@pytest.mark.parametrize("k", [1, 2, 3, 4, 5])
+def test_spline_port_equals_scipy_on_random_curves_of_every_degree(k):
+    from scipy.interpolate import splev, splprep
+
+    from feeder.parts import fitpack
+
+    rng = np.random.default_rng(k)
+    for m in (k + 1, k + 2, 11, 80):
+        u = np.sort(rng.uniform(0.0, 1.0, m))
+        x = rng.normal(size=(3, m))
+        (t_ref, c_ref, _), _ = splprep(list(x), u=u, s=0, k=k)
+        t, c = fitpack.fit_interpolating(x, u, k)
+        at = np.linspace(u[0] - 0.1, u[-1] + 0.1, 37)  # beyond the ends too: extrapolation
+        assert t.tobytes() == np.asarray(t_ref).tobytes()
+        assert fitpack.evaluate(t, c, k, at).tobytes() == np.asarray(splev(at, (t_ref, c_ref, k))).tobytes()
+    with pytest.raises(FeederError):
+        fitpack.fit_interpolating(np.zeros((2, k)), np.arange(k, dtype=float), k)  # too few points
+
+
+def test_largest_gap_equals_a_kd_tree():
+    from scipy.spatial import cKDTree
+
+    from feeder.parts.features import largest_gap
+
+    rng = np.random.default_rng(0)
+    for n, spread in [(2, 480), (3, 480), (40, 480), (500, 100), (4000, 480), (4000, 40), (300, 3)]:
+        pts = rng.integers(0, spread, size=(n, 2)) + 10
+        uniq = np.unique(pts, axis=0)
+        want = float(cKDTree(uniq).query(uniq, k=2)[0][:, 1].max()) if len(uniq) >= 2 else 1.0
+        assert largest_gap(pts) == want
+    far = np.array([[10, 10], [11, 10], [489, 489], [489, 488], [250, 10]])  # clusters far apart
+    assert largest_gap(far) == float(cKDTree(far).query(far, k=2)[0][:, 1].max())
+    assert largest_gap(np.array([[5, 5], [5, 5]])) == 1.0  # one distinct pixel
+
+
+def test_fill_holes_equals_scipy():
+    from scipy import ndimage
+
+    from feeder.parts.features import fill_holes
+
+    rng = np.random.default_rng(1)
+    for _ in range(50):
+        mask = rng.random((int(rng.integers(1, 50)), int(rng.integers(1, 50)))) < rng.uniform(0.2, 0.8)
+        assert np.array_equal(fill_holes(mask), ndimage.binary_fill_holes(mask))
+
+
+def _face_points_reference(outline, spacing):
+    """feeder.parts.geometry.face_points as it was: edge by edge, every lattice point measured."""
+    outline = np.asarray(outline, dtype=np.float64)
+    h = float(spacing)
+    nxt = np.roll(outline, -1, axis=0)
+    boundary = []
+    for p, q in zip(outline, nxt):
+        m = max(1, int(np.ceil(np.linalg.norm(q - p) / h)))
+        t = np.arange(m)[:, None] / m
+        boundary.append(p + t * (q - p))
+    lo, hi = outline.min(axis=0), outline.max(axis=0)
+    dy = h * np.sqrt(3.0) / 2.0
+    ys = lo[1] + dy / 2 + dy * np.arange(int(np.floor((hi[1] - lo[1]) / dy)) + 1)
+    xs = lo[0] + h / 4 + h * np.arange(int(np.floor((hi[0] - lo[0]) / h)) + 1)
+    gx, gy = np.meshgrid(xs, ys)
+    gx = gx + (np.arange(len(ys))[:, None] % 2) * (h / 2)
+    grid = np.column_stack([gx.ravel(), gy.ravel()])
+    poly = shapely.Polygon(outline)
+    grid = grid[shapely.contains_xy(poly, grid[:, 0], grid[:, 1])]
+    far = shapely.distance(poly.exterior, shapely.points(grid)) >= h / 2
+    return np.concatenate([*boundary, grid[far]])
+
+
+def _test_outlines():
+    from feeder.parts.geometry import clean_outline, read_outline
+
+    rng = np.random.default_rng(2)
+    outlines = [clean_outline(read_outline(PARTS / f"{name}.stl")[0]) for name in SAMPLE_PARTS]
+    for teeth, scale, offset in [(5, 1e-3, 0.0), (17, 1.0, 300.0), (40, 25.0, -40.0)]:
+        angles = np.linspace(0.0, 2 * np.pi, 2 * teeth, endpoint=False)
+        radii = np.where(np.arange(2 * teeth) % 2 == 0, 1.0, rng.uniform(0.2, 0.8)) * rng.uniform(0.9, 1.1, 2 * teeth)
+        outlines.append(np.column_stack([np.cos(angles), np.sin(angles)]) * radii[:, None] * scale + offset)
+    angles = np.linspace(0.0, 2 * np.pi, 1500, endpoint=False)  # a finely tessellated CAD curve
+    outlines.append(np.column_stack([np.cos(angles), 0.3 * np.sin(angles)]))
+    outlines.append(np.array([[0, 0], [10, 0], [10, 1], [1, 1], [1, 9], [10, 9], [10, 10], [0, 10]], dtype=float))
+    return outlines
+
+
+def test_face_points_equal_the_point_by_point_construction():
+    from feeder.parts.geometry import face_points
+
+    for outline in _test_outlines():
+        extent = float(np.max(np.ptp(outline, axis=0)))
+        for share in (0.3, 0.05, 0.011):
+            got = face_points(outline, extent * share)
+            assert got.tobytes() == _face_points_reference(outline, extent * share).tobytes()
+
+
+def test_face_cloud_equals_the_bisection_over_the_reference_points():
+    from feeder.parts.geometry import signed_area
+
+    for outline in _test_outlines()[:8]:
+        n_points = DFT.stl_cloud_points
+        area = abs(signed_area(outline))
+        perim = float(np.sum(np.linalg.norm(np.roll(outline, -1, axis=0) - outline, axis=1)))
+        a_coef = 2.0 * area / np.sqrt(3.0)
+        h = (perim + np.sqrt(perim**2 + 4.0 * a_coef * n_points)) / (2.0 * n_points)
+        lo_h, hi_h = h / 2.0, h * 2.0
+        want = _face_points_reference(outline, h)
+        for _ in range(24):
+            if abs(len(want) - n_points) <= max(5, n_points // 200):
+                break
+            lo_h, hi_h = (h, hi_h) if len(want) > n_points else (lo_h, h)
+            h = float(np.sqrt(lo_h * hi_h))
+            want = _face_points_reference(outline, h)
+        assert face_cloud(outline, n_points).tobytes() == want.tobytes()
+
+
+def test_features_import_no_scipy():
+    """The feature path needs OpenCV and shapely only (scipy.interpolate alone costs 0.3-0.6 s)."""
+    code = (
+        "import sys\nfrom feeder.parts.features import features_of_file\n"
+        f"features_of_file({str(PARTS / 'rect-a2.stl')!r})\n"
+        "print(sorted({m.split('.')[0] for m in sys.modules} & {'scipy', 'torch', 'matplotlib'}))"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "[]"

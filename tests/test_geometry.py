@@ -259,3 +259,23 @@ def test_library_parts_load_with_exact_decomposition():
         assert sum(signed_area(p) for p in g.convex_pieces) == pytest.approx(g.area, rel=1e-9)
         ev = np.linalg.eigvalsh([[g.second_moment[0], g.second_moment[2]], [g.second_moment[2], g.second_moment[1]]])
         assert ev.min() > 0 and math.isfinite(ev.max())
+
+
+def test_load_outline_is_load_parts_outline(tmp_path):
+    from pathlib import Path
+
+    from feeder.parts.geometry import load_outline
+
+    parts = Path(__file__).resolve().parents[1] / "parts"
+    for name in ("rect-a2", "crescent-a", "lshape-a"):
+        want = load_part(parts / f"{name}.stl", "auto").outline
+        assert load_outline(parts / f"{name}.stl", "auto").tobytes() == want.tobytes()
+    mm = tmp_path / "mm.stl"
+    mm.write_bytes(stl_bytes(np.array(L_SHAPE, dtype=float) * 20.0, 5.0))  # millimetres
+    assert load_outline(mm, "auto").tobytes() == load_part(mm, "auto").outline.tobytes()
+    with pytest.raises(FeederError, match="millimetres"):
+        load_outline(mm, "m")
+    broken = tmp_path / "broken.stl"
+    broken.write_bytes(b"solid x\nendsolid x\n")
+    with pytest.raises(FeederError, match="broken.stl"):
+        load_outline(broken)

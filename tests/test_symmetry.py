@@ -97,3 +97,24 @@ def test_bad_settings_raise():
         S.rotational_order(SQUARE, max_order=0)
     with pytest.raises(FeederError):
         S.check_order(SQUARE, 0)
+
+
+def test_rotational_order_equals_measuring_every_order_in_full():
+    """The cheap vertex bound skips only orders the full measurement rejects too: the same order
+    as measuring the symmetry error of every turn."""
+    from pathlib import Path
+
+    from shapely.geometry import Polygon
+
+    from feeder.parts.geometry import load_part
+
+    parts = Path(__file__).resolve().parents[1] / "parts"
+    outlines = [LSHAPE, RECT, ngon(6), ngon(64), SQUARE * 0.02 + 7.0]
+    outlines += [load_part(parts / f"{n}.stl").outline for n in ("crescent-a", "gear8-a", "star5-a", "keyhole-a")]
+    for outline in outlines:
+        for n in range(2, S.DEFAULT_MAX_ORDER + 1):
+            poly = Polygon(outline)
+            assert S._vertex_error(poly, n) <= S._error(poly, n) + S._BOUND_SLACK
+        for tol in (S.DEFAULT_SYMMETRY_TOLERANCE, 0.05, 1e-6):
+            full = next((n for n in range(S.DEFAULT_MAX_ORDER, 1, -1) if S.symmetry_error(outline, n) <= tol), 1)
+            assert S.rotational_order(outline, tol) == full

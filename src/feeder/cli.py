@@ -31,6 +31,10 @@ COMMANDS: dict[str, tuple[str, str]] = {
     ),
     "bench-cost": ("feeder.bench.cost", "project the simulation stage's CPU and wall time from a sample of its jobs"),
     "bench-scheduler": ("feeder.bench.scheduler", "CPU the snakemake process spends scheduling simulation jobs"),
+    "bench-predict": (
+        "feeder.bench.predict",
+        "time a trained model's answers: features from the STL, one configuration, the whole fence grid",
+    ),
     "scene-table": ("feeder.sim.scene", "Table 1: every physical parameter of the simulated scene"),
     "labels": ("feeder.labels.pmf", "PMF/CDF labels from simulation outputs"),
     "datasets": ("feeder.labels.dataset", "configuration list, splits and the merged dataset"),
@@ -52,6 +56,18 @@ def _usage() -> str:
     return "\n".join(lines)
 
 
+def _one_line_errors(self, message: str):
+    """argparse's error without the usage block: ``feeder CMD: error: MESSAGE`` on one line,
+    exit 2, like every other error (``feeder CMD --help`` shows the usage)."""
+    self.exit(2, f"{self.prog}: error: {message} (--help for usage)\n")
+
+
+def _one_line_usage_errors() -> None:
+    import argparse
+
+    argparse.ArgumentParser.error = _one_line_errors
+
+
 def main(argv: list[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     if not argv or argv[0] in {"-h", "--help"}:
@@ -59,8 +75,9 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     name, rest = argv[0], argv[1:]
     if name not in COMMANDS:
-        print(f"feeder: unknown command {name!r}\n\n{_usage()}", file=sys.stderr)
+        print(f"feeder: unknown command {name!r} (feeder --help lists them)", file=sys.stderr)
         return 2
+    _one_line_usage_errors()
     module = importlib.import_module(COMMANDS[name][0])
     try:
         return int(module.main(rest) or 0)

@@ -6,7 +6,8 @@ Two kinds of settings:
   which the workflow reads with Snakemake's ``--configfile`` and hands to each command as a
   ``--settings`` JSON of the sections it needs: :func:`load_study_config` (what
   ``snakemake --configfile <overlays>`` sees, for commands run outside the workflow; with
-  :func:`study_root`, where that study is) and :func:`parse_settings` (a command's ``--settings``);
+  :func:`study_root`, where that study is; checked against the workflow's schema by
+  :func:`check_study_config`) and :func:`parse_settings` (a command's ``--settings``);
 * the model settings, Hydra files under ``config/hydra/`` (``train.yaml`` with the groups
   ``model/``, ``trainer/``, ``hparams_search/``; ``vae.yaml``; ``delta.yaml``):
   :func:`hydra_config_dir` (where they are), :func:`compose_config` (one composed config) and
@@ -19,6 +20,7 @@ parse time.
 
 from __future__ import annotations
 
+import functools
 import json
 import os
 from collections.abc import Sequence
@@ -28,6 +30,7 @@ from feeder.errors import FeederError
 
 HYDRA_SUBDIR = Path("config") / "hydra"  # relative to a study directory (or the repository)
 STUDY_CONFIG = Path("config") / "config.yaml"  # likewise
+STUDY_SCHEMA = Path("workflow") / "schemas" / "config.schema.yaml"  # what Snakemake validates at start
 
 
 # ----------------------------------------------------------------------------------------------
@@ -59,18 +62,68 @@ def overlay_config(base: dict, over: dict) -> dict:
     return base
 
 
-def load_study_config(*overlays: str | os.PathLike, root: str | os.PathLike = ".") -> dict:
+def load_study_config(*overlays: str | os.PathLike, root: str | os.PathLike = ".", check: bool = False) -> dict:
     """config/config.yaml of the study in ``root`` overlaid by the given files (paths relative to
-    ``root`` unless absolute), as ``snakemake --configfile <overlays>`` sees it."""
+    ``root`` unless absolute), as ``snakemake --configfile <overlays>`` sees it; with ``check``,
+    validated as the workflow validates it (:func:`check_study_config`)."""
     import yaml
 
     merged: dict = {}
-    for name in (STUDY_CONFIG, *overlays):
-        path = Path(root) / name
+    paths = [Path(root) / name for name in (STUDY_CONFIG, *overlays)]
+    for path in paths:
         if not path.is_file():
             raise FeederError(f"config file {path} not found (run from the project root or pass --settings)")
-        overlay_config(merged, yaml.safe_load(path.read_text()) or {})
+        try:
+            data = yaml.load(path.read_text(), Loader=_yaml_loader()) or {}
+        except (yaml.YAMLError, UnicodeDecodeError) as err:
+            raise FeederError(f"config file {path} is not valid YAML: {_one_line(str(err))}") from None
+        if not isinstance(data, dict):
+            raise FeederError(f"config file {path} is not a mapping of config sections")
+        overlay_config(merged, data)
+    if check:
+        check_study_config(merged, " + ".join(map(str, paths)), study_schema(root))
     return merged
+
+
+def _one_line(text: str) -> str:
+    return " ".join(text.split())
+
+
+def _yaml_loader():
+    """yaml's safe loader, its libyaml build when there is one (the same YAML, parsed faster)."""
+    import yaml
+
+    return getattr(yaml, "CSafeLoader", yaml.SafeLoader)
+
+
+@functools.lru_cache(maxsize=4)
+def _schema_validator(path: Path, mtime_ns: int):
+    import jsonschema
+    import yaml
+
+    spec = yaml.load(path.read_text(), Loader=_yaml_loader())
+    return jsonschema.validators.validator_for(spec)(spec)
+
+
+def study_schema(root: str | os.PathLike = ".") -> Path:
+    """The config schema of the study in ``root``, else the repository's (next to the package)."""
+    local = Path(root) / STUDY_SCHEMA
+    return local if local.is_file() else Path(__file__).resolve().parents[2] / STUDY_SCHEMA
+
+
+def check_study_config(config: dict, source: str = "config", schema: str | os.PathLike | None = None) -> dict:
+    """``config`` checked against the workflow's schema (``workflow/schemas/config.schema.yaml``,
+    what Snakemake validates at start); the first problem is a one-line :class:`FeederError`
+    naming ``source`` and the setting (``sim.drops: -5 is less than the minimum of 1``)."""
+    import jsonschema
+
+    path = Path(schema if schema is not None else study_schema()).resolve()
+    validator = _schema_validator(path, path.stat().st_mtime_ns)
+    error = jsonschema.exceptions.best_match(validator.iter_errors(config))
+    if error is not None:
+        where = ".".join(map(str, error.absolute_path)) or "top level"
+        raise FeederError(f"{source}: {where}: {_one_line(error.message)}")
+    return config
 
 
 def study_root(cwd: str | os.PathLike | None = None) -> Path:
@@ -142,8 +195,8 @@ def add_settings_options(parser):
 
 def study_settings(args) -> dict:
     """The settings named by :func:`add_settings_options`: the JSON, else config/config.yaml of
-    the study (:func:`study_root`) with the overlays laid on top."""
+    the study (:func:`study_root`) with the overlays laid on top, checked against the schema."""
     if args.settings:
         return parse_settings(args.settings)
     overlays = [str(Path(f).resolve()) for f in args.configfile or []]
-    return load_study_config(*overlays, root=study_root())
+    return load_study_config(*overlays, root=study_root(), check=True)

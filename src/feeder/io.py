@@ -27,17 +27,25 @@ def _umask() -> int:
 
 @contextlib.contextmanager
 def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
-    """Yield a temporary path next to ``path``; rename it onto ``path`` only if the block succeeds."""
+    """Yield a temporary path next to ``path``; rename it onto ``path`` only if the block succeeds.
+    An output that cannot be written there (a directory in the way, a parent that is a file, no
+    permission) is a one-line :class:`FeederError` naming it."""
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    except OSError as err:
+        raise FeederError(f"cannot write {path} ({err.strerror})") from None
     os.close(fd)
     tmp_path = Path(tmp)
     try:
         yield tmp_path
         # mkstemp makes the file private (0600); a result gets the usual mode (0666 minus umask)
         os.chmod(tmp_path, 0o666 & ~_umask())
-        os.replace(tmp_path, path)
+        try:
+            os.replace(tmp_path, path)
+        except OSError as err:
+            raise FeederError(f"cannot write {path} ({err.strerror})") from None
     finally:
         if tmp_path.exists():
             tmp_path.unlink()
@@ -66,6 +74,17 @@ def write_npz(path: str | os.PathLike, **arrays: Any) -> None:
 def write_csv(path: str | os.PathLike, frame) -> None:
     """Write a pandas DataFrame as CSV atomically (no index)."""
     write_text(path, frame.to_csv(index=False, lineterminator="\n"))
+
+
+def check_figure_path(path: str | os.PathLike) -> None:
+    """FeederError unless matplotlib can write the image format of ``path``'s suffix (no suffix:
+    png): check before the work whose result is drawn, so a bad name costs nothing."""
+    from matplotlib.backend_bases import FigureCanvasBase
+
+    fmt = Path(path).suffix.lstrip(".").lower() or "png"
+    formats = FigureCanvasBase.get_supported_filetypes()
+    if fmt not in formats:
+        raise FeederError(f"cannot draw {path}: unknown image format {fmt!r} (use one of {', '.join(sorted(formats))})")
 
 
 def save_figure(path: str | os.PathLike, fig) -> None:

@@ -9,6 +9,7 @@
 #   results/tables/label_emulation*.csv       (+ figure)  emulated i.i.d. drops against real ones
 
 from feeder.bench.emulation import entries as emulation_bench_entries, run_settings as emulation_run_settings
+from feeder.bench.predict import DEFAULT_PARTS as PREDICT_BENCH_DEFAULT_PARTS
 
 BENCH_TARGETS = [
     "results/tables/sim_accuracy_vs_time.csv",
@@ -34,6 +35,8 @@ DESIGN_DIR = "results/bench/designs/{preset}-{reference_yaws}".format(**config["
 # the emulation bench's configurations: one simulation job each, raw data kept; a job's settings
 # hold its own configuration only, so adding one to the list reruns no other
 EMULATION_KEYS = [e["key"] for e in emulation_bench_entries(config)]
+# the parts bench_predict times: its default panel, those in use (else the first part in use)
+PREDICT_BENCH_PARTS = [p for p in PREDICT_BENCH_DEFAULT_PARTS if p in PARTS] or PARTS[:1]
 EMULATION_DIR = "results/bench/emulation/{preset}".format(**config["sim"]["emulation_bench"])
 
 
@@ -245,3 +248,26 @@ rule bench_emulation:
     shell:
         "feeder bench-emulation table --runs {input.runs} --settings '{params.settings}'"
         " --out-csv {output.rows} --out-summary {output.summary} > {log} 2>&1"
+
+
+rule bench_predict:
+    """How fast the reference model answers for a part (feeder bench-predict): features from the
+    STL, one configuration, the whole fence grid. Not in `bench`: it needs the trained model. Build
+    it as its own target once the model exists, so no other job shares the cores while it times."""
+    input:
+        code("bench-predict"),
+        model=f"results/models/{REFERENCE_MODEL}/model.pt",
+        parts=expand("{dir}/{part}.stl", dir=config["parts"]["dir"], part=PREDICT_BENCH_PARTS),
+    output:
+        raw="results/tables/predict_speed.csv",
+        summary="results/tables/predict_speed_summary.csv",
+    log:
+        "logs/bench_predict/bench_predict.log",
+    conda:
+        "../envs/feeder.yaml"
+    params:
+        settings=settings_json("fences"),
+        model_dir=f"results/models/{REFERENCE_MODEL}",
+    shell:
+        "feeder bench-predict --model {params.model_dir} --parts {input.parts}"
+        " --settings '{params.settings}' --out {output.raw} --summary {output.summary} > {log} 2>&1"

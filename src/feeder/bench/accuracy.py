@@ -353,14 +353,14 @@ def add_config_source(parser: argparse.ArgumentParser, sections: str) -> None:
 
 
 def config_from_args(args: argparse.Namespace) -> dict:
-    """The config chosen by :func:`add_config_source`'s options."""
+    """The config chosen by :func:`add_config_source`'s options (files checked against the schema)."""
     if args.settings is not None:
         from feeder.config import parse_settings
 
         return parse_settings(args.settings)
     from feeder.config import load_study_config
 
-    return load_study_config(*args.configfile)
+    return load_study_config(*args.configfile, check=True)
 
 
 def bench_cli(prog: str, doc: str, argv: list[str]) -> tuple[str, dict, dict, dict]:

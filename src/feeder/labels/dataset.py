@@ -56,6 +56,8 @@ def load_features(path) -> np.ndarray:
         k, mag, ph = (np.asarray(obj[key], dtype=np.float64) for key in ("k", "magnitude", "phase"))
     except FileNotFoundError:
         raise FeederError(f"feature file {path} is missing") from None
+    except OSError as err:
+        raise FeederError(f"feature file {path}: cannot read ({err.strerror})") from None
     except (json.JSONDecodeError, KeyError, TypeError, ValueError) as err:
         raise FeederError(f"feature file {path} is not {{k, magnitude, phase}} JSON ({err})") from None
     if not (k.shape == mag.shape == ph.shape == (N_DFT // 3,)) or not np.isfinite(np.r_[k, mag, ph]).all():
@@ -70,7 +72,9 @@ def load_frame_deg(path) -> float:
         value = json.loads(path.read_text()).get("frame_deg")
     except FileNotFoundError:
         raise FeederError(f"feature file {path} is missing") from None
-    except (json.JSONDecodeError, AttributeError) as err:
+    except OSError as err:
+        raise FeederError(f"feature file {path}: cannot read ({err.strerror})") from None
+    except (json.JSONDecodeError, UnicodeDecodeError, AttributeError) as err:
         raise FeederError(f"feature file {path} is not a features JSON ({err})") from None
     if value is None or not isinstance(value, (int, float)) or not math.isfinite(value):
         raise FeederError(

@@ -27,6 +27,38 @@ import pandas as pd
 from feeder.errors import FeederError
 
 TOP_ORIENTATIONS = 3  # resting orientations feeder predict prints
+# torch threads for predict/recommend: one part's batch (one row, or a few hundred configurations)
+# is too small to share among threads, and with other jobs on the cores extra threads only wait
+# for each other (`feeder bench-predict`, 2 cores busy with other jobs: the 360-configuration grid
+# in a median 20 ms with one thread, 168 ms with torch's default two).
+INFERENCE_THREADS = 1
+
+
+def load_model(path: Path):
+    """The :class:`feeder.learn.models.TrainedModel` in ``path``, torch set up for inference
+    (``INFERENCE_THREADS``)."""
+    import torch
+
+    from feeder.learn.models import TrainedModel
+
+    torch.set_num_threads(INFERENCE_THREADS)
+    return TrainedModel.load(path)
+
+
+def check_part_fits(part: Path) -> None:
+    """Refuse an STL part the simulator refuses (wider than the belt, or too thin for the fences:
+    :func:`feeder.sim.body.check_fit`, units as ``--units auto``): the model has never seen such a
+    part and would answer for a scene that cannot happen. A face point cloud (``.xyz``) has no
+    thickness and is not checked."""
+    if part.suffix.lower() != ".stl":
+        return
+    from feeder.parts.geometry import load_footprint, polygon_moments
+    from feeder.sim.body import check_fit
+    from feeder.sim.scene import load_settings
+
+    outline, thickness = load_footprint(part, "auto")
+    _, centroid, _ = polygon_moments(outline)
+    check_fit(part.stem, outline, centroid, thickness, load_settings()[0])
 
 
 def part_vector(part: Path | None, features: Path | None) -> tuple[np.ndarray, float | None]:
@@ -43,6 +75,7 @@ def part_vector(part: Path | None, features: Path | None) -> tuple[np.ndarray, f
         return load_features(features), frame
     if not part.is_file():
         raise FeederError(f"part file {part} is missing")
+    check_part_fits(part)
     from feeder.parts.features import as_vector, features_of_file
 
     feats = features_of_file(part)
@@ -146,11 +179,14 @@ def main(argv: list[str]) -> int:
     parser.add_argument("--plot", type=Path, help="also draw the PMF/CDF to this image")
     args = parser.parse_args(argv)
 
-    from feeder.learn.models import TrainedModel
     from feeder.sim.fences import parse_location
 
     parse_location(args.loc1), parse_location(args.loc2)  # bad fences fail before any work
-    model = TrainedModel.load(args.model)
+    if args.plot is not None:
+        from feeder.io import check_figure_path
+
+        check_figure_path(args.plot)
+    model = load_model(args.model)
     t0 = time.perf_counter()
     part_raw, frame_deg = part_vector(args.part, args.features)
     t1 = time.perf_counter()
@@ -170,9 +206,9 @@ def main(argv: list[str]) -> int:
         name = (args.part or args.features).stem
         outline = None
         if args.part is not None and args.part.suffix.lower() == ".stl":
-            from feeder.parts.geometry import load_part
+            from feeder.parts.geometry import load_outline
 
-            outline = load_part(args.part, "auto").outline
+            outline = load_outline(args.part, "auto")
         title = f"{model.spec.name}: {name}, loc1 {args.loc1}, loc2 {args.loc2}"
         save_figure(args.plot, plot(frame, title, outline))
     print(f"feeder predict: features {1e3 * (t1 - t0):.1f} ms, network {1e3 * (t2 - t1):.1f} ms", file=sys.stderr)

@@ -101,8 +101,7 @@ def rank(model, part_raw, frame_deg, config_ids, target_deg, tolerance_deg, orde
 
 def main(argv: list[str]) -> int:
     from feeder.config import load_study_config
-    from feeder.learn.models import TrainedModel
-    from feeder.learn.predict import part_vector
+    from feeder.learn.predict import load_model, part_vector
 
     parser = argparse.ArgumentParser(prog="feeder recommend", description=__doc__.splitlines()[0])
     parser.add_argument("--model", type=Path, required=True, help="trained model directory")
@@ -127,8 +126,8 @@ def main(argv: list[str]) -> int:
         config_ids = [c.strip() for c in args.configs.split(",") if c.strip()]
     else:
         config_ids = grid_configurations(load_study_config()["fences"])
-    order = _order(args.symmetry, args.part)
-    model = TrainedModel.load(args.model)
+    order = symmetry_order(args.symmetry, args.part)
+    model = load_model(args.model)
     part_raw, frame_deg = part_vector(args.part, args.features)
     ranked = rank(model, part_raw, frame_deg, config_ids, args.target, args.tolerance, order)
     if args.out is not None:
@@ -141,7 +140,9 @@ def main(argv: list[str]) -> int:
     return 0
 
 
-def _order(setting: str, part: Path | None) -> int:
+def symmetry_order(setting: str, part: Path | None) -> int:
+    """The part's rotational order for ``--symmetry``: the given number, or for ``auto`` the
+    order of its STL outline (:func:`feeder.parts.symmetry.rotational_order`; 1 without an STL)."""
     if setting != "auto":
         try:
             order = int(setting)
@@ -153,7 +154,7 @@ def _order(setting: str, part: Path | None) -> int:
     if part is None or part.suffix.lower() != ".stl" or not part.is_file():
         print("feeder recommend: no STL to read the symmetry from: order 1", file=sys.stderr)
         return 1
-    from feeder.parts.geometry import load_part
+    from feeder.parts.geometry import load_outline
     from feeder.parts.symmetry import rotational_order
 
-    return rotational_order(load_part(part, "auto").outline)
+    return rotational_order(load_outline(part, "auto"))

@@ -40,7 +40,8 @@ Pipeline (:func:`outline_samples` then :func:`dft_features`):
    ``findContours``, so the outer contour runs one pixel outside the edge ring. A contour that
    encloses less than 90 % of the silhouette is an error, never a silent feature vector.
 5. **Spline.** Cubic B-spline through the contour points (``splprep``, s = 0, parameter = contour
-   order on [0, 1], open curve as in the paper), sampled at 100 uniformly spaced parameters.
+   order on [0, 1], open curve as in the paper), sampled at 100 uniformly spaced parameters
+   (scipy's FITPACK ``splprep``/``splev``, replayed bit for bit by :mod:`feeder.parts.fitpack`).
 6. **Recentre** on the mean of the 100 samples; **DFT** ``numpy.fft.fft(x + j y)`` (unnormalised,
    pixel units).
 7. **Select** the 15 largest-magnitude coefficients, sorted by decreasing magnitude (ties keep the
@@ -88,6 +89,12 @@ class DFTSettings:
 
 
 DFT = DFTSettings()
+
+# Nearest-neighbour gap of the silhouette's pixels (:func:`largest_gap`): first search radius (px;
+# a 4,000-point face cloud on the canvas has gaps of about 3-8 px) and offsets looked up per pass.
+GAP_SEARCH_START_PX = 8
+GAP_SEARCH_BLOCK = 32
+_OUTSIDE = 2  # flood-fill label of the background reached from the border (:func:`fill_holes`)
 
 _SPLIT = re.compile(r"[,\s;]+")
 
@@ -181,10 +188,11 @@ def load_face(path: str | os.PathLike, settings: DFTSettings = DFT) -> tuple[np.
 # --------------------------------------------------------------------------------------------
 # The method (pure functions)
 # --------------------------------------------------------------------------------------------
-def principal_align(xy: np.ndarray, settings: DFTSettings = DFT) -> np.ndarray:
-    """Centre and rotate onto the principal axes (largest variance along x); see module doc."""
+def principal_align(xy: np.ndarray, settings: DFTSettings = DFT, axis: np.ndarray | None = None) -> np.ndarray:
+    """Centre and rotate onto the principal axes (largest variance along x); see module doc.
+    ``axis``: :func:`principal_axis` of ``xy`` when the caller has it already."""
     c = xy - xy.mean(axis=0)
-    e1 = principal_axis(xy, settings)
+    e1 = principal_axis(xy, settings) if axis is None else axis
     e2 = np.array([-e1[1], e1[0]])
     return np.column_stack([c @ e1, c @ e2])
 
@@ -216,7 +224,11 @@ def frame_deg(xy: np.ndarray, settings: DFTSettings = DFT) -> float:
     ``principal`` frame (:mod:`feeder.labels.metrics`) measures yaws there, so the same shape gives the
     same label whatever frame its CAD file was drawn in.
     """
-    e1 = principal_axis(xy, settings)
+    return axis_deg(principal_axis(xy, settings))
+
+
+def axis_deg(e1: np.ndarray) -> float:
+    """Angle (degrees, [0, 360)) of a unit axis, e.g. :func:`principal_axis` (:func:`frame_deg`)."""
     return float(math.degrees(math.atan2(e1[1], e1[0])) % 360.0)
 
 
@@ -234,8 +246,6 @@ def _tie_axis(c: np.ndarray) -> np.ndarray:
 def silhouette(aligned: np.ndarray, settings: DFTSettings = DFT) -> np.ndarray:
     """White (255) canvas with the part's filled silhouette in black (0), uint8 (H, W)."""
     import cv2
-    from scipy import ndimage
-    from scipy.spatial import cKDTree
 
     size, margin = settings.canvas_px, settings.margin_px
     lo, hi = aligned.min(axis=0), aligned.max(axis=0)
@@ -245,22 +255,76 @@ def silhouette(aligned: np.ndarray, settings: DFTSettings = DFT) -> np.ndarray:
     px = np.rint((aligned - mid) * scale + (size - 1) / 2.0).astype(np.int64)
     px = np.clip(px, margin, size - 1 - margin)
     cols, rows = px[:, 0], (size - 1) - px[:, 1]
-    uniq = np.unique(np.column_stack([cols, rows]), axis=0)
-    if len(uniq) >= 2:
-        dist, _ = cKDTree(uniq).query(uniq, k=2)
-        gap = float(dist[:, 1].max())
-    else:
-        gap = 1.0
+    gap = largest_gap(np.column_stack([cols, rows]))
     radius = int(math.ceil(settings.closing_gap_factor * gap)) + 1
     pad = radius + 1
     mask = np.zeros((size + 2 * pad, size + 2 * pad), dtype=np.uint8)
     mask[rows + pad, cols + pad] = 255
     kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * radius + 1, 2 * radius + 1))
     mask = cv2.morphologyEx(mask, cv2.MORPH_CLOSE, kernel)
-    mask = ndimage.binary_fill_holes(mask[pad:-pad, pad:-pad] > 0)
+    mask = fill_holes(mask[pad:-pad, pad:-pad] > 0)
     canvas = np.full((size, size), 255, dtype=np.uint8)
     canvas[mask] = 0
     return canvas
+
+
+def largest_gap(pixels: np.ndarray) -> float:
+    """Largest distance (px) from a pixel of ``pixels`` (N, 2 integers; repeats count once) to
+    its nearest other pixel; 1.0 when there are fewer than two distinct pixels.
+
+    Exact: the squared distances are integers, searched on an occupancy grid over pixel offsets
+    in increasing distance (``GAP_SEARCH_START_PX``, then doubling the radius for the pixels
+    still without a neighbour), and the square root of the largest is the value a k-d tree query
+    (``scipy.spatial.cKDTree``, the previous implementation) returns, without importing scipy.
+    """
+    pts = np.asarray(pixels, dtype=np.int64)
+    pts = pts - pts.min(axis=0)
+    width = int(pts[:, 1].max()) + 1
+    keys = np.unique(pts[:, 0] * width + pts[:, 1])
+    if len(keys) < 2:
+        return 1.0
+    col, row = np.divmod(keys, width)
+    span = max(int(col.max()), int(row.max())) + 1
+    limit = int(math.ceil(math.sqrt(2.0) * span))  # no nearest neighbour is farther
+    best = np.zeros(len(keys), dtype=np.int64)  # squared distance to the nearest other pixel
+    todo = np.arange(len(keys))
+    radius = GAP_SEARCH_START_PX
+    while todo.size:
+        radius = min(radius, limit)
+        side = span + 2 * radius
+        occupied = np.zeros(side * side, dtype=bool)
+        flat = (col + radius) * side + (row + radius)
+        occupied[flat] = True
+        d = np.arange(-radius, radius + 1)
+        dc, dr = (v.ravel() for v in np.meshgrid(d, d, indexing="ij"))
+        d2 = dc * dc + dr * dr
+        near = (d2 > 0) & (d2 <= radius * radius)
+        order = np.argsort(d2[near], kind="stable")
+        offsets, off_d2 = (dc[near] * side + dr[near])[order], d2[near][order]
+        for start in range(0, len(offsets), GAP_SEARCH_BLOCK):
+            block = slice(start, start + GAP_SEARCH_BLOCK)
+            hits = occupied[flat[todo, None] + offsets[None, block]]
+            found = hits.any(axis=1)
+            best[todo[found]] = off_d2[block][hits[found].argmax(axis=1)]
+            todo = todo[~found]
+            if not todo.size:
+                break
+        if radius == limit:
+            break
+        radius *= 2
+    return float(np.sqrt(np.float64(best.max())))
+
+
+def fill_holes(mask: np.ndarray) -> np.ndarray:
+    """``mask`` (bool) with its holes filled: background pixels not 4-connected to the image
+    border become foreground (``scipy.ndimage.binary_fill_holes`` with its default structure,
+    by a flood fill of the background from a one-pixel frame)."""
+    import cv2
+
+    work = np.zeros((mask.shape[0] + 2, mask.shape[1] + 2), dtype=np.uint8)
+    work[1:-1, 1:-1] = mask
+    cv2.floodFill(work, None, (0, 0), _OUTSIDE, flags=4)
+    return work[1:-1, 1:-1] != _OUTSIDE
 
 
 def contour_of(canvas: np.ndarray, source: str, settings: DFTSettings = DFT) -> np.ndarray:
@@ -288,19 +352,24 @@ def contour_of(canvas: np.ndarray, source: str, settings: DFTSettings = DFT) -> 
 def spline_samples(contour: np.ndarray, settings: DFTSettings = DFT) -> np.ndarray:
     """Cubic B-spline (s = 0, parameter = contour order) sampled at ``samples`` points, recentred.
 
-    Returns complex (samples,) ``x + j y`` in pixel units."""
-    from scipy.interpolate import splev, splprep
+    Returns complex (samples,) ``x + j y`` in pixel units. The spline is scipy's ``splprep`` /
+    ``splev`` (FITPACK) through :mod:`feeder.parts.fitpack`, a bit-identical port that spares
+    the import of ``scipy.interpolate``."""
+    from feeder.parts.fitpack import evaluate, fit_interpolating
 
     u = np.linspace(0.0, 1.0, len(contour))
-    tck, _ = splprep([contour[:, 0], contour[:, 1]], u=u, s=0, k=settings.spline_degree)
-    x, y = splev(np.linspace(0.0, 1.0, settings.samples), tck)
+    t, c = fit_interpolating(np.asarray(contour, dtype=np.float64).T, u, settings.spline_degree)
+    x, y = evaluate(t, c, settings.spline_degree, np.linspace(0.0, 1.0, settings.samples))
     z = np.asarray(x) + 1j * np.asarray(y)
     return z - z.mean()
 
 
-def outline_samples(xy: np.ndarray, source: str = "points", settings: DFTSettings = DFT) -> np.ndarray:
-    """Steps 2-5 for a 2D face point set: the recentred complex outline (samples,)."""
-    aligned = principal_align(np.asarray(xy, dtype=np.float64), settings)
+def outline_samples(
+    xy: np.ndarray, source: str = "points", settings: DFTSettings = DFT, axis: np.ndarray | None = None
+) -> np.ndarray:
+    """Steps 2-5 for a 2D face point set: the recentred complex outline (samples,). ``axis``: as
+    for :func:`principal_align`."""
+    aligned = principal_align(np.asarray(xy, dtype=np.float64), settings, axis)
     canvas = silhouette(aligned, settings)
     return spline_samples(contour_of(canvas, source, settings), settings)
 
@@ -348,9 +417,10 @@ def features_of_file(path: str | os.PathLike, settings: DFTSettings = DFT) -> di
     ``.xyz`` face does not lie in the x-y plane, the plane of the part's yaw)."""
     path = Path(path)
     xy, in_xy_plane = load_face(path, settings)
-    z = outline_samples(xy, str(path), settings)
+    axis = principal_axis(xy, settings)  # once: the alignment and frame_deg share it
+    z = outline_samples(xy, str(path), settings, axis)
     out = dft_features(z, settings.coefficients)
-    out["frame_deg"] = frame_deg(xy, settings) if in_xy_plane else None
+    out["frame_deg"] = axis_deg(axis) if in_xy_plane else None
     return out
 
 

@@ -20,6 +20,7 @@ list (tests, hand-made parts).
 
 from __future__ import annotations
 
+import math
 import os
 import struct
 from dataclasses import dataclass, field
@@ -262,7 +263,8 @@ def read_stl(path: str | os.PathLike) -> np.ndarray:
             if count == 0:
                 raise FeederError(f"{path}: STL has no triangles")
             rec = np.dtype([("n", "<f4", 3), ("v", "<f4", (3, 3)), ("attr", "<u2")])
-            tris = np.frombuffer(data, dtype=rec, count=count, offset=84)["v"].astype(np.float64)
+            with np.errstate(invalid="ignore"):  # a signalling NaN warns when cast; _finite refuses it
+                tris = np.frombuffer(data, dtype=rec, count=count, offset=84)["v"].astype(np.float64)
             return _finite(tris, path)
     head = data[:512].lstrip().lower()
     if head.startswith(b"solid"):
@@ -424,6 +426,7 @@ def _outline_from_mesh(tris: np.ndarray, path: Path) -> tuple[np.ndarray, float]
     top_area = 0.5 * float(np.sum(np.abs(cross[ftop])))
     if abs(top_area - abs(signed_area(outline))) > 1e-6 * top_area:
         raise FeederError(f"{path}: top face overlaps itself")
+    _check_simple(outline, f"{path}: top face outline")  # a loop can cross itself with no overlap left
     return outline, thickness
 
 
@@ -457,6 +460,35 @@ def load_part(path: str | os.PathLike, units: str = "m") -> PartGeometry:
 def load_part_units(path: str | os.PathLike, units: str = "m") -> tuple[PartGeometry, str]:
     """:func:`load_part` and the units the file was read in (what ``auto`` chose)."""
     path = Path(path)
+    outline, thickness, unit = _read_in_metres(path, units)
+    try:
+        return PartGeometry.from_polygon(path.stem, outline, thickness), unit
+    except FeederError as err:
+        raise FeederError(f"{path}: {err}") from err
+
+
+def load_outline(path: str | os.PathLike, units: str = "m") -> np.ndarray:
+    """The outline of :func:`load_part` (cleaned, CCW, metres, the file's frame), checked to be a
+    simple polygon, without the rest of the part (its convex decomposition costs more than
+    reading the file): for the symmetry order or a drawing of the part."""
+    return load_footprint(path, units)[0]
+
+
+def load_footprint(path: str | os.PathLike, units: str = "m") -> tuple[np.ndarray, float]:
+    """(outline, thickness) of :func:`load_part` in metres, the outline cleaned and checked to be
+    simple, without the convex decomposition: what a check of the part against the scene needs."""
+    path = Path(path)
+    outline, thickness, _ = _read_in_metres(path, units)
+    try:
+        pts = clean_outline(outline)
+        _check_simple(pts, "outline")
+    except FeederError as err:
+        raise FeederError(f"{path}: {err}") from err
+    return pts, thickness
+
+
+def _read_in_metres(path: Path, units: str) -> tuple[np.ndarray, float, str]:
+    """(outline, thickness) of an STL scaled to metres, and the units it was read in."""
     outline, thickness = read_outline(path)
     size = float(np.max(np.ptp(outline, axis=0)))
     unit = file_units(size, units)
@@ -466,10 +498,7 @@ def load_part_units(path: str | os.PathLike, units: str = "m") -> tuple[PartGeom
             f"{path}: part is {size * scale:g} m across read as {unit}; "
             f"is the file in millimetres? (--units mm, or auto)"
         )
-    try:
-        return PartGeometry.from_polygon(path.stem, outline * scale, thickness * scale), unit
-    except FeederError as err:
-        raise FeederError(f"{path}: {err}") from err
+    return outline * scale, thickness * scale, unit
 
 
 # --------------------------------------------------------------------------------------------
@@ -482,47 +511,127 @@ def face_points(outline: np.ndarray, spacing: float) -> np.ndarray:
     Interior: a triangular lattice anchored at the bounding box, keeping the points inside the
     outline and at least ``spacing / 2`` from its boundary. Deterministic, (M, 2) float64.
     """
-    import shapely
-
-    outline = np.asarray(outline, dtype=np.float64)
-    h = float(spacing)
-    nxt = np.roll(outline, -1, axis=0)
-    boundary = []
-    for p, q in zip(outline, nxt):
-        m = max(1, int(np.ceil(np.linalg.norm(q - p) / h)))
-        t = np.arange(m)[:, None] / m
-        boundary.append(p + t * (q - p))
-    lo, hi = outline.min(axis=0), outline.max(axis=0)
-    dy = h * np.sqrt(3.0) / 2.0
-    ys = lo[1] + dy / 2 + dy * np.arange(int(np.floor((hi[1] - lo[1]) / dy)) + 1)
-    xs = lo[0] + h / 4 + h * np.arange(int(np.floor((hi[0] - lo[0]) / h)) + 1)
-    gx, gy = np.meshgrid(xs, ys)
-    gx = gx + (np.arange(len(ys))[:, None] % 2) * (h / 2)
-    grid = np.column_stack([gx.ravel(), gy.ravel()])
-    poly = shapely.Polygon(outline)
-    inside = shapely.contains_xy(poly, grid[:, 0], grid[:, 1])
-    grid = grid[inside]
-    far = shapely.distance(poly.exterior, shapely.points(grid)) >= h / 2
-    return np.concatenate([*boundary, grid[far]])
+    return _Face(outline).points(float(spacing))
 
 
 def face_cloud(outline: np.ndarray, n_points: int) -> np.ndarray:
     """:func:`face_points` with the spacing chosen (bisection) so that it has about ``n_points``."""
-    outline = np.asarray(outline, dtype=np.float64)
+    face = _Face(outline)
+    outline = face.outline
     area = abs(signed_area(outline))
     perim = float(np.sum(np.linalg.norm(np.roll(outline, -1, axis=0) - outline, axis=1)))
     # lattice estimate: n = 2A / (sqrt(3) h^2) + P / h, solved for h
     a_coef = 2.0 * area / np.sqrt(3.0)
     h = (perim + np.sqrt(perim**2 + 4.0 * a_coef * n_points)) / (2.0 * n_points)
     lo_h, hi_h = h / 2.0, h * 2.0
-    best = face_points(outline, h)
+    count = face.count(h)
     for _ in range(24):
-        if abs(len(best) - n_points) <= max(5, n_points // 200):
+        if abs(count - n_points) <= max(5, n_points // 200):
             break
-        if len(best) > n_points:
+        if count > n_points:
             lo_h = h
         else:
             hi_h = h
         h = float(np.sqrt(lo_h * hi_h))
-        best = face_points(outline, h)
-    return best
+        count = face.count(h)
+    return face.points(h)
+
+
+# The exact boundary-distance test of the face lattice is run only where a cheap lower bound
+# cannot decide it (:meth:`_Face._certainly_far`): the bound comes from a distance transform of
+# the boundary drawn on a raster of FAR_RASTER_CELLS_PER_LIMIT cells per distance limit, sampled
+# every half cell; FAR_RASTER_SAFETY_CELLS absorbs rounding (float32 distances, pixel lookup),
+# and a raster over FAR_RASTER_MAX_CELLS cells is not drawn (every point is measured exactly).
+FAR_RASTER_CELLS_PER_LIMIT = 1
+FAR_RASTER_SAFETY_CELLS = 0.25
+FAR_RASTER_MAX_CELLS = 4_000_000
+
+
+class _Face:
+    """An outline's face lattice, set up once for :func:`face_points` at several spacings (what
+    :func:`face_cloud`'s bisection needs); the points are those of the straightforward
+    per-edge construction, bit for bit."""
+
+    def __init__(self, outline: np.ndarray):
+        import shapely
+
+        self.outline = np.asarray(outline, dtype=np.float64)
+        self.step = np.roll(self.outline, -1, axis=0) - self.outline
+        # each edge's length exactly as np.linalg.norm(q - p) gives it (spacing-independent)
+        self.lengths = np.array([np.linalg.norm(d) for d in self.step])
+        self.lo, self.hi = self.outline.min(axis=0), self.outline.max(axis=0)
+        self.poly = shapely.Polygon(self.outline)
+
+    def _per_edge(self, h: float) -> np.ndarray:
+        return np.maximum(1, np.ceil(self.lengths / h).astype(np.int64))
+
+    def boundary(self, h: float) -> np.ndarray:
+        """Every vertex plus ``m - 1`` evenly spaced points on each edge (``m = ceil(length / h)``)."""
+        per_edge = self._per_edge(h)
+        first = np.repeat(np.cumsum(per_edge) - per_edge, per_edge)
+        t = (np.arange(int(per_edge.sum())) - first) / np.repeat(per_edge, per_edge)
+        return np.repeat(self.outline, per_edge, axis=0) + t[:, None] * np.repeat(self.step, per_edge, axis=0)
+
+    def interior(self, h: float) -> np.ndarray:
+        """The triangular lattice points inside the outline at least ``h / 2`` from its boundary."""
+        import shapely
+
+        lo, hi = self.lo, self.hi
+        dy = h * np.sqrt(3.0) / 2.0
+        ys = lo[1] + dy / 2 + dy * np.arange(int(np.floor((hi[1] - lo[1]) / dy)) + 1)
+        xs = lo[0] + h / 4 + h * np.arange(int(np.floor((hi[0] - lo[0]) / h)) + 1)
+        gx, gy = np.meshgrid(xs, ys)
+        gx = gx + (np.arange(len(ys))[:, None] % 2) * (h / 2)
+        grid = np.column_stack([gx.ravel(), gy.ravel()])
+        inside = shapely.contains_xy(self.poly, grid[:, 0], grid[:, 1])
+        grid = grid[inside]
+        limit = h / 2
+        far = self._certainly_far(grid, limit)
+        unsure = ~far
+        far[unsure] = shapely.distance(self.poly.exterior, shapely.points(grid[unsure])) >= limit
+        return grid[far]
+
+    def points(self, h: float) -> np.ndarray:
+        return np.concatenate([self.boundary(h), self.interior(h)])
+
+    def count(self, h: float) -> int:
+        """``len(self.points(h))`` without building the boundary points."""
+        return int(self._per_edge(h).sum()) + len(self.interior(h))
+
+    def _certainly_far(self, pts: np.ndarray, limit: float) -> np.ndarray:
+        """True where a point is certainly farther than ``limit`` from the boundary; False where
+        it is not, or where the bound cannot tell (those are measured exactly).
+
+        The bound: the boundary, sampled at most half a cell apart (so every boundary point is
+        within a quarter cell of a sample), marks the raster cells of its samples; a point in cell
+        C whose centre is D cells from the nearest marked cell's centre (exact Euclidean distance
+        transform) is at least ``cell * (D - sqrt(2)) - cell / 4`` from the boundary.
+        """
+        import cv2
+
+        out = np.zeros(len(pts), dtype=bool)
+        cell = limit / FAR_RASTER_CELLS_PER_LIMIT
+        origin = self.lo - cell
+        shape = np.floor((self.hi - self.lo) / cell).astype(np.int64) + 3  # (x cells, y cells)
+        if len(pts) == 0 or not cell > 0 or int(shape[0]) * int(shape[1]) > FAR_RASTER_MAX_CELLS:
+            return out
+        per_edge = np.maximum(1, np.ceil(self.lengths / (cell / 2)).astype(np.int64)) + 1
+        first = np.repeat(np.cumsum(per_edge) - per_edge, per_edge)
+        t = (np.arange(int(per_edge.sum())) - first) / np.repeat(per_edge - 1, per_edge)
+        samples = np.repeat(self.outline, per_edge, axis=0) + t[:, None] * np.repeat(self.step, per_edge, axis=0)
+        raster = np.full((int(shape[1]), int(shape[0])), 255, dtype=np.uint8)
+        cells, on_raster = self._cells(samples, origin, cell, shape)
+        if not on_raster.all():  # cannot happen (a cell of margin round the outline): measure all
+            return out
+        raster[cells[:, 1], cells[:, 0]] = 0
+        dist = cv2.distanceTransform(raster, cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
+        cells, on_raster = self._cells(pts, origin, cell, shape)
+        bound = FAR_RASTER_CELLS_PER_LIMIT + math.sqrt(2.0) + 0.25 + FAR_RASTER_SAFETY_CELLS
+        out[on_raster] = dist[cells[on_raster, 1], cells[on_raster, 0]] > bound
+        return out
+
+    @staticmethod
+    def _cells(pts: np.ndarray, origin: np.ndarray, cell: float, shape: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Raster cell (x, y) of each point and whether it lies on the raster."""
+        idx = np.floor((pts - origin) / cell).astype(np.int64)
+        return idx, np.all((idx >= 0) & (idx < shape), axis=1)

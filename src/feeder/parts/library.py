@@ -482,6 +482,8 @@ def main(argv: list[str]) -> int:
         from feeder.io import write_text
         from feeder.parts.geometry import face_cloud, load_part
 
+        if args.points < 1:
+            raise FeederError(f"--points must be positive, got {args.points}")
         g = load_part(args.stl)
         pts = face_cloud(g.outline * 1000.0, args.points)
         write_text(args.out, xyz_text(pts, g.thickness * 1000.0))

@@ -13,6 +13,8 @@ Bullet combines friction coefficients by multiplication: part-belt 0.8 x 1.0, pa
 from __future__ import annotations
 
 import math
+import os
+import sys
 import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -25,6 +27,10 @@ from feeder.sim.scene import FenceGeom, belt_contact
 # Part collision filter: group bit 1 (dynamic) colliding only with static bodies (group bit 2).
 _PART_GROUP, _PART_MASK = 1, 2
 _MAX_COMPOUND = 16  # pybullet's createCollisionShapeArray silently drops shapes beyond 16
+# A part must be at least this many times as thick as the gap under the fences, or it slips
+# under them: measured (20 mm L-shape, fences 0.5 mm above the belt, 8 drops each), 0.6 mm
+# thick parts ended at their initial yaw, 0.8 mm ones half turned, 0.9 mm and thicker like 5 mm ones.
+MIN_THICKNESS_PER_CLEARANCE = 2.0
 
 
 # --------------------------------------------------------------------------------------------
@@ -97,10 +103,57 @@ def _mergeable_pair(polys, tolerance: float):
     return None
 
 
+def quiet_pybullet():
+    """The pybullet module, imported without the build-time line its C extension writes to the
+    process's stderr on import (so a command that fails after simulating prints one error line)."""
+    if "pybullet" in sys.modules:
+        return sys.modules["pybullet"]
+    sys.stderr.flush()
+    saved = os.dup(2)
+    try:
+        with open(os.devnull, "w") as null:
+            os.dup2(null.fileno(), 2)
+            import pybullet
+    finally:
+        os.dup2(saved, 2)
+        os.close(saved)
+    return pybullet
+
+
+def check_scene_fit(geom, scene: dict) -> None:
+    """A one-line FeederError for a part the scene cannot hold: one that fits between the belt's
+    walls at no yaw (its circumradius about the centroid reaches ``belt.half_width``; parts are
+    placed centred), or one too thin for the fences to push (``MIN_THICKNESS_PER_CLEARANCE``
+    times ``fences.clearance``). Either would give a label of nothing but falls or untouched drops."""
+    check_fit(geom.part_id, geom.outline, geom.centroid, geom.thickness, scene)
+
+
+def check_fit(part_id: str, outline, centroid, thickness: float, scene: dict) -> None:
+    """:func:`check_scene_fit` from the outline (metres), its area centroid and the thickness,
+    without a :class:`~feeder.parts.geometry.PartGeometry` (whose convex decomposition
+    ``feeder predict`` does not need)."""
+    centred = np.asarray(outline, np.float64) - np.asarray(centroid, np.float64)
+    radius = float(np.max(np.hypot(centred[:, 0], centred[:, 1])))
+    half_width = float(scene["belt"]["half_width"])
+    hint = "; is the part file in other units? (--units)"
+    if radius >= half_width:
+        raise FeederError(
+            f"part {part_id}: {2 * radius:.3g} m across (its circumscribed circle), wider than the belt "
+            f"between its walls ({2 * half_width:g} m){hint}"
+        )
+    least = MIN_THICKNESS_PER_CLEARANCE * float(scene["fences"]["clearance"])
+    if thickness < least:
+        raise FeederError(
+            f"part {part_id}: {thickness:.3g} m thick, thinner than {least:g} m "
+            f"({MIN_THICKNESS_PER_CLEARANCE:g} x scene.fences.clearance): it would slip under the fences{hint}"
+        )
+
+
 def part_model(geom, scene: dict, merge_tolerance: float = 0.0) -> PartModel:
     """Pieces (merged within ``merge_tolerance``) in the centroidal principal frame, inset by the margin."""
     from shapely.geometry import Polygon
 
+    check_scene_fit(geom, scene)
     pc = scene["part"]
     margin = float(pc["collision_margin"])
     mass, inertia, alpha = principal_inertia(geom.area, geom.second_moment, geom.thickness, float(pc["density"]))
@@ -183,8 +236,7 @@ class World:
     """
 
     def __init__(self, scene: dict, preset: dict, plan: Plan, lanes: int, model: PartModel):
-        import pybullet as pb
-
+        pb = quiet_pybullet()
         self.pb = pb
         self.scene, self.preset, self.plan, self.model = scene, preset, plan, model
         self.cid = self._connect()

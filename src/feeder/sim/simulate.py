@@ -259,8 +259,6 @@ def main(argv: list[str]) -> int:
     if not path.is_file():
         raise FeederError(f"part file {path} not found")
     geom, unit = load_part_units(path, args.units)
-    if args.units == "auto" and unit != "m":  # say so when auto did not read metres
-        print(f"{path}: read in {unit} (--units auto)", file=sys.stderr)
     try:
         design = {
             "n0": args.n0,
@@ -286,6 +284,8 @@ def main(argv: list[str]) -> int:
     from feeder.sim.record import write_sim
 
     write_sim(args.out, res)
+    if args.units == "auto" and unit != "m":  # say so when auto did not read metres (after a failure: one line)
+        print(f"{path}: read in {unit} (--units auto)", file=sys.stderr)
     counts = json.loads(res["meta"])["status_counts"]
     print(
         f"{geom.part_id} {config_id(loc1, loc2)}: {len(res['status'])} drops in {float(res['wall_s']):.1f} s; "
