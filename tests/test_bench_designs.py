@@ -169,6 +169,32 @@ def test_summary_leaves_out_configurations_without_a_reference_label_and_scores_
     assert out.sup_cdf_lo < out.sup_cdf < out.sup_cdf_hi
 
 
+def test_summary_leaves_out_configurations_the_study_drops_as_bad_data():
+    """A reference with less ok mass than sim.min_ok_mass (nearly every drop jams) is not scored."""
+
+    def rows(config, ok_mass, value):
+        common = {"config": config, "simulations": 50, "cpu_s": 1.0, "no_label": False}
+        scores = dict.fromkeys(B.METRICS, value)
+        ref = {
+            **common,
+            "design": "reference",
+            "drops": 2880,
+            "repeat": 0,
+            "ok_mass": ok_mass,
+            **dict.fromkeys(B.METRICS, 0.0),
+        }
+        return [ref] + [
+            {**common, "design": "random", "drops": 50, "repeat": r, "ok_mass": ok_mass, **scores} for r in range(2)
+        ]
+
+    frame = pd.DataFrame(rows("ok", 0.9, 0.01) + rows("jams", 0.002, 0.9))
+    kept = B.summary(frame, min_ok_mass=0.5).set_index("design").loc["random"]
+    assert kept.configurations == 1 and kept.excluded_configurations == 1
+    assert kept.sup_cdf == pytest.approx(0.01)
+    both = B.summary(frame).set_index("design").loc["random"]  # no threshold: both are scored
+    assert both.configurations == 2 and both.sup_cdf == pytest.approx((0.01 + 0.9) / 2)
+
+
 def test_a_killed_reference_run_goes_on_from_its_checkpoint(tmp_path):
     """Chunks are saved as they finish; a rerun simulates only what is left and returns what an
     uninterrupted run returns; a checkpoint of another run (fingerprint) is not used."""

@@ -256,15 +256,19 @@ def entry_rows(reference: Path, adaptive: Path, settings: dict) -> list[dict]:
 METRICS = ("sup_cdf", "w1_deg", "circular_w1_deg", "js")
 
 
-def summary(frame):
+def summary(frame, min_ok_mass: float = 0.0):
     """Per design and drop count, the mean over configurations, and for emulated designs a 95 %
     t-interval of that mean over the seeded realisations. Configurations whose reference has no
-    ok drop (NaN distances) are left out of every mean and counted in ``excluded_configurations``;
-    a realisation that gives no label scores :data:`NO_LABEL` and is counted in ``no_label``."""
+    ok drop (NaN distances), or less ok mass than ``min_ok_mass`` (``sim.min_ok_mass``: the study
+    drops such a configuration as bad data, so its label is never used), are left out of every
+    mean and counted in ``excluded_configurations``; a realisation that gives no label scores
+    :data:`NO_LABEL` and is counted in ``no_label``."""
     import pandas as pd
     from scipy import stats
 
-    usable = frame.dropna(subset=list(METRICS))
+    ref = frame[frame["design"] == "reference"]
+    bad = set(ref.loc[ref["ok_mass"] < min_ok_mass, "config"]) if "ok_mass" in ref else set()
+    usable = frame[~frame["config"].isin(bad)].dropna(subset=list(METRICS))
     excluded = frame["config"].nunique() - usable["config"].nunique()
     rows = []
     for (design, drops), g in usable.groupby(["design", "drops"], sort=True):
@@ -321,7 +325,7 @@ def main(argv: list[str]) -> int:
     pairs = zip(args.references, args.adaptive, strict=True)
     frame = pd.DataFrame([r for ref, ada in pairs for r in entry_rows(ref, ada, settings)])
     write_csv(args.out_csv, frame)
-    means = summary(frame)
+    means = summary(frame, float(settings["sim"]["min_ok_mass"]))
     write_csv(args.out_summary, means)
     for _, r in means.iterrows():
         print(
