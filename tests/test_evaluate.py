@@ -34,9 +34,24 @@ def test_summarise_uses_population_sd():
             ]
         ),
         "mse": np.array([0.1, 0.3]),
+        "r2c": np.array([1.0, 0.8]),
+        "cw1": np.array([4.0, 2.0]),
     }
     s = E.summarise(m)
-    assert s == pytest.approx({"n": 2, "r2_mean": 0.75, "r2_sd": 0.25, "w1_mean": 15.0, "w1_sd": 5.0, "mse_mean": 0.2})
+    assert s == pytest.approx(
+        {
+            "n": 2,
+            "r2_mean": 0.75,
+            "r2_sd": 0.25,
+            "w1_mean": 15.0,
+            "w1_sd": 5.0,
+            "mse_mean": 0.2,
+            "r2c_mean": 0.9,
+            "r2c_sd": 0.1,
+            "cw1_mean": 3.0,
+            "cw1_sd": 1.0,
+        }
+    )
 
 
 def test_nearest_rows_with_leave_one_out():

@@ -233,6 +233,36 @@ def test_circular_w1_does_not_depend_on_where_the_circle_is_cut():
     assert base <= L.w1(L.cdf(p), L.cdf(q)) + 1e-12
 
 
+# ---------------------------------------------------------------- R² at the best common cut
+def test_r2_best_cut_hand_values_across_the_wrap():
+    """8 bins; a point mass predicted one bin late. With truth at bin 3 the paper's R² is
+    1 - 1/1.875; with truth at bin 7 (prediction at bin 0, across 0/360) it is 1 - 7/0.875 = -7.
+    At the best cut both are the same configuration up to rotation: the truth's CDF holds k ones
+    out of 8 with a one-bin error, R² = 1 - 1 / (k (8 - k) / 8), best at k = 4: 0.5."""
+
+    def point(k):
+        p = np.zeros(8)
+        p[k] = 1.0
+        return L.cdf(p)
+
+    assert L.r2_cdf(point(3), point(4)) == pytest.approx(1 - 1 / 1.875)
+    assert L.r2_cdf(point(7), point(0)) == pytest.approx(-7.0)
+    assert L.r2_cdf_best_cut(point(3), point(4)) == pytest.approx(0.5)
+    assert L.r2_cdf_best_cut(point(7), point(0)) == pytest.approx(0.5)
+    assert L.r2_cdf_best_cut(point(5), point(5)) == pytest.approx(1.0)
+
+
+def test_r2_best_cut_does_not_depend_on_the_frame_and_bounds_the_paper_r2():
+    rng = np.random.default_rng(4)
+    p, q = rng.dirichlet(np.ones(72), size=3), rng.dirichlet(np.ones(72), size=3)
+    base = L.r2_cdf_best_cut(L.cdf(p), L.cdf(q))
+    assert base.shape == (3,)
+    for k in (1, 17, 50):
+        rolled = L.r2_cdf_best_cut(L.cdf(np.roll(p, k, axis=-1)), L.cdf(np.roll(q, k, axis=-1)))
+        np.testing.assert_allclose(rolled, base)
+    assert (base >= L.r2_cdf(L.cdf(p), L.cdf(q)) - 1e-12).all()
+
+
 def test_resting_orientations_are_the_modes_with_their_basin_mass():
     from feeder.labels.metrics import resting_orientations as modes
 

@@ -251,6 +251,30 @@ def r2_cdf(cdf_true, cdf_pred) -> np.ndarray:
     return np.where(const, np.where(ss_res == 0, 1.0, 0.0), r2)
 
 
+def r2_cdf_best_cut(cdf_true, cdf_pred) -> np.ndarray:
+    """:func:`r2_cdf` with the circle cut where it scores best: both CDFs are rebuilt from the
+    bin ``c`` on (the same ``c`` for both) and the largest R² over the ``bins`` cuts is returned.
+
+    :func:`r2_cdf` depends on where 0° falls: a prediction 2° off a peak that straddles 0° has a
+    CDF jump at the other end of the axis and scores far below the same prediction of a peak at
+    180°. Maximised over the common cut, R² no longer depends on the frame; it is an upper
+    envelope of the paper's R² (the cut ``c = 0`` is one of the candidates), as
+    :func:`circular_w1` is the lower envelope of :func:`w1`.
+    """
+    t, p = _pair(cdf_true, cdf_pred)
+    t, p = np.broadcast_arrays(t, p)
+    zero = np.zeros(t.shape[:-1] + (1,))
+    pmf_t = np.diff(t, axis=-1, prepend=zero)
+    pmf_p = np.diff(p, axis=-1, prepend=zero)
+    best = np.full(t.shape[:-1], -np.inf)
+    for cut in range(t.shape[-1]):
+        r2 = r2_cdf(
+            np.cumsum(np.roll(pmf_t, -cut, axis=-1), axis=-1), np.cumsum(np.roll(pmf_p, -cut, axis=-1), axis=-1)
+        )
+        best = np.maximum(best, r2)
+    return best
+
+
 def ecdf_sup_distance(sample, reference) -> float:
     """sup_x |F_sample(x) − F_reference(x)| of two empirical CDFs (exact, no binning)."""
     a = np.sort(np.asarray(sample, dtype=np.float64))

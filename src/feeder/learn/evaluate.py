@@ -2,8 +2,11 @@
 Figs. 12–13) and the leave-parts-out GroupKFold study of one model.
 
 Metrics compare post-processed predicted CDFs with the true CDFs row by row
-(``feeder.labels.metrics``): R² over the bins of one configuration, W1 = Σ|ΔF| in degrees and the MSE;
-a table reports mean ± population SD (ddof = 0) over the configurations of a split.
+(``feeder.labels.metrics``): R² over the bins of one configuration, W1 = Σ|ΔF| in degrees and the MSE
+(the paper's), and beside them the rotation-invariant pair (``r2c``: R² at the best common cut of
+the circle; ``cw1``: circular W1, the W1 minimised over cuts), which do not depend on where 0°
+falls in the label frame; a table reports mean ± population SD (ddof = 0) over the configurations
+of a split.
 
 Two baselines sit beside the models in every table:
 
@@ -43,8 +46,9 @@ TABLES = {
     "fences": (7, "Regression models on Fences: unseen part-fence type combinations (P1)"),
     "parts": (8, "Regression models on Parts: unseen part geometries (P3)"),
 }
-COLUMNS = ["model", "n", "r2_mean", "r2_sd", "w1_mean", "w1_sd", "mse_mean", "train_s"]
-BREAKDOWN_COLUMNS = ["model", "group", "n", "r2_mean", "r2_sd", "w1_mean", "w1_sd", "mse_mean"]
+METRIC_COLUMNS = ["r2_mean", "r2_sd", "w1_mean", "w1_sd", "mse_mean", "r2c_mean", "r2c_sd", "cw1_mean", "cw1_sd"]
+COLUMNS = ["model", "n", *METRIC_COLUMNS, "train_s"]
+BREAKDOWN_COLUMNS = ["model", "group", "n", *METRIC_COLUMNS]
 BASELINE_MEAN = "baseline_mean_pmf"
 BASELINE_NEAREST = "baseline_nearest_part"
 # Figs. 12-13: the rows at these quantiles of the model's R² (best to worst) are shown.
@@ -55,25 +59,31 @@ FIGURE_QUANTILES = (0.9, 0.6, 0.3, 0.1)
 # Metrics and baselines (pure)
 # ----------------------------------------------------------------------------------------------
 def row_metrics(cdf_true: np.ndarray, cdf_pred: np.ndarray) -> dict[str, np.ndarray]:
-    """Per-configuration R², W1 (degrees) and MSE of predicted against true CDF rows."""
-    from feeder.labels.metrics import mse, r2_cdf, w1
+    """Per-configuration R², W1 (degrees) and MSE of predicted against true CDF rows, and the
+    rotation-invariant R² (best common cut) and circular W1 (degrees)."""
+    from feeder.labels.metrics import circular_w1, mse, r2_cdf, r2_cdf_best_cut, w1
 
-    return {"r2": r2_cdf(cdf_true, cdf_pred), "w1": w1(cdf_true, cdf_pred), "mse": mse(cdf_true, cdf_pred)}
+    return {
+        "r2": r2_cdf(cdf_true, cdf_pred),
+        "w1": w1(cdf_true, cdf_pred),
+        "mse": mse(cdf_true, cdf_pred),
+        "r2c": r2_cdf_best_cut(cdf_true, cdf_pred),
+        "cw1": circular_w1(cdf_true, cdf_pred),
+    }
+
+
+_SPREAD = ("r2", "w1", "r2c", "cw1")  # reported as mean and population SD; mse as its mean
 
 
 def summarise(m: dict[str, np.ndarray]) -> dict[str, float]:
     """n, mean and population SD (ddof = 0) of per-configuration metrics."""
     n = int(m["r2"].size)
-    if n == 0:
-        return {"n": 0, "r2_mean": np.nan, "r2_sd": np.nan, "w1_mean": np.nan, "w1_sd": np.nan, "mse_mean": np.nan}
-    return {
-        "n": n,
-        "r2_mean": float(np.mean(m["r2"])),
-        "r2_sd": float(np.std(m["r2"], ddof=0)),
-        "w1_mean": float(np.mean(m["w1"])),
-        "w1_sd": float(np.std(m["w1"], ddof=0)),
-        "mse_mean": float(np.mean(m["mse"])),
-    }
+    out: dict[str, float] = {"n": n}
+    for k in _SPREAD:
+        out[f"{k}_mean"] = float(np.mean(m[k])) if n else np.nan
+        out[f"{k}_sd"] = float(np.std(m[k], ddof=0)) if n else np.nan
+    out["mse_mean"] = float(np.mean(m["mse"])) if n else np.nan
+    return out
 
 
 def nearest_rows(query: np.ndarray, ref: np.ndarray, exclude_same: np.ndarray | None = None) -> np.ndarray:
@@ -245,21 +255,12 @@ def groupkfold(data: dict, cfg, progress: bool | None = None) -> pd.DataFrame:
             part_means.append(s)
             rows.append({"model": model_name, "group": part, **s, "train_s": np.nan})
         rows.append({"model": model_name, "group": "all configurations", **summarise(m), "train_s": secs[model_name]})
-        r2s = np.array([s["r2_mean"] for s in part_means])
-        w1s = np.array([s["w1_mean"] for s in part_means])
-        rows.append(
-            {
-                "model": model_name,
-                "group": "over parts",
-                "n": len(part_means),
-                "r2_mean": r2s.mean(),
-                "r2_sd": r2s.std(ddof=0),
-                "w1_mean": w1s.mean(),
-                "w1_sd": w1s.std(ddof=0),
-                "mse_mean": float(np.mean([s["mse_mean"] for s in part_means])),
-                "train_s": secs[model_name],
-            }
-        )
+        over = {"model": model_name, "group": "over parts", "n": len(part_means)}
+        for k in _SPREAD:
+            means = np.array([s[f"{k}_mean"] for s in part_means])
+            over[f"{k}_mean"], over[f"{k}_sd"] = means.mean(), means.std(ddof=0)
+        over["mse_mean"] = float(np.mean([s["mse_mean"] for s in part_means]))
+        rows.append({**over, "train_s": secs[model_name]})
     return pd.DataFrame(rows, columns=BREAKDOWN_COLUMNS + ["train_s"])
 
 
