@@ -198,7 +198,7 @@ rule bench_designs:
     conda:
         "../envs/feeder.yaml"
     params:
-        settings=settings_json("labels", "sim.design_bench", "sim.adaptive"),
+        settings=settings_json("labels", "sim.design_bench", "sim.adaptive", "sim.min_ok_mass"),
     shell:
         "feeder bench-designs table --references {input.references} --adaptive {input.adaptive}"
         " --settings '{params.settings}' --out-csv {output.rows} --out-summary {output.summary} > {log} 2>&1"
@@ -267,7 +267,7 @@ rule bench_predict:
         "../envs/feeder.yaml"
     params:
         settings=settings_json("fences"),
-        model_dir=f"results/models/{REFERENCE_MODEL}",
+        model_dir=lambda wildcards, input: Path(input.model).parent,
     shell:
         "feeder bench-predict --model {params.model_dir} --parts {input.parts}"
         " --settings '{params.settings}' --out {output.raw} --summary {output.summary} > {log} 2>&1"
