@@ -57,13 +57,19 @@ def _check_tolerance(tolerance: float) -> float:
     return float(tolerance)
 
 
-def _error(poly: Polygon, n: int) -> float:
+def _turned(poly: Polygon, n: int) -> tuple[np.ndarray, np.ndarray, float]:
+    """(the outline's ring, the ring turned by 360/n about the centroid, the size: the largest
+    distance of a vertex from the centroid)."""
     ring = np.asarray(poly.exterior.coords)
     c = np.asarray(poly.centroid.coords[0])
     size = float(np.linalg.norm(ring - c, axis=1).max())
     a = math.radians(FULL_TURN_DEG / n)
     rot = np.array([[math.cos(a), -math.sin(a)], [math.sin(a), math.cos(a)]])
-    turned = (ring - c) @ rot.T + c
+    return ring, (ring - c) @ rot.T + c, size
+
+
+def _error(poly: Polygon, n: int) -> float:
+    ring, turned, size = _turned(poly, n)
     dist = shapely.hausdorff_distance(LinearRing(ring), LinearRing(turned), densify=_DENSIFY)
     return float(dist) / size
 
@@ -71,13 +77,8 @@ def _error(poly: Polygon, n: int) -> float:
 def _vertex_error(poly: Polygon, n: int) -> float:
     """A lower bound of :func:`_error`, cheap: the largest distance from a turned vertex to the
     outline's boundary (the Hausdorff distance measures every turned vertex, and more), over the
-    same size. Computed like :func:`_error` (same centroid, size and turn)."""
-    ring = np.asarray(poly.exterior.coords)
-    c = np.asarray(poly.centroid.coords[0])
-    size = float(np.linalg.norm(ring - c, axis=1).max())
-    a = math.radians(FULL_TURN_DEG / n)
-    rot = np.array([[math.cos(a), -math.sin(a)], [math.sin(a), math.cos(a)]])
-    turned = (ring - c) @ rot.T + c
+    same size (same centroid, size and turn as :func:`_error`)."""
+    ring, turned, size = _turned(poly, n)
     return float(shapely.distance(LinearRing(ring), shapely.points(turned)).max()) / size
 
 
