@@ -18,6 +18,7 @@ wildcard_constraints:
     part=r"[A-Za-z0-9-]+",
     fence=r"[a-z0-9.]+_[a-z0-9.]+",
     model=r"m[1-8]",
+    seed=r"[0-9]+",
 
 
 include: "workflow/rules/common.smk"

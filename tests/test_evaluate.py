@@ -19,8 +19,10 @@ def trained(tmp_path_factory, regression_dataset):
     ds = regression_dataset
     dirs = []
     for model in ("m3", "m7"):
-        T.train(compose_config("train", small_overrides(ds, root / model, model, epochs=3)))
-        dirs.append(root / model)
+        for seed in (0, 1):
+            out = root / model / f"seed{seed}"
+            T.train(compose_config("train", [*small_overrides(ds, out, model, epochs=3), f"seed={seed}"]))
+            dirs.append(out)
     return root, ds, dirs
 
 
@@ -96,7 +98,7 @@ def test_tables_files_and_values(trained, tmp_path):
     from feeder.labels.metrics import r2_cdf
 
     root, ds, dirs = trained
-    written = E.write_tables(ds, dirs, tmp_path)
+    written = E.write_tables(ds, dirs, tmp_path, {"resamples": 200, "level": 0.9, "seed": 3})
     data = load_dataset(ds)
     for number, split in ((5, "train"), (6, "test"), (7, "fences"), (8, "parts")):
         df = pd.read_csv(tmp_path / f"table{number}.csv")
@@ -110,19 +112,98 @@ def test_tables_files_and_values(trained, tmp_path):
         want = r2_cdf(data["cdf"][mask], mean_cdf[None]).mean()
         assert df.set_index("model").loc[E.BASELINE_MEAN, "r2_mean"] == pytest.approx(want)
         assert (df.r2_sd >= 0).all() and (df.w1_mean > 0).all()
+        # models: two seeds, the mean of the per-seed means and their spread; baselines: no seed
+        by = df.set_index("model")
+        assert by.loc["m3", "seeds"] == 2 and by.loc[E.BASELINE_MEAN, "seeds"] == 1
+        assert np.isnan(by.loc[E.BASELINE_NEAREST, "r2_seed_sd"])
+        from feeder.learn.models import TrainedModel
+
+        seed_means = []
+        for d in dirs[:2]:  # m3 seed 0 and seed 1
+            _, cdf = TrainedModel.load(d).predict(data["part_raw"][mask], data["feeder_raw"][mask])
+            seed_means.append(r2_cdf(data["cdf"][mask], cdf).mean())
+        assert by.loc["m3", "r2_mean"] == pytest.approx(np.mean(seed_means))
+        assert by.loc["m3", "r2_seed_sd"] == pytest.approx(np.std(seed_means, ddof=1))
+        assert seed_means[0] != seed_means[1]  # the seeds really differ
     fences = pd.read_csv(tmp_path / "breakdown_fences.csv")
     assert set(fences.group) == {"curved-1 + curved-2"}
     parts = pd.read_csv(tmp_path / "breakdown_parts.csv")
     assert set(parts.group) == set(data["part"][data["split"] == "parts"])
-    assert len(written) == 6
+    assert len(written) == 7
+    paired = pd.read_csv(tmp_path / "model_vs_baselines.csv")
+    assert list(paired.columns) == E.PAIRED_COLUMNS
+    assert set(paired.split) == {"test", "fences", "parts"} and set(paired.model) == {"m3", "m7"}
+    assert len(paired) == 3 * 2 * 2 * len(E.PAIRED_METRICS)
+    # the paired difference is the seed-averaged model score minus the baseline's, per table
+    t6 = pd.read_csv(tmp_path / "table6.csv").set_index("model")
+    row = paired[(paired.split == "test") & (paired.model == "m3") & (paired.baseline == E.BASELINE_MEAN)]
+    r2 = row[row.metric == "r2"].iloc[0]
+    assert r2.model_mean == pytest.approx(t6.loc["m3", "r2_mean"])
+    assert r2.baseline_mean == pytest.approx(t6.loc[E.BASELINE_MEAN, "r2_mean"])
+    assert r2.diff_mean == pytest.approx(r2.model_mean - r2.baseline_mean)
+    assert (paired.diff_low <= paired.diff_mean).all() and (paired.diff_mean <= paired.diff_high).all()
+
+
+def test_paired_bootstrap_hand_cases():
+    # a constant difference has a zero-width interval at the constant
+    assert E.paired_bootstrap(np.full(7, 0.25), 100, 0.95, 0) == pytest.approx((0.25, 0.25, 0.25))
+    # two units: every resampled mean is 0, 0.5 or 1 with probabilities 1/4, 1/2, 1/4
+    mean, lo, hi = E.paired_bootstrap(np.array([0.0, 1.0]), 20000, 0.9, 1)
+    assert mean == 0.5 and lo == 0.0 and hi == 1.0
+    mean, lo, hi = E.paired_bootstrap(np.array([0.0, 1.0]), 20000, 0.4, 1)
+    assert lo == hi == 0.5  # the central 40 % sit inside the middle half of the mass
+    # seeded: the same call gives the same interval; against a plain loop of resamples
+    diff = np.array([0.3, -0.1, 0.2, 0.05, 0.4, -0.2, 0.1])
+    assert E.paired_bootstrap(diff, 500, 0.95, 7) == E.paired_bootstrap(diff, 500, 0.95, 7)
+    rng = np.random.default_rng(7)
+    idx = rng.integers(0, diff.size, size=(500, diff.size))
+    loop = [np.mean([diff[j] for j in row]) for row in idx]
+    assert E.paired_bootstrap(diff, 500, 0.95, 7)[1:] == pytest.approx(tuple(np.quantile(loop, [0.025, 0.975])))
+    for bad in (np.array([]), np.array([np.nan, 1.0])):
+        with pytest.raises(E.FeederError):
+            E.paired_bootstrap(bad, 10, 0.95, 0)
+    with pytest.raises(E.FeederError):
+        E.paired_bootstrap(diff, 10, 1.0, 0)
+
+
+def test_verdict_follows_the_metric_direction():
+    assert E.verdict(0.01, 0.05, +1) == "better"  # R² up
+    assert E.verdict(0.01, 0.05, -1) == "worse"  # W1 up
+    assert E.verdict(-0.05, -0.01, -1) == "better"  # W1 down
+    assert E.verdict(-0.05, -0.01, +1) == "worse"
+    assert E.verdict(-0.01, 0.02, +1) == "no clear difference"
+    assert E.verdict(0.0, 0.02, +1) == "no clear difference"  # touching zero is not excluding it
+
+
+def test_seed_summary_hand_check():
+    one = {
+        "r2": np.array([1.0, 0.5]),
+        "w1": np.array([10.0, 20.0]),
+        "mse": np.array([0.1, 0.3]),
+        "r2c": np.array([1.0, 0.5]),
+        "cw1": np.array([4.0, 2.0]),
+    }
+    two = {k: v + 0.1 for k, v in one.items()}
+    s = E.seed_summary([one, two], np.array([True, True]))
+    assert s["seeds"] == 2 and s["n"] == 2
+    assert s["r2_mean"] == pytest.approx(0.8) and s["r2_sd"] == pytest.approx(0.25)
+    assert s["r2_seed_sd"] == pytest.approx(np.std([0.75, 0.85], ddof=1))
+    assert np.isnan(E.seed_summary([one], np.array([True, False]))["cw1_seed_sd"])
 
 
 def test_groupkfold_trains_one_model_per_fold(trained, tmp_path):
     root, ds, _ = trained
     data = load_dataset(ds)
     cfg = compose_config("train", small_overrides(ds, tmp_path / "unused", "m3", epochs=2))
-    df = E.groupkfold(data, cfg, progress=False)
+    df, paired = E.groupkfold(
+        data, cfg, seeds=[0, 1], progress=False, bootstrap={"resamples": 200, "level": 0.95, "seed": 0}
+    )
     parts = sorted(set(data["part"]))
+    assert (df[df.model == "m3"].seeds == 2).all() and (df[df.model == E.BASELINE_MEAN].seeds == 1).all()
+    assert set(paired.split) == {"groupkfold over parts"} and (paired.n == len(parts)).all()
+    over_m3 = df[(df.model == "m3") & (df.group == "over parts")].iloc[0]
+    r2 = paired[(paired.metric == "r2") & (paired.baseline == E.BASELINE_MEAN)].iloc[0]
+    assert r2.model_mean == pytest.approx(over_m3.r2_mean)
     for model in ("m3", E.BASELINE_MEAN, E.BASELINE_NEAREST):
         sub = df[df.model == model]
         assert list(sub.group) == [*parts, "all configurations", "over parts"]
@@ -152,11 +233,12 @@ def test_groupkfold_never_trains_on_a_held_out_part(trained, tmp_path, monkeypat
 
     monkeypatch.setattr(T, "fit", spy_fit)
     monkeypatch.setattr(E, "baseline_predictions", spy_baselines)
-    E.groupkfold(data, cfg, progress=False)
+    E.groupkfold(data, cfg, seeds=[0, 1], progress=False)
     folds = np.unique(data["group_fold"])
-    assert len(seen["fit"]) == len(seen["baseline"]) == folds.size
+    assert len(seen["fit"]) == 2 * folds.size and len(seen["baseline"]) == folds.size
     tested = np.zeros(len(data["part"]), dtype=int)
-    for train, train_b in zip(seen["fit"], seen["baseline"], strict=True):
+    for train, train_seed1, train_b in zip(seen["fit"][::2], seen["fit"][1::2], seen["baseline"], strict=True):
+        np.testing.assert_array_equal(train, train_seed1)  # every seed of a fold trains on the same rows
         np.testing.assert_array_equal(train, train_b)
         held_out = ~train
         tested += held_out

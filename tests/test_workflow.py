@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import os
 import signal
 import subprocess
@@ -39,6 +40,14 @@ def test_smoke_workflow_builds_every_table_and_figure(smoke_run):
         assert {"m3", "baseline_mean_pmf", "baseline_nearest_part"} <= set(frame.index)
         assert np.isfinite(frame[["r2_mean", "w1_mean", "mse_mean"]].to_numpy()).all()
         assert (frame.loc["m3", "train_s"] > 0) and (frame["w1_mean"] >= 0).all()
+    paired = pd.read_csv(tables / "model_vs_baselines.csv")
+    assert set(paired.split) == {"test", "fences", "parts"} and set(paired.verdict) <= {
+        "better",
+        "worse",
+        "no clear difference",
+    }
+    card = json.loads((smoke_run / "results" / "smoke" / "models" / "m3" / "card.json").read_text())
+    assert card["model"] == "m3" and card["seed"] == 0  # the smoke overlay exports beside its results
     cost = pd.read_csv(tables / "cost_by_stage.csv").set_index("stage")
     assert {"simulate", "models", "TOTAL"} <= set(cost.index)
     assert cost.loc["TOTAL", "jobs"] == cost.drop("TOTAL")["jobs"].sum()
@@ -177,7 +186,7 @@ def test_editing_one_model_config_reruns_only_that_model(smoke_run, edit):
     edit("config/hydra/model/m3.yaml", "lr: 0.0004", "lr: 0.0005")
     jobs = planned_jobs(smoke_run, *SMOKE)
     trained = {out for rule, out in jobs if rule == "train_model"}
-    assert trained == {"results/models/m3/model.pt"}
+    assert trained == {f"results/models/m3/seed{seed}/model.pt" for seed in (0, 1, 2)}  # every seed, no other model
     rules = {rule for rule, _ in jobs}
     assert (
         rules

@@ -42,6 +42,10 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "evaluate": ("feeder.learn.evaluate", "evaluate trained models into tables"),
     "predict": ("feeder.learn.predict", "predict the orientation PMF of a part and fences"),
     "recommend": ("feeder.learn.recommend", "rank fence configurations by the predicted chance of a target yaw"),
+    "export-model": (
+        "feeder.learn.export",
+        "copy a trained model into the repository's shipped-model folder with its model card",
+    ),
     "vae": ("feeder.learn.vae", "VAE training and the partial-iteration study"),
     "delta": ("feeder.learn.delta", "delta-to-full correction sweep"),
     "cost": ("feeder.report", "gather workflow benchmarks into cost_by_stage"),

@@ -256,7 +256,7 @@ rule bench_predict:
     it as its own target once the model exists, so no other job shares the cores while it times."""
     input:
         code("bench-predict"),
-        model=f"results/models/{REFERENCE_MODEL}/model.pt",
+        model=f"{REFERENCE_MODEL_DIR}/model.pt",
         parts=expand("{dir}/{part}.stl", dir=config["parts"]["dir"], part=PREDICT_BENCH_PARTS),
     output:
         raw="results/tables/predict_speed.csv",

@@ -4,6 +4,9 @@
 #
 # Each model's resolved Hydra config is a param of its training job, so editing one
 # config/hydra/model/mK.yaml reruns only model K (and the tables that read it).
+# Every model is trained once per seed of models.seeds (results/models/{model}/seed{seed}/); the
+# tables average over seeds and give the spread across them, and model_vs_baselines.csv holds the
+# paired bootstrap of each model against each baseline (models.bootstrap).
 # The §3.4.1 grid search is not part of the DAG: `feeder train -m hparams_search=grid model=m3`.
 import shlex
 
@@ -13,47 +16,59 @@ MODELS = config["models"]["regression"]
 HYDRA_OVERRIDES = config["models"]["hydra_overrides"]
 HYDRA_ARGS = " ".join(shlex.quote(o) for o in HYDRA_OVERRIDES)
 REFERENCE_MODEL = "m3"  # the paper's Model 3: Figs. 12-13 and the GroupKFold table
+SEEDS = config["models"]["seeds"]
+# the first seed's Model 3: Figs. 12-13 and the model `feeder predict` uses
+REFERENCE_MODEL_DIR = f"results/models/{REFERENCE_MODEL}/seed{SEEDS[0]}"
+EXPORT_DIR = config["models"]["export_dir"]  # the shipped model's folder (models/ in the default study)
+BOOTSTRAP_ARGS = "--resamples {resamples} --level {level} --bootstrap-seed {seed}".format(
+    **config["models"]["bootstrap"]
+)
 
 MODELS_TARGETS = [
     *expand("results/tables/table{n}.{ext}", n=[5, 6, 7, 8], ext=["csv", "md"]),
+    "results/tables/model_vs_baselines.csv",
+    f"results/tables/groupkfold_{REFERENCE_MODEL}_paired.csv",
     *expand("results/tables/breakdown_{split}.{ext}", split=["fences", "parts"], ext=["csv", "md"]),
     f"results/tables/groupkfold_{REFERENCE_MODEL}.csv",
     "results/figures/fig12_test_predictions.png",
     "results/figures/fig13_parts_predictions.png",
+    f"{EXPORT_DIR}/{REFERENCE_MODEL}",
 ]
 # resolved Hydra settings of every model the DAG can train (composed once, at parse time)
 HYDRA_SETTINGS = {m: resolved_config_yaml(m, HYDRA_OVERRIDES) for m in dict.fromkeys([*MODELS, REFERENCE_MODEL])}
 
 
 rule train_model:
-    """Train one regression model (Hydra config config/hydra/model/{model}.yaml) on the train split."""
+    """Train one regression model (Hydra config config/hydra/model/{model}.yaml) on the train split,
+    with one seed of models.seeds."""
     input:
         code("train"),
         dataset=DATASET,
     output:
-        model="results/models/{model}/model.pt",
-        metrics="results/models/{model}/metrics.json",
+        model="results/models/{model}/seed{seed}/model.pt",
+        metrics="results/models/{model}/seed{seed}/metrics.json",
     log:
-        "logs/models/train_{model}.log",
+        "logs/models/train_{model}_seed{seed}.log",
     benchmark:
-        "benchmarks/models/train_{model}.tsv"
+        "benchmarks/models/train_{model}_seed{seed}.tsv"
     conda:
         "../envs/feeder.yaml"
     params:
         hydra=lambda w: HYDRA_SETTINGS[w.model],
         overrides=HYDRA_ARGS,
     shell:
-        "feeder train model={wildcards.model} paths.dataset={input.dataset}"
+        "feeder train model={wildcards.model} seed={wildcards.seed} paths.dataset={input.dataset}"
         " paths.out=$(dirname {output.model}) hydra.run.dir=$(dirname {output.model})/hydra"
         " {params.overrides} > {log} 2>&1"
 
 
 rule evaluate_models:
-    """Tables 5-8 (Train, Test, Fences, Parts) with both baselines, and the Fences/Parts breakdowns."""
+    """Tables 5-8 (Train, Test, Fences, Parts) with both baselines, the Fences/Parts breakdowns and
+    every model against each baseline (paired bootstrap over configurations)."""
     input:
         code("evaluate"),
         dataset=DATASET,
-        models=expand("results/models/{model}/model.pt", model=MODELS),
+        models=expand("results/models/{model}/seed{seed}/model.pt", model=MODELS, seed=SEEDS),
     output:
         t5=report("results/tables/table5.csv", caption="../report/table5.rst", category="Models"),
         t6=report("results/tables/table6.csv", caption="../report/table6.rst", category="Models"),
@@ -72,25 +87,38 @@ rule evaluate_models:
             for split in ("fences", "parts")
             for ext in ("csv", "md")
         ],
+        paired=report(
+            "results/tables/model_vs_baselines.csv", caption="../report/model_vs_baselines.rst", category="Models"
+        ),
+        paired_md="results/tables/model_vs_baselines.md",
     log:
         "logs/models/evaluate.log",
     benchmark:
         "benchmarks/models/evaluate.tsv"
     conda:
         "../envs/feeder.yaml"
+    params:
+        bootstrap=BOOTSTRAP_ARGS,
     shell:
         "feeder evaluate tables --dataset {input.dataset} --models $(dirname {input.models})"
-        " --out-dir $(dirname {output.t5}) > {log} 2>&1"
+        " --out-dir $(dirname {output.t5}) {params.bootstrap} > {log} 2>&1"
 
 
 rule groupkfold_model:
-    """Leave-parts-out GroupKFold of one model: one training per fold of datasets.group_folds."""
+    """Leave-parts-out GroupKFold of one model: one training per fold of datasets.group_folds and
+    seed of models.seeds, and the model against both baselines paired over parts."""
     input:
         code("evaluate"),
         dataset=DATASET,
     output:
         csv=report("results/tables/groupkfold_{model}.csv", caption="../report/groupkfold.rst", category="Models"),
         md=report("results/tables/groupkfold_{model}.md", caption="../report/groupkfold.rst", category="Models"),
+        paired=report(
+            "results/tables/groupkfold_{model}_paired.csv",
+            caption="../report/groupkfold_paired.rst",
+            category="Models",
+        ),
+        paired_md="results/tables/groupkfold_{model}_paired.md",
     log:
         "logs/models/groupkfold_{model}.log",
     benchmark:
@@ -100,9 +128,11 @@ rule groupkfold_model:
     params:
         hydra=lambda w: HYDRA_SETTINGS[w.model],
         overrides=HYDRA_ARGS,
+        seeds=" ".join(str(s) for s in SEEDS),
+        bootstrap=BOOTSTRAP_ARGS,
     shell:
-        "feeder evaluate groupkfold --dataset {input.dataset} --out {output.csv}"
-        " model={wildcards.model} {params.overrides} > {log} 2>&1"
+        "feeder evaluate groupkfold --dataset {input.dataset} --out {output.csv} --paired-out {output.paired}"
+        " --seeds {params.seeds} {params.bootstrap} model={wildcards.model} {params.overrides} > {log} 2>&1"
 
 
 rule prediction_figure_data:
@@ -110,7 +140,7 @@ rule prediction_figure_data:
     input:
         code("evaluate"),
         dataset=DATASET,
-        model=f"results/models/{REFERENCE_MODEL}/model.pt",
+        model=f"{REFERENCE_MODEL_DIR}/model.pt",
     output:
         fig12="results/figdata/fig12_test_predictions.npz",
         fig13="results/figdata/fig13_parts_predictions.npz",
@@ -123,3 +153,29 @@ rule prediction_figure_data:
     shell:
         "feeder evaluate figure-data --dataset {input.dataset} --model $(dirname {input.model})"
         " --fig12-data {output.fig12} --fig13-data {output.fig13} > {log} 2>&1"
+
+
+rule export_model:
+    """The shipped model (models/m3/, committed): the first seed's Model 3 with its scaler and a model
+    card (training data, metrics on Test / Fences / Parts and unseen parts, the features' version),
+    which `feeder predict` and `feeder recommend` use when no --model is given."""
+    input:
+        code("export-model"),
+        model=f"{REFERENCE_MODEL_DIR}/model.pt",
+        dataset=DATASET,
+        tables=[
+            *expand("results/tables/table{n}.csv", n=[6, 7, 8]),
+            f"results/tables/groupkfold_{REFERENCE_MODEL}.csv",
+            "results/tables/model_vs_baselines.csv",
+        ],
+    output:
+        directory(f"{EXPORT_DIR}/{REFERENCE_MODEL}"),
+    log:
+        "logs/models/export_model.log",
+    benchmark:
+        "benchmarks/models/export_model.tsv"
+    conda:
+        "../envs/feeder.yaml"
+    shell:
+        "feeder export-model --model $(dirname {input.model}) --tables $(dirname {input.tables[0]})"
+        " --dataset {input.dataset} --out {output} > {log} 2>&1"

@@ -33,6 +33,7 @@ from feeder.labels import metrics as L
 from feeder.labels.convergence import convergence_data
 from feeder.labels.grid import SPLITS, configurations
 from feeder.labels.pmf import check_ok_mass, level_drops, sim_label
+from feeder.parts.features import DFT, DFT_FEATURE_NAMES, FEATURES_VERSION
 from feeder.sim.fences import TYPES, Fence, parse_config_id
 from feeder.sim.record import BadData, SimRecord, load_sim
 
@@ -43,6 +44,29 @@ N_FEEDER = 8
 # what every learner reads from dataset.npz, and the partial-level labels the VAE and delta use
 DATASET_KEYS = ("part", "config_id", "split", "group_fold", "part_raw", "feeder_raw", "pmf", "cdf")
 LEVEL_KEYS = ("pmf_levels", "levels_pct")
+# the 8 feeder inputs in the order of :func:`feeder_vector`: per location the one-hot fence type,
+# then the angle
+FEEDER_FEATURE_NAMES = tuple(
+    name for loc in (1, 2) for name in (*(f"loc{loc}_{t}" for t in TYPES), f"loc{loc}_angle_deg")
+)
+INPUT_NAMES = DFT_FEATURE_NAMES + FEEDER_FEATURE_NAMES  # the 53 raw model inputs, in order
+FEATURES_DIGEST_CHARS = 12  # hex digits of the sha256 kept in features_version()
+
+
+def features_version() -> str:
+    """The version of the model inputs this code computes, ``"<FEATURES_VERSION>-<digest>"``:
+    the hand-bumped :data:`feeder.parts.features.FEATURES_VERSION` and a short sha256 of it, the
+    ordered :data:`INPUT_NAMES` and the DFT settings (:data:`feeder.parts.features.DFT`). A model
+    card records it; a model whose inputs were computed otherwise gets a different one."""
+    import dataclasses
+    import hashlib
+
+    if len(INPUT_NAMES) != N_DFT + N_FEEDER:
+        raise FeederError(f"INPUT_NAMES lists {len(INPUT_NAMES)} inputs, the models take {N_DFT + N_FEEDER}")
+    blob = json.dumps(
+        {"version": FEATURES_VERSION, "inputs": list(INPUT_NAMES), "dft": dataclasses.asdict(DFT)}, sort_keys=True
+    )
+    return f"{FEATURES_VERSION}-{hashlib.sha256(blob.encode()).hexdigest()[:FEATURES_DIGEST_CHARS]}"
 
 
 # ----------------------------------------------------------------------------------------------

@@ -15,14 +15,27 @@ Two baselines sit beside the models in every table:
   input space (Euclidean; the scaler is fit on the training rows). A training row is never its
   own neighbour (leave-one-out), so the Train table shows an honest baseline.
 
-``train_s`` is the training wall time (from the model's ``metrics.json``); for the baselines it
-is the measured time to build them.
+``train_s`` is the training wall time (from the model's ``metrics.json``, the mean over seeds);
+for the baselines it is the measured time to build them.
+
+**Seeds.** Every model is trained once per seed (``models.seeds``). A table's metric columns are
+the mean over seeds of each seed's statistic over configurations; ``seeds`` counts them and the
+``*_seed_sd`` columns give the sample SD (ddof = 1) of the per-seed means across seeds (empty for
+one seed and for the baselines, which have no seed).
+
+**Model against baseline** (``model_vs_baselines.csv``): for every model, baseline, split and metric,
+the mean per-configuration difference (model minus baseline; each configuration's model score is its
+mean over seeds) with a paired percentile bootstrap interval over configurations
+(:func:`paired_bootstrap`), and a verdict: ``better`` or ``worse`` only when the interval excludes
+zero. GroupKFold does the same over parts (each part's mean over its held-out configurations).
 
 Subcommands::
 
-    feeder evaluate tables --dataset D --models results/models/m1 ... --out-dir results/tables
-    feeder evaluate groupkfold --dataset D --out results/tables/groupkfold_m3.csv model=m3 [overrides]
-    feeder evaluate figure-data --dataset D --model results/models/m3 --fig12-data F12.npz --fig13-data F13.npz
+    feeder evaluate tables --dataset D --models results/models/m1/seed0 ... --out-dir results/tables \
+        [--resamples 2000 --level 0.95 --bootstrap-seed 0]
+    feeder evaluate groupkfold --dataset D --out results/tables/groupkfold_m3.csv \
+        --paired-out results/tables/groupkfold_m3_paired.csv --seeds 0 1 2 model=m3 [overrides]
+    feeder evaluate figure-data --dataset D --model results/models/m3/seed0 --fig12-data F12.npz --fig13-data F13.npz
     feeder evaluate grid --dir results/models/grid/m3 --out results/tables/grid_m3.csv
 """
 
@@ -47,8 +60,27 @@ TABLES = {
     "parts": (8, "Regression models on Parts: unseen part geometries (P3)"),
 }
 METRIC_COLUMNS = ["r2_mean", "r2_sd", "w1_mean", "w1_sd", "mse_mean", "r2c_mean", "r2c_sd", "cw1_mean", "cw1_sd"]
-COLUMNS = ["model", "n", *METRIC_COLUMNS, "train_s"]
-BREAKDOWN_COLUMNS = ["model", "group", "n", *METRIC_COLUMNS]
+SEED_COLUMNS = ["seeds", "r2_seed_sd", "w1_seed_sd", "r2c_seed_sd", "cw1_seed_sd"]
+COLUMNS = ["model", "n", *METRIC_COLUMNS, *SEED_COLUMNS, "train_s"]
+BREAKDOWN_COLUMNS = ["model", "group", "n", *METRIC_COLUMNS, *SEED_COLUMNS]
+PAIRED_COLUMNS = [
+    "split",
+    "model",
+    "baseline",
+    "metric",
+    "n",
+    "model_mean",
+    "baseline_mean",
+    "diff_mean",
+    "diff_low",
+    "diff_high",
+    "level",
+    "resamples",
+    "verdict",
+]
+# paired comparisons: metric -> +1 when higher is better, -1 when lower is better
+PAIRED_METRICS = {"r2": 1, "r2c": 1, "w1": -1, "cw1": -1}
+PAIRED_SPLITS = ("test", "fences", "parts")
 BASELINE_MEAN = "baseline_mean_pmf"
 BASELINE_NEAREST = "baseline_nearest_part"
 # Figs. 12-13: the rows at these quantiles of the model's R² (best to worst) are shown.
@@ -84,6 +116,91 @@ def summarise(m: dict[str, np.ndarray]) -> dict[str, float]:
         out[f"{k}_sd"] = float(np.std(m[k], ddof=0)) if n else np.nan
     out["mse_mean"] = float(np.mean(m["mse"])) if n else np.nan
     return out
+
+
+def seed_summary(per_seed: list[dict[str, np.ndarray]], mask: np.ndarray) -> dict[str, float]:
+    """Columns of one table row from per-seed per-configuration metrics: each statistic of
+    :func:`summarise` averaged over seeds, the seed count and the sample SD (ddof = 1) of the
+    per-seed means across seeds (NaN with one seed)."""
+    sums = [summarise({k: v[mask] for k, v in m.items()}) for m in per_seed]
+    out: dict[str, float] = {"n": sums[0]["n"], "seeds": len(sums)}
+    for col in METRIC_COLUMNS:
+        out[col] = float(np.mean([s[col] for s in sums]))
+    for k in _SPREAD:
+        means = [s[f"{k}_mean"] for s in sums]
+        out[f"{k}_seed_sd"] = float(np.std(means, ddof=1)) if len(means) > 1 else np.nan
+    return out
+
+
+def paired_bootstrap(diff: np.ndarray, resamples: int, level: float, seed: int) -> tuple[float, float, float]:
+    """Mean of paired differences and its percentile bootstrap interval at ``level``.
+
+    ``diff[i]`` is one unit's difference (a configuration, or a part); units are resampled with
+    replacement ``resamples`` times from ``numpy.random.default_rng(seed)``. The interval is the
+    ((1 − level)/2, (1 + level)/2) quantile pair of the resampled means (linear interpolation)."""
+    diff = np.asarray(diff, dtype=np.float64)
+    if diff.ndim != 1 or diff.size == 0:
+        raise FeederError("paired_bootstrap needs a non-empty 1-d array of differences")
+    if not np.all(np.isfinite(diff)):
+        raise FeederError("paired_bootstrap: differences must be finite")
+    if int(resamples) < 1:
+        raise FeederError(f"paired_bootstrap: resamples {resamples} must be >= 1")
+    if not 0.0 < float(level) < 1.0:
+        raise FeederError(f"paired_bootstrap: level {level} must lie in (0, 1)")
+    rng = np.random.default_rng(seed)
+    idx = rng.integers(0, diff.size, size=(int(resamples), diff.size))
+    means = diff[idx].mean(axis=1)
+    tail = (1.0 - float(level)) / 2.0
+    lo, hi = np.quantile(means, [tail, 1.0 - tail])
+    return float(diff.mean()), float(lo), float(hi)
+
+
+def verdict(diff_low: float, diff_high: float, sign: int) -> str:
+    """``better`` / ``worse`` when the interval of (model − baseline) excludes zero (``sign`` +1:
+    higher is better, −1: lower is better), else ``no clear difference``."""
+    if diff_low > 0.0 or diff_high < 0.0:
+        return "better" if (diff_low > 0.0) == (sign > 0) else "worse"
+    return "no clear difference"
+
+
+def paired_rows(
+    split: str,
+    model: str,
+    model_scores: dict[str, np.ndarray],
+    baselines: dict[str, dict[str, np.ndarray]],
+    bootstrap: dict,
+) -> list[dict]:
+    """Rows of the paired comparison of one model (per-unit scores, already averaged over seeds)
+    against each baseline (per-unit scores over the same units, in the same order)."""
+    rows = []
+    for base, base_scores in baselines.items():
+        for metric, sign in PAIRED_METRICS.items():
+            a = np.asarray(model_scores[metric], dtype=np.float64)
+            b = np.asarray(base_scores[metric], dtype=np.float64)
+            mean, lo, hi = paired_bootstrap(a - b, bootstrap["resamples"], bootstrap["level"], bootstrap["seed"])
+            rows.append(
+                {
+                    "split": split,
+                    "model": model,
+                    "baseline": base,
+                    "metric": metric,
+                    "n": int(a.size),
+                    "model_mean": float(a.mean()),
+                    "baseline_mean": float(b.mean()),
+                    "diff_mean": mean,
+                    "diff_low": lo,
+                    "diff_high": hi,
+                    "level": float(bootstrap["level"]),
+                    "resamples": int(bootstrap["resamples"]),
+                    "verdict": verdict(lo, hi, sign),
+                }
+            )
+    return rows
+
+
+def seed_mean(per_seed: list[dict[str, np.ndarray]]) -> dict[str, np.ndarray]:
+    """Per-configuration metrics averaged over seeds."""
+    return {k: np.mean([m[k] for m in per_seed], axis=0) for k in per_seed[0]}
 
 
 def nearest_rows(query: np.ndarray, ref: np.ndarray, exclude_same: np.ndarray | None = None) -> np.ndarray:
@@ -150,71 +267,115 @@ def _write_table(path: Path, df: pd.DataFrame, caption: str) -> None:
     write_text(path.with_suffix(".md"), markdown_table(df, caption))
 
 
-def load_models(model_dirs) -> list[tuple[str, object, float]]:
-    """(name, TrainedModel, train_s) of every model directory."""
+def load_models(model_dirs) -> list[tuple[str, int, object, float]]:
+    """(name, seed, TrainedModel, train_s) of every model directory (one per model and seed)."""
     from feeder.learn.models import TrainedModel
 
     out = []
+    seen: set[tuple[str, int]] = set()
     for d in model_dirs:
         d = Path(d)
         metrics_path = d / "metrics.json"
         if not metrics_path.is_file():
             raise FeederError(f"{metrics_path}: missing (train the model first)")
         metrics = json.loads(metrics_path.read_text())
-        out.append((str(metrics.get("model", d.name)), TrainedModel.load(d), float(metrics["train_s"])))
+        key = (str(metrics.get("model", d.name)), int(metrics.get("seed", 0)))
+        if key in seen:
+            raise FeederError(f"{d}: model {key[0]} with seed {key[1]} is given twice")
+        seen.add(key)
+        out.append((*key, TrainedModel.load(d), float(metrics["train_s"])))
     return out
 
 
-def evaluation_tables(data: dict, models: list[tuple[str, object, float]]):
-    """Tables 5–8 (split -> DataFrame) and the Fences/Parts breakdowns."""
+def _per_seed_predictions(data: dict, models) -> dict[str, list[tuple[np.ndarray, float]]]:
+    """name -> [(predicted CDFs, train_s) per seed, in seed order] for the models, then the
+    baselines (one entry each: they have no seed)."""
     train_mask = data["split"] == "train"
-    preds: list[tuple[str, np.ndarray, float]] = []
-    for name, model, train_s in models:
+    preds: dict[str, list[tuple[int, np.ndarray, float]]] = {}
+    for name, seed, model, train_s in models:
         _, cdf = model.predict(data["part_raw"], data["feeder_raw"])
-        preds.append((name, cdf, train_s))
+        preds.setdefault(name, []).append((seed, cdf, train_s))
+    out = {name: [(cdf, s) for _, cdf, s in sorted(runs, key=lambda r: r[0])] for name, runs in preds.items()}
     for name, (cdf, secs) in baseline_predictions(data, train_mask).items():
-        preds.append((name, cdf, secs))
+        out[name] = [(cdf, secs)]
+    return out
+
+
+def evaluation_tables(data: dict, models, bootstrap: dict | None = None):
+    """Tables 5–8 (split -> DataFrame), the Fences/Parts breakdowns and the paired comparison of
+    every model with both baselines (None when ``bootstrap`` is None)."""
+    preds = _per_seed_predictions(data, models)
+    per_row = {name: [row_metrics(data["cdf"], cdf) for cdf, _ in runs] for name, runs in preds.items()}
+    train_s = {name: float(np.mean([s for _, s in runs])) for name, runs in preds.items()}
 
     tables = {}
-    per_row = {name: row_metrics(data["cdf"], cdf) for name, cdf, _ in preds}
     for split in TABLES:
         mask = data["split"] == split
-        rows = [
-            {"model": name, **summarise({k: v[mask] for k, v in per_row[name].items()}), "train_s": secs}
-            for name, _, secs in preds
-        ]
+        rows = [{"model": name, **seed_summary(per_row[name], mask), "train_s": train_s[name]} for name in preds]
         tables[split] = pd.DataFrame(rows, columns=COLUMNS)
 
     def breakdown(split: str, groups: np.ndarray) -> pd.DataFrame:
         mask = data["split"] == split
         rows = []
-        for name, _, _ in preds:
+        for name in preds:
             for g in sorted(set(groups[mask])):
-                sel = mask & (groups == g)
-                rows.append({"model": name, "group": g, **summarise({k: v[sel] for k, v in per_row[name].items()})})
+                rows.append({"model": name, "group": g, **seed_summary(per_row[name], mask & (groups == g))})
         return pd.DataFrame(rows, columns=BREAKDOWN_COLUMNS)
 
     combos = np.array([combo_label(c) for c in data["config_id"]])
-    return tables, {"fences": breakdown("fences", combos), "parts": breakdown("parts", data["part"])}
+    breakdowns = {"fences": breakdown("fences", combos), "parts": breakdown("parts", data["part"])}
+    if bootstrap is None:
+        return tables, breakdowns, None
+    baselines = (BASELINE_MEAN, BASELINE_NEAREST)
+    paired = []
+    for split in PAIRED_SPLITS:
+        mask = data["split"] == split
+        if not mask.any():
+            continue
+        base_scores = {b: {k: v[mask] for k, v in per_row[b][0].items()} for b in baselines}
+        for name in preds:
+            if name in baselines:
+                continue
+            scores = {k: v[mask] for k, v in seed_mean(per_row[name]).items()}
+            paired += paired_rows(split, name, scores, base_scores, bootstrap)
+    return tables, breakdowns, pd.DataFrame(paired, columns=PAIRED_COLUMNS)
 
 
-def write_tables(dataset, model_dirs, out_dir) -> list[Path]:
+def write_tables(dataset, model_dirs, out_dir, bootstrap: dict | None = None) -> list[Path]:
     from feeder.labels.dataset import load_dataset
 
     data = load_dataset(dataset)
     models = load_models(model_dirs)
-    tables, breakdowns = evaluation_tables(data, models)
+    tables, breakdowns, paired = evaluation_tables(data, models, bootstrap)
+    seeds = sorted({seed for _, seed, _, _ in models})
+    seed_note = f"{len(seeds)} training seed{'s' if len(seeds) > 1 else ''} ({', '.join(map(str, seeds))})"
     out_dir = Path(out_dir)
     written = []
     for split, (number, caption) in TABLES.items():
         n = int((data["split"] == split).sum())
         path = out_dir / f"table{number}.csv"
-        _write_table(path, tables[split], f"Table {number}. {caption}; mean ± SD (ddof=0) over N = {n} configurations.")
+        _write_table(
+            path,
+            tables[split],
+            f"Table {number}. {caption}; mean ± SD (ddof=0) over N = {n} configurations, averaged over "
+            f"{seed_note}; *_seed_sd: SD (ddof=1) of the mean across seeds.",
+        )
         written.append(path)
     captions = {"fences": "Fences split by fence-type combination", "parts": "Parts split by part"}
     for split, df in breakdowns.items():
         path = out_dir / f"breakdown_{split}.csv"
-        _write_table(path, df, f"{captions[split]} (CDF R², W1 in degrees; mean ± SD ddof=0).")
+        _write_table(path, df, f"{captions[split]} (CDF R², W1 in degrees; mean ± SD ddof=0; {seed_note}).")
+        written.append(path)
+    if paired is not None:
+        path = out_dir / "model_vs_baselines.csv"
+        _write_table(
+            path,
+            paired,
+            "Each model against each baseline, paired over the configurations of a split: mean difference "
+            f"(model − baseline; model scores averaged over {seed_note}) with a "
+            f"{bootstrap['level']:.0%} percentile bootstrap interval ({bootstrap['resamples']} resamples); "
+            "better/worse only when the interval excludes 0.",
+        )
         written.append(path)
     return written
 
@@ -222,46 +383,78 @@ def write_tables(dataset, model_dirs, out_dir) -> list[Path]:
 # ----------------------------------------------------------------------------------------------
 # Leave-parts-out GroupKFold
 # ----------------------------------------------------------------------------------------------
-def groupkfold(data: dict, cfg, progress: bool | None = None) -> pd.DataFrame:
-    """Train ``cfg.model`` once per ``group_fold`` on every row of the other folds and predict the
-    held-out parts. Rows: per part, all held-out configurations, and the mean ± SD of the
-    per-part means ("over parts"), for the model and both baselines (built per fold)."""
+def _part_means(m: dict[str, np.ndarray], parts: np.ndarray, names: list[str]) -> dict[str, np.ndarray]:
+    """Per-part means of per-configuration metrics (parts in the order of ``names``)."""
+    return {k: np.array([v[parts == p].mean() for p in names]) for k, v in m.items()}
+
+
+def groupkfold(data: dict, cfg, seeds=None, progress: bool | None = None, bootstrap: dict | None = None):
+    """Train ``cfg.model`` once per ``group_fold`` and seed on every row of the other folds and
+    predict the held-out parts. Rows: per part, all held-out configurations, and the mean ± SD of
+    the per-part means ("over parts"), for the model (averaged over ``seeds``, default
+    ``[cfg.seed]``, with the spread across seeds) and both baselines (built per fold).
+
+    Returns the table, and with ``bootstrap`` also the paired comparison over parts (else None)."""
     from feeder.learn.train import fit
 
     folds = np.unique(data["group_fold"])
     if folds.size < 2:
         raise FeederError("GroupKFold needs at least 2 folds in group_fold")
+    seeds = [int(cfg.seed)] if seeds is None else [int(s) for s in seeds]
+    if not seeds or len(set(seeds)) != len(seeds):
+        raise FeederError(f"GroupKFold seeds {seeds}: give at least one, without repeats")
     n_rows, bins = data["cdf"].shape
     name = str(cfg.model.name)
-    names = [name, BASELINE_MEAN, BASELINE_NEAREST]
-    preds = {k: np.full((n_rows, bins), np.nan) for k in names}
-    secs = dict.fromkeys(names, 0.0)
+    baselines = [BASELINE_MEAN, BASELINE_NEAREST]
+    runs = {
+        name: [np.full((n_rows, bins), np.nan) for _ in seeds],
+        **{b: [np.full((n_rows, bins), np.nan)] for b in baselines},
+    }
+    secs = dict.fromkeys(runs, 0.0)
     for fold in folds:
         test = data["group_fold"] == fold
         train = ~test
-        fitted = fit(cfg, data, train, seed=int(cfg.seed) + int(fold), progress=progress)
-        _, preds[name][test] = fitted.model.predict(data["part_raw"][test], data["feeder_raw"][test])
-        secs[name] += fitted.train_s
+        for i, seed in enumerate(seeds):
+            fitted = fit(cfg, data, train, seed=seed + int(fold), progress=progress)
+            _, runs[name][i][test] = fitted.model.predict(data["part_raw"][test], data["feeder_raw"][test])
+            secs[name] += fitted.train_s / len(seeds)
         for b, (cdf, s) in baseline_predictions(data, train).items():
-            preds[b][test] = cdf[test]
+            runs[b][0][test] = cdf[test]
             secs[b] += s
+    per_row = {k: [row_metrics(data["cdf"], cdf) for cdf in v] for k, v in runs.items()}
+    parts = np.asarray(data["part"])
+    part_names = sorted(set(parts))
     rows = []
-    for model_name in names:
-        m = row_metrics(data["cdf"], preds[model_name])
-        part_means = []
-        for part in sorted(set(data["part"])):
-            sel = data["part"] == part
-            s = summarise({k: v[sel] for k, v in m.items()})
-            part_means.append(s)
-            rows.append({"model": model_name, "group": part, **s, "train_s": np.nan})
-        rows.append({"model": model_name, "group": "all configurations", **summarise(m), "train_s": secs[model_name]})
-        over = {"model": model_name, "group": "over parts", "n": len(part_means)}
-        for k in _SPREAD:
-            means = np.array([s[f"{k}_mean"] for s in part_means])
-            over[f"{k}_mean"], over[f"{k}_sd"] = means.mean(), means.std(ddof=0)
-        over["mse_mean"] = float(np.mean([s["mse_mean"] for s in part_means]))
+    for model_name, per_seed in per_row.items():
+        everything = np.ones(n_rows, dtype=bool)
+        for part in part_names:
+            rows.append(
+                {"model": model_name, "group": part, **seed_summary(per_seed, parts == part), "train_s": np.nan}
+            )
+        rows.append(
+            {
+                "model": model_name,
+                "group": "all configurations",
+                **seed_summary(per_seed, everything),
+                "train_s": secs[model_name],
+            }
+        )
+        part_level = [_part_means(m, parts, part_names) for m in per_seed]
+        over = {
+            "model": model_name,
+            "group": "over parts",
+            **seed_summary(part_level, np.ones(len(part_names), dtype=bool)),
+        }
         rows.append({**over, "train_s": secs[model_name]})
-    return pd.DataFrame(rows, columns=BREAKDOWN_COLUMNS + ["train_s"])
+    table = pd.DataFrame(rows, columns=BREAKDOWN_COLUMNS + ["train_s"])
+    if bootstrap is None:
+        return table, None
+    model_parts = seed_mean([_part_means(m, parts, part_names) for m in per_row[name]])
+    base_parts = {b: _part_means(per_row[b][0], parts, part_names) for b in baselines}
+    paired = pd.DataFrame(
+        paired_rows("groupkfold over parts", name, model_parts, base_parts, bootstrap), columns=PAIRED_COLUMNS
+    )
+    return table, paired
 
 
 # ----------------------------------------------------------------------------------------------
@@ -340,18 +533,39 @@ def grid_table(grid_dir) -> pd.DataFrame:
 # ----------------------------------------------------------------------------------------------
 # CLI
 # ----------------------------------------------------------------------------------------------
+def _bootstrap_options(p: argparse.ArgumentParser) -> None:
+    """The paired bootstrap's settings (models.bootstrap in the study config)."""
+    p.add_argument("--resamples", type=int, default=2000, help="bootstrap resamples (default 2000)")
+    p.add_argument("--level", type=float, default=0.95, help="interval level in (0, 1) (default 0.95)")
+    p.add_argument("--bootstrap-seed", type=int, default=0, help="seed of the resampling (default 0)")
+
+
+def _bootstrap_settings(args) -> dict:
+    if args.resamples < 1:
+        raise FeederError(f"--resamples {args.resamples}: must be >= 1")
+    if not 0.0 < args.level < 1.0:
+        raise FeederError(f"--level {args.level}: must lie in (0, 1)")
+    return {"resamples": args.resamples, "level": args.level, "seed": args.bootstrap_seed}
+
+
 def main(argv: list[str]) -> int:
     parser = argparse.ArgumentParser(prog="feeder evaluate", description=__doc__.split("\n")[0])
     sub = parser.add_subparsers(dest="cmd", required=True)
 
-    p = sub.add_parser("tables", help="Tables 5-8 (+ .md) and the Fences/Parts breakdowns")
+    p = sub.add_parser("tables", help="Tables 5-8 (+ .md), the Fences/Parts breakdowns and model_vs_baselines.csv")
     p.add_argument("--dataset", type=Path, required=True)
-    p.add_argument("--models", type=Path, nargs="+", required=True, help="trained model directories")
+    p.add_argument(
+        "--models", type=Path, nargs="+", required=True, help="trained model directories (one per model and seed)"
+    )
     p.add_argument("--out-dir", type=Path, required=True)
+    _bootstrap_options(p)
 
-    p = sub.add_parser("groupkfold", help="leave-parts-out GroupKFold of one model (trains one per fold)")
+    p = sub.add_parser("groupkfold", help="leave-parts-out GroupKFold of one model (trains one per fold and seed)")
     p.add_argument("--dataset", type=Path, required=True)
     p.add_argument("--out", type=Path, required=True, help="CSV (a .md twin is written beside it)")
+    p.add_argument("--paired-out", type=Path, help="CSV of the model against both baselines, paired over parts")
+    p.add_argument("--seeds", type=int, nargs="+", help="training seeds (default: the Hydra config's seed)")
+    _bootstrap_options(p)
     p.add_argument("overrides", nargs="*", help="Hydra overrides, e.g. model=m3 trainer.max_epochs=50")
 
     p = sub.add_parser("figure-data", help="data of Figs. 12 (Test) and 13 (Parts): four representative CDFs each")
@@ -366,7 +580,7 @@ def main(argv: list[str]) -> int:
 
     args = parser.parse_args(argv)
     if args.cmd == "tables":
-        for path in write_tables(args.dataset, args.models, args.out_dir):
+        for path in write_tables(args.dataset, args.models, args.out_dir, _bootstrap_settings(args)):
             print(path)
     elif args.cmd == "groupkfold":
         from feeder.config import compose_config
@@ -374,15 +588,26 @@ def main(argv: list[str]) -> int:
 
         data = load_dataset(args.dataset)
         cfg = compose_config("train", args.overrides)
-        df = groupkfold(data, cfg)
+        bootstrap = _bootstrap_settings(args) if args.paired_out else None
+        df, paired = groupkfold(data, cfg, seeds=args.seeds, bootstrap=bootstrap)
         name = str(cfg.model.name)
+        seeds = args.seeds or [int(cfg.seed)]
         _write_table(
             args.out,
             df,
-            f"Leave-parts-out GroupKFold of {name} ({np.unique(data['group_fold']).size} folds): "
+            f"Leave-parts-out GroupKFold of {name} ({np.unique(data['group_fold']).size} folds, "
+            f"{len(seeds)} training seed{'s' if len(seeds) > 1 else ''}): "
             "CDF R², W1 in degrees, mean ± SD (ddof=0) per part, over all held-out "
-            "configurations, and over the per-part means.",
+            "configurations, and over the per-part means; averaged over seeds, *_seed_sd across them.",
         )
+        if paired is not None:
+            _write_table(
+                args.paired_out,
+                paired,
+                f"{name} against both baselines on unseen parts (GroupKFold), paired over parts: mean "
+                f"difference of per-part means with a {bootstrap['level']:.0%} percentile bootstrap "
+                f"interval ({bootstrap['resamples']} resamples); better/worse only when it excludes 0.",
+            )
         summary = df[df.group == "over parts"][["model", "r2_mean", "r2_sd", "w1_mean"]]
         print(summary.to_string(index=False), file=sys.stderr)
     elif args.cmd == "figure-data":

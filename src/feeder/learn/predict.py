@@ -1,8 +1,12 @@
 """``feeder predict``: the orientation PMF of one part behind one fence configuration, from a
 trained regression model, without simulating.
 
-    feeder predict --model results/models/m3 --part parts/<id>.stl --loc1 straight:30 --loc2 none \\
+    feeder predict [--model results/models/m3/seed0] --part parts/<id>.stl --loc1 straight:30 --loc2 none \\
         [--out pmf.csv] [--plot pmf.png]
+
+Without ``--model`` the shipped model is used (``models/m3``, written by ``feeder export-model``;
+:func:`feeder.learn.export.shipped_model_dir`). A model folder with a card (``card.json``) whose
+features version is not the code's is refused (:func:`feeder.learn.export.check_card`).
 
 The part's 45 DFT features come from its ``.stl``/``.xyz`` (:func:`feeder.parts.features.features_of_file`)
 or from a precomputed ``--features results/features/<id>.json``; the fences are parsed by
@@ -36,11 +40,13 @@ INFERENCE_THREADS = 1
 
 def load_model(path: Path):
     """The :class:`feeder.learn.models.TrainedModel` in ``path``, torch set up for inference
-    (``INFERENCE_THREADS``)."""
+    (``INFERENCE_THREADS``); an exported model only if its card's features version is the code's."""
     import torch
 
+    from feeder.learn.export import check_card
     from feeder.learn.models import TrainedModel
 
+    check_card(path)
     torch.set_num_threads(INFERENCE_THREADS)
     return TrainedModel.load(path)
 
@@ -169,8 +175,10 @@ def orientation_summary(frame, top: int = TOP_ORIENTATIONS) -> str:
 
 
 def main(argv: list[str]) -> int:
+    from feeder.learn.export import add_model_option, resolve_model_dir
+
     parser = argparse.ArgumentParser(prog="feeder predict", description=__doc__.split("\n")[0])
-    parser.add_argument("--model", type=Path, required=True, help="trained model directory")
+    add_model_option(parser)
     parser.add_argument("--part", type=Path, help="part geometry (.stl or .xyz)")
     parser.add_argument("--features", type=Path, help="precomputed features JSON instead of --part")
     parser.add_argument("--loc1", required=True, help="none | straight:ANGLE | curved:ANGLE")
@@ -186,7 +194,7 @@ def main(argv: list[str]) -> int:
         from feeder.io import check_figure_path
 
         check_figure_path(args.plot)
-    model = load_model(args.model)
+    model = load_model(resolve_model_dir(args.model, "feeder predict"))
     t0 = time.perf_counter()
     part_raw, frame_deg = part_vector(args.part, args.features)
     t1 = time.perf_counter()

@@ -8,7 +8,10 @@ them by the predicted probability that the final yaw lies within ``--tolerance``
 (:func:`window_probability`; modulo the part's rotational symmetry, since a part turned by
 360/n looks the same).
 
-    feeder recommend --model results/models/m3 --part my.stl --target 0 --tolerance 10
+    feeder recommend [--model results/models/m3/seed0] --part my.stl --target 0 --tolerance 10
+
+Without ``--model`` the shipped model is used (``models/m3``, written by ``feeder export-model``;
+:func:`feeder.learn.export.shipped_model_dir`).
 
 Predictions are only as good as the model (its card says how it did on unseen parts);
 ``feeder simulate`` a configuration to check one.
@@ -101,10 +104,11 @@ def rank(model, part_raw, frame_deg, config_ids, target_deg, tolerance_deg, orde
 
 def main(argv: list[str]) -> int:
     from feeder.config import load_study_config
+    from feeder.learn.export import add_model_option, resolve_model_dir
     from feeder.learn.predict import load_model, part_vector
 
     parser = argparse.ArgumentParser(prog="feeder recommend", description=__doc__.splitlines()[0])
-    parser.add_argument("--model", type=Path, required=True, help="trained model directory")
+    add_model_option(parser)
     parser.add_argument("--part", type=Path, help="part geometry (.stl or .xyz)")
     parser.add_argument("--features", type=Path, help="precomputed features JSON instead of --part")
     parser.add_argument("--target", type=float, required=True, help="wanted final yaw, degrees in [0, 360)")
@@ -127,7 +131,7 @@ def main(argv: list[str]) -> int:
     else:
         config_ids = grid_configurations(load_study_config()["fences"])
     order = symmetry_order(args.symmetry, args.part)
-    model = load_model(args.model)
+    model = load_model(resolve_model_dir(args.model, "feeder recommend"))
     part_raw, frame_deg = part_vector(args.part, args.features)
     ranked = rank(model, part_raw, frame_deg, config_ids, args.target, args.tolerance, order)
     if args.out is not None:

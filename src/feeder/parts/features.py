@@ -90,6 +90,16 @@ class DFTSettings:
 
 DFT = DFTSettings()
 
+# The version of the model inputs the feature code computes. Bump it by hand whenever a change
+# alters the values of the features of a part (the method above, a default of DFTSettings, the
+# order or meaning of a triplet): a model trained on the old values must not read the new ones.
+# :func:`feeder.labels.dataset.features_version` combines it with the ordered input names and the
+# settings; a shipped model whose card records another version is refused (feeder.learn.export).
+FEATURES_VERSION = 1
+# The 45 raw values in the order of :func:`as_vector`: k1, magnitude1, phase1, k2, ...
+TRIPLET_KEYS = ("k", "magnitude", "phase")
+DFT_FEATURE_NAMES = tuple(f"{key}{i}" for i in range(1, DFT.coefficients + 1) for key in TRIPLET_KEYS)
+
 # Nearest-neighbour gap of the silhouette's pixels (:func:`largest_gap`): first search radius (px;
 # a 4,000-point face cloud on the canvas has gaps of about 3-8 px) and offsets looked up per pass.
 GAP_SEARCH_START_PX = 8
@@ -426,7 +436,7 @@ def features_of_file(path: str | os.PathLike, settings: DFTSettings = DFT) -> di
 
 def as_vector(features: dict[str, list]) -> np.ndarray:
     """The 45 raw values as triplets ``k1, |a1|, arg a1, k2, ...`` (docs/data.md)."""
-    return np.column_stack([features["k"], features["magnitude"], features["phase"]]).ravel()
+    return np.column_stack([features[key] for key in TRIPLET_KEYS]).ravel()
 
 
 # --------------------------------------------------------------------------------------------
