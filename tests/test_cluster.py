@@ -23,7 +23,7 @@ pytestmark = pytest.mark.slow
 
 UP = ROOT / "profiles" / "slurm-local" / "up.sh"
 SMOKE = ("--configfile", "config/smoke.yaml")
-TARGET = "results/datasets/dataset.npz"  # features, every smoke simulation, labels: 28 jobs
+TARGET = "results/smoke/datasets/dataset.npz"  # features, every smoke simulation, labels: 28 jobs
 TIMING_KEYS = {"wall_s", "cpu_s"}  # measured, so different on every run
 RUN_TIMEOUT_S = 1800
 UP_TIMEOUT_S = 900
@@ -89,9 +89,9 @@ def test_smoke_simulations_through_slurm_equal_a_local_run(cluster, tmp_path):
     assert list((logs / "rule_simulate").rglob("*.log")), "no SLURM log of a simulation job"
     assert "array" in proc.stderr.lower()
 
-    sims = sorted(p.relative_to(local) for p in (local / "results" / "sim").rglob("*.npz"))
+    sims = sorted(p.relative_to(local) for p in (local / "results" / "smoke" / "sim").rglob("*.npz"))
     assert sims, "the local run simulated nothing"
-    assert sims == sorted(p.relative_to(remote) for p in (remote / "results" / "sim").rglob("*.npz"))
+    assert sims == sorted(p.relative_to(remote) for p in (remote / "results" / "smoke" / "sim").rglob("*.npz"))
     for rel in sims:
         _assert_same(_arrays(local / rel), _arrays(remote / rel), str(rel))
     _assert_same(_arrays(local / TARGET), _arrays(remote / TARGET), TARGET)

@@ -246,6 +246,33 @@ def test_groupkfold_never_trains_on_a_held_out_part(trained, tmp_path, monkeypat
     assert (tested == 1).all()  # each row held out exactly once
 
 
+def test_groupkfold_scores_each_row_with_the_model_that_held_it_out(trained, tmp_path, monkeypatch):
+    """Each fold's model predicts exactly its held-out rows (not every row, which would let the
+    last fold's model score everything)."""
+    root, ds, _ = trained
+    data = load_dataset(ds)
+    cfg = compose_config("train", small_overrides(ds, tmp_path / "unused", "m3", epochs=1))
+    seen = []  # (training rows, inputs that fold's model predicted)
+    real_fit = T.fit
+
+    def spy_fit(cfg, data, train, **kw):
+        fitted = real_fit(cfg, data, train, **kw)
+        real_predict = fitted.model.predict
+
+        def spy_predict(part_raw, feeder_raw):
+            seen.append((np.asarray(train).copy(), np.asarray(part_raw).copy()))
+            return real_predict(part_raw, feeder_raw)
+
+        fitted.model.predict = spy_predict
+        return fitted
+
+    monkeypatch.setattr(T, "fit", spy_fit)
+    E.groupkfold(data, cfg, progress=False)
+    assert len(seen) == np.unique(data["group_fold"]).size
+    for train, predicted in seen:
+        np.testing.assert_array_equal(predicted, data["part_raw"][~train])  # the held-out rows, only
+
+
 def test_figure_data_and_figures(trained, tmp_path):
     from feeder.cli import main as cli
     from feeder.labels.metrics import r2_cdf

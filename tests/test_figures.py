@@ -5,6 +5,7 @@ input of its own drawing job only)."""
 from __future__ import annotations
 
 import ast
+import importlib
 import re
 from pathlib import Path
 
@@ -183,11 +184,12 @@ def _cost(path):
 
 
 def _jams(path):
+    # the rates differ by location and by part, so a line or point drawn from the wrong rows shows
     rows = [
-        {"fence": f, "angle_deg": a, "location": loc, "part": p, "ok_rate": r}
+        {"fence": f, "angle_deg": a, "location": loc, "part": p, "ok_rate": r * scale * share}
         for f, a, r in (("straight", 30.0, 1.0), ("straight", 65.0, 0.4), ("curved", 60.0, 0.2))
-        for loc in ("loc1", "loc2")
-        for p in ("a", "b", "mean")
+        for loc, scale in (("loc1", 1.0), ("loc2", 0.8))
+        for p, share in (("a", 0.5), ("b", 1.0), ("mean", 0.75))
     ]
     pd.DataFrame(rows).to_csv(path, index=False)
 
@@ -198,8 +200,8 @@ def _yaws(path):
             "design": d,
             "drops": n,
             "config": c,
-            "js": 0.5 / n**e,
-            "w1_deg": 30.0 / n**e,
+            "js": (1.0 if c == "mean" else 1.5) * 0.5 / n**e,
+            "w1_deg": (1.0 if c == "mean" else 1.5) * 30.0 / n**e,
             "random_drops_same_w1": n ** (2 * e),
             "reference_drops": 1000,
         }
@@ -375,7 +377,7 @@ def test_style_edit_reruns_only_that_figure(tmp_path):
 
     work = scratch_copy(tmp_path / "w")
     smoke = ("--configfile", "config/smoke.yaml")
-    targets = ("results/figures/s1_dft_mse.png", "results/figures/fig6_dft_reconstruction.png")
+    targets = ("results/smoke/figures/s1_dft_mse.png", "results/smoke/figures/fig6_dft_reconstruction.png")
     built = snakemake(work, *targets, *smoke)
     assert built.returncode == 0, built.stderr[-3000:]
     assert planned_rules(work, *targets, *smoke) == set()
@@ -413,3 +415,340 @@ def test_label_designs_plots_each_designs_means_against_its_simulations(tmp_path
             sub = sub.sort_values("simulations")
             np.testing.assert_allclose(lines[design].get_xdata(), sub.simulations)
             np.testing.assert_allclose(lines[design].get_ydata(), sub[col])
+
+
+# --- the plotted data read back from draw() -------------------------------------------------------
+# Each test below draws a tiny data file with the figure's draw() and compares what the axes hold
+# (lines, bars, error bars, bands, scatter points, histogram bars) with the input's numbers, so a
+# dropped series, a wrong column or a rescaled value fails, not only a missing PNG.
+
+
+def _xy(line):
+    return np.asarray(line.get_xdata(), float), np.asarray(line.get_ydata(), float)
+
+
+def _lines_by_label(ax):
+    return {line.get_label(): line for line in ax.get_lines()}
+
+
+def _assert_line(line, x, y):
+    lx, ly = _xy(line)
+    np.testing.assert_allclose(lx, np.asarray(x, float))
+    np.testing.assert_allclose(ly, np.asarray(y, float))
+
+
+def _assert_band(collection, x, lo, hi):
+    """A fill_between(x, lo, hi) polygon: its vertices run along (x, lo), then back along (x, hi)."""
+    x, lo, hi = (np.asarray(v, float) for v in (x, lo, hi))
+    (path,) = collection.get_paths()
+    verts, n = path.vertices, len(x)
+    np.testing.assert_allclose(verts[1 : n + 1], np.column_stack([x, lo]))
+    np.testing.assert_allclose(verts[n + 2 : 2 * n + 2][::-1], np.column_stack([x, hi]))
+
+
+def _assert_errorbar(container, x, y, err):
+    """An errorbar container: its data line is (x, y) and its bars run from y - err to y + err at x."""
+    x, y, err = (np.asarray(v, float) for v in (x, y, err))
+    _assert_line(container.lines[0], x, y)
+    segments = np.asarray(container.lines[2][0].get_segments(), float)  # (n, 2 ends, xy)
+    np.testing.assert_allclose(segments[:, :, 0], np.column_stack([x, x]))
+    np.testing.assert_allclose(segments[:, 0, 1], y - err)
+    np.testing.assert_allclose(segments[:, 1, 1], y + err)
+
+
+def _npz(path):
+    with np.load(path) as z:
+        return {k: z[k] for k in z.files}
+
+
+@pytest.mark.parametrize("name", ["fig12_test_predictions", "fig13_parts_predictions"])
+def test_cdf_predictions_plot_the_true_and_predicted_cdfs(name, tmp_path):
+    """One panel per row: the simulated CDF and the predicted CDF against yaw_deg."""
+    module = importlib.import_module(f"feeder.figures.{name}")
+    _predictions(tmp_path / "p.npz")
+    data = _npz(tmp_path / "p.npz")
+    fig = module.draw(data)
+    assert len(fig.axes) == len(data["cdf_true"]) == 4
+    for ax, true, pred in zip(fig.axes, data["cdf_true"], data["cdf_pred"], strict=True):
+        lines = _lines_by_label(ax)
+        _assert_line(lines["simulation"], data["yaw_deg"], true)
+        _assert_line(lines["prediction"], data["yaw_deg"], pred)
+
+
+def test_fig4_plots_the_mean_js_with_sd_bars_against_drops(tmp_path):
+    from feeder.figures import fig4_js_vs_drops
+
+    _fig4(tmp_path / "f.csv")
+    df = pd.read_csv(tmp_path / "f.csv")
+    (bars,) = fig4_js_vs_drops.draw(df).axes[0].containers
+    _assert_errorbar(bars, [100, 500, 1000], [0.2, 0.05, 0.0], [0.05, 0.01, 0.0])
+
+
+def test_fig5_histogram_counts_the_js_values_and_marks_the_noise_floor(tmp_path):
+    from feeder.figures import fig5_js_hist
+
+    _fig5(tmp_path / "f.npz")
+    data = _npz(tmp_path / "f.npz")
+    ax = fig5_js_hist.draw(data).axes[0]
+    counts, edges = np.histogram(data["js"], bins=30)
+    (bars,) = ax.containers
+    np.testing.assert_allclose([b.get_height() for b in bars], counts)
+    np.testing.assert_allclose([b.get_x() for b in bars], edges[:-1])
+    np.testing.assert_allclose([b.get_width() for b in bars], np.diff(edges))
+    assert sum(b.get_height() for b in bars) == 50
+    (floor,) = ax.get_lines()
+    np.testing.assert_allclose(_xy(floor)[0], [0.03, 0.03])
+
+
+def test_fig6_plots_each_parts_closed_outline_and_reconstruction(tmp_path):
+    from feeder.figures import fig6_dft_reconstruction
+
+    _fig6(tmp_path / "f.npz")
+    data = _npz(tmp_path / "f.npz")
+    fig = fig6_dft_reconstruction.draw(data)
+    assert len(fig.axes) == 2
+    for ax, name, z, rec in zip(fig.axes, data["name"], data["outline"], data["reconstruction"], strict=True):
+        assert ax.get_title().startswith(str(name))
+        outline, reconstruction = ax.get_lines()
+        closed = np.append(z, z[0])  # the outline is drawn closed: back to its first sample
+        _assert_line(outline, closed.real, closed.imag)
+        closed = np.append(rec, rec[0])
+        _assert_line(reconstruction, closed.real, closed.imag)
+
+
+def test_fig9_plots_each_pmf_against_the_bin_centres(tmp_path):
+    from feeder.figures import fig9_example_pmfs
+
+    _fig9(tmp_path / "f.npz")
+    data = _npz(tmp_path / "f.npz")
+    fig = fig9_example_pmfs.draw(data)
+    for ax, label, pmf in zip(fig.axes, data["label"], data["pmf"], strict=True):
+        assert ax.get_title().endswith(str(label))
+        (line,) = ax.get_lines()
+        _assert_line(line, data["yaw_deg"], pmf)
+
+
+def test_convergence_dkw_plots_the_sup_distance_band_and_share_inside(tmp_path):
+    """Left: median, 10-90 % band and DKW ε of the partial levels (the full run, N = 1000, left
+    out); right: the share inside the band at every level, and the 1 - α line."""
+    from feeder.figures import convergence_dkw
+
+    _dkw(tmp_path / "d.npz")
+    data = _npz(tmp_path / "d.npz")
+    left, right = convergence_dkw.draw(data).axes
+    n = [100, 500]
+    lines = _lines_by_label(left)
+    _assert_line(lines["median"], n, [0.05, 0.02])
+    (dkw,) = [line for label, line in lines.items() if label.startswith("DKW")]
+    _assert_line(dkw, n, data["dkw_epsilon"][:2])
+    (band,) = left.collections
+    _assert_band(band, n, [0.02, 0.01], [0.1, 0.04])
+    share, level = right.get_lines()
+    _assert_line(share, [100, 500, 1000], [0.9, 0.97, 1.0])
+    np.testing.assert_allclose(_xy(level)[1], [0.95, 0.95])
+
+
+def test_fig14_plots_within_and_cross_r2_with_sd_bars_and_the_no_model_line(tmp_path):
+    from feeder.figures import fig14_cross_convergence
+
+    _p2(tmp_path / "p.csv")
+    df = pd.read_csv(tmp_path / "p.csv")
+    ax = fig14_cross_convergence.draw(df).axes[0]
+    within, cross = ax.containers
+    _assert_errorbar(within, LEVELS, [0.8, 0.9, 0.95], [0.1, 0.05, 0.02])
+    _assert_errorbar(cross, LEVELS, [0.6, 0.85, 0.95], [0.2, 0.1, 0.02])
+    (baseline,) = [line for line in ax.get_lines() if line.get_label().startswith("level-k CDF itself")]
+    _assert_line(baseline, LEVELS, [0.3, 0.8, 1.0])
+
+
+def test_s11_plots_each_splits_delta_and_baseline_means_with_sd_bands(tmp_path):
+    from feeder.figures import s11_delta_sweep
+
+    _table10(tmp_path / "t.csv")
+    df = pd.read_csv(tmp_path / "t.csv")
+    # make the two splits differ, so a panel drawn from the other split's columns shows
+    df.loc[:, df.columns.str.startswith("config_")] *= 0.5
+    fig = s11_delta_sweep.draw(df)
+    for ax, mode in zip(fig.axes, ("part", "config"), strict=True):
+        lines = _lines_by_label(ax)
+        bands = ax.collections
+        assert len(bands) == 2
+        for key, label, band in zip(("r2", "baseline"), ("delta model", "partial PMF as answer"), bands, strict=True):
+            mean, sd = df[f"{mode}_{key}_mean"], df[f"{mode}_{key}_sd"]
+            _assert_line(lines[label], LEVELS, mean)
+            _assert_band(band, LEVELS, mean - sd, mean + sd)
+
+
+def test_s1_plots_mean_and_median_mse_the_iqr_band_and_the_chosen_count(tmp_path):
+    from feeder.figures import s1_dft_mse
+
+    _s1(tmp_path / "s.csv")
+    df = pd.read_csv(tmp_path / "s.csv")
+    ax = s1_dft_mse.draw(df, 15).axes[0]
+    n = np.arange(1, 21)
+    mse = 10.0 / n**2
+    lines = _lines_by_label(ax)
+    _assert_line(lines["mean over parts"], n, mse)
+    _assert_line(lines["median"], n, 0.9 * mse)
+    np.testing.assert_allclose(_xy(lines["15 coefficients"])[0], [15, 15])
+    (band,) = ax.collections
+    _assert_band(band, n, mse / 2, 1.5 * mse)
+
+
+def test_jam_rates_plot_the_mean_ok_rate_per_location_and_each_parts_points(tmp_path):
+    from feeder.figures import jam_rates
+
+    _jams(tmp_path / "j.csv")
+    df = pd.read_csv(tmp_path / "j.csv")
+    fig = jam_rates.draw(df)
+    for ax, kind in zip(fig.axes, ("curved", "straight"), strict=True):  # one panel per fence, sorted
+        lines = ax.get_lines()
+        assert len(lines) == 2 and len(ax.collections) == 2
+        for line, points, loc in zip(lines, ax.collections, ("loc1", "loc2"), strict=True):
+            at = df[(df.fence == kind) & (df.location == loc)]
+            mean = at[at.part == "mean"].sort_values("angle_deg")
+            _assert_line(line, mean.angle_deg, mean.ok_rate)
+            parts = at[at.part != "mean"]
+            np.testing.assert_allclose(points.get_offsets(), parts[["angle_deg", "ok_rate"]].to_numpy())
+    straight = _lines_by_label(fig.axes[1])
+    _assert_line(straight["Location 1 (mean of 2 parts)"], [30, 65], [0.75, 0.3])
+    _assert_line(straight["Location 2 (mean of 2 parts)"], [30, 65], [0.6, 0.24])
+
+
+def test_cost_by_stage_bars_are_wall_and_cpu_seconds(tmp_path):
+    from feeder.figures import cost_by_stage
+
+    _cost(tmp_path / "c.csv")
+    df = pd.read_csv(tmp_path / "c.csv")
+    ax = cost_by_stage.draw(df).axes[0]
+    wall, cpu = ax.containers  # the TOTAL row is left out
+    np.testing.assert_allclose([b.get_width() for b in wall], [120.0, 40.0, 9.0])
+    np.testing.assert_allclose([b.get_width() for b in cpu], [110.0, 70.0, 8.0])
+    for bars in (wall, cpu):
+        np.testing.assert_allclose([b.get_y() + b.get_height() / 2 for b in bars], [0, 1, 2])
+    assert [t.get_text() for t in ax.get_yticklabels()] == ["simulate (30 jobs)", "train (2 jobs)", "figures (9 jobs)"]
+
+
+def test_sim_accuracy_vs_time_plots_each_setting_its_pareto_front_and_the_drops_curves(tmp_path):
+    """Left/middle: one point per setting at (ms per drop, JS or W1) at the largest drop count,
+    blue inside the floor and red outside, the floor band and the Pareto front; right: JS
+    against drops of the fast setting and of the reference (the floor)."""
+    import matplotlib.colors as mcolors
+
+    from feeder.figures import sim_accuracy_vs_time
+
+    _bench(tmp_path / "b.csv")
+    df = pd.read_csv(tmp_path / "b.csv")
+    slow = df[df.setting == "coarse"].assign(setting="slow", ms_per_drop=100.0, js=0.5, w1_deg=20.0)
+    df = pd.concat([df, slow], ignore_index=True)  # dearer and further than all: off the front
+    fig = sim_accuracy_vs_time.draw(df, "faithful")
+    points = {
+        "faithful": (40.0, 0.02, 1.0),
+        "fast": (4.0, 0.03, 1.5),
+        "coarse": (1.0, 0.2, 9.0),
+        "slow": (100, 0.5, 20),
+    }
+    colour = {s: "C0" if s == "faithful" else "C3" for s in points}  # only faithful is within its floor
+    for ax, col, floor, front in (
+        (fig.axes[0], 1, 0.025, [(1.0, 0.2), (4.0, 0.03), (40.0, 0.02)]),
+        (fig.axes[1], 2, 1.2, [(1.0, 9.0), (4.0, 1.5), (40.0, 1.0)]),
+    ):
+        drawn = {tuple(c.get_offsets()[0]): c for c in ax.collections}
+        assert sorted(drawn) == sorted((p[0], p[col]) for p in points.values())
+        for setting, p in points.items():
+            np.testing.assert_allclose(drawn[(p[0], p[col])].get_facecolor()[0], mcolors.to_rgba(colour[setting]))
+        (span,) = ax.patches
+        np.testing.assert_allclose([span.get_y(), span.get_height()], [0.0, floor])
+        _assert_line(_lines_by_label(ax)["Pareto front"], *zip(*front))
+    lines = _lines_by_label(fig.axes[2])
+    _assert_line(lines["fast vs reference"], [10, 50], [0.15, 0.03])
+    _assert_line(lines["noise floor (reference, second seed)"], [10, 50], [0.1, 0.02])
+
+
+def test_yaw_sampling_plots_each_designs_mean_and_configuration_lines(tmp_path):
+    from feeder.figures import yaw_sampling
+
+    _yaws(tmp_path / "y.csv")
+    df = pd.read_csv(tmp_path / "y.csv")
+    fig = yaw_sampling.draw(df)
+    n = np.array([25, 50, 100])
+    for ax, scale in zip(fig.axes, (0.5, 30.0), strict=True):  # js, then w1_deg
+        lines = ax.get_lines()
+        assert len(lines) == 4  # per design: one configuration line, then the mean line
+        for (thin, mean), (design, e) in zip((lines[0:2], lines[2:4]), (("random", 0.5), ("golden", 0.8)), strict=True):
+            assert mean.get_label() == f"{design} (mean)"
+            _assert_line(mean, n, scale / n**e)
+            _assert_line(thin, n, 1.5 * scale / n**e)
+
+
+def test_sim_cost_plots_each_parts_jobs_per_design_and_each_designs_mean(tmp_path):
+    """Parts in order of the first design's mean (rect 110 < crescent 1600 ms), each design's jobs
+    shifted by ∓0.25 from the part's tick, and one dashed mean per design."""
+    from feeder.figures import sim_cost
+
+    _sim_cost(tmp_path / "s.csv")
+    df = pd.read_csv(tmp_path / "s.csv")
+    ax = sim_cost.draw(df).axes[0]
+    assert [t.get_text() for t in ax.get_xticklabels()] == ["rect", "crescent"]
+    lines = ax.get_lines()
+    points = [line for line in lines if line.get_linestyle() == "None"]
+    means = [line for line in lines if line.get_linestyle() == "--"]
+    expected = [(-0.25, [90.0, 130.0]), (0.75, [1600.0]), (0.25, [80.0, 120.0]), (1.25, [1500.0])]
+    assert len(points) == len(expected)
+    for line, (x, y) in zip(points, expected, strict=True):
+        _assert_line(line, [x] * len(y), y)
+    np.testing.assert_allclose([_xy(m)[1] for m in means], [[1820 / 3] * 2, [1700 / 3] * 2])
+
+
+def test_label_emulation_plots_the_ecdfs_of_real_first_and_pooled_emulated_js(tmp_path):
+    """Per N: the ECDF over usable configurations of the real JS, the first emulated realisation's
+    and all realisations pooled; an unusable configuration and a NaN are left out, 0 is drawn at 1e-6."""
+    from feeder.figures import label_emulation
+
+    rows = []
+    for n in (10, 100):
+        for i, config in enumerate(("c0", "c1", "c2", "bad")):
+            for source, repeats in (("real", 1), ("emulated", 2)):
+                for r in range(repeats):
+                    js = (i + 1) * (0.01 if source == "real" else 0.02 + 0.005 * r) * 10 / n
+                    rows.append(
+                        {
+                            "config": config,
+                            "n_drops": n,
+                            "source": source,
+                            "repeat": r,
+                            "js": js,
+                            "usable": config != "bad",
+                        }
+                    )
+    df = pd.DataFrame(rows)
+    df.loc[(df.config == "c0") & (df.source == "real") & (df.n_drops == 100), "js"] = 0.0
+    df.loc[(df.config == "c1") & (df.repeat == 1) & (df.n_drops == 100), "js"] = np.nan
+    fig = label_emulation.draw(df)
+    assert len(fig.axes) == 2
+    third = np.array([1, 2, 3]) / 3
+    expected = {
+        10: ([0.01, 0.02, 0.03], [0.02, 0.04, 0.06], [0.02, 0.025, 0.04, 0.05, 0.06, 0.075]),
+        100: ([1e-6, 0.002, 0.003], [0.002, 0.004, 0.006], [0.002, 0.0025, 0.004, 0.006, 0.0075]),
+    }
+    for ax, (n, (real, first, pooled)) in zip(fig.axes, expected.items(), strict=True):
+        assert ax.get_title() == f"N = {n}"
+        lines = _lines_by_label(ax)
+        _assert_line(lines["real (3)"], real, third)
+        _assert_line(lines["emulated, first realisation"], first, third)
+        _assert_line(lines["emulated, 2 realisations"], pooled, np.arange(1, len(pooled) + 1) / len(pooled))
+
+
+def test_label_designs_bands_span_each_designs_interval(tmp_path):
+    """The shaded band of each design runs from the _lo to the _hi column at its simulations."""
+    from feeder.figures import label_designs
+
+    _label_designs(tmp_path / "s.csv")
+    df = pd.read_csv(tmp_path / "s.csv")
+    fig = label_designs.draw(df)
+    for ax, col in zip(fig.axes, ("sup_cdf", "circular_w1_deg"), strict=True):
+        bands = ax.collections
+        assert len(bands) == 3
+        for band, design in zip(bands, ("adaptive", "grid", "random"), strict=True):  # sorted by design
+            sub = df[df.design == design].sort_values("simulations")
+            _assert_band(band, sub.simulations, sub[f"{col}_lo"], sub[f"{col}_hi"])

@@ -434,13 +434,14 @@ def test_a_steep_smooth_map_is_resolved_not_bisected_as_jumps():
 
 
 def test_two_basins_half_a_turn_apart_alternating_are_never_a_slope():
-    """Alternating outcomes 180° apart wrap to changes of one sign; they must stay jumps (the
-    review's counterexample: finals 10, 190.3, 10.5, 190.6, ... on a 30° grid)."""
+    """The review's counterexample (finals 10, 190.2, 10.4, 190.6, ... on a 30° grid): drifting by
+    −179.8° a step, the wrapped changes all have one sign and one size, a steady "slope" that only
+    the under-90° guard refuses. They must stay jumps."""
     yaws = np.arange(12) * 30.0
-    final = np.where(np.arange(12) % 2 == 0, 10.0, 190.3) + 0.3 * np.arange(12) / 2
+    final = np.mod(10.0 - 179.8 * np.arange(12), 360.0)
     design = P.design_from_samples(
         yaws,
-        final % 360.0,
+        final,
         np.full(12, "ok"),
         period_deg=360.0,
         offset_deg=0.0,
@@ -454,17 +455,20 @@ def test_two_basins_half_a_turn_apart_alternating_are_never_a_slope():
 
 
 def test_a_slope_from_a_narrow_noisy_neighbour_does_not_hide_a_jump():
-    """A 9.7° jump across an 11.25° interval beside two 0.35° neighbours with 0.3° of noise."""
-    yaws = np.array([0.0, 0.35, 11.6, 11.95, 180.0])
-    final = np.array([10.0, 10.3, 20.0, 20.0, 10.0])
+    """A 9.7° jump across an 11.25° interval between two 0.35° neighbours that both slope the same
+    way (so both would predict it); the rest of the map is resolved (flat, one narrow jump back),
+    so only the neighbour-width guard keeps the interval unresolved."""
+    yaws = np.array([0.0, 0.35, 11.6, 11.95, 300.0, 300.25])
+    final = np.array([10.0, 10.3, 20.0, 20.3, 20.3, 10.0])
     design = P.design_from_samples(
         yaws,
         final,
-        np.full(5, "ok"),
+        np.full(6, "ok"),
         period_deg=360.0,
         offset_deg=0.0,
         tolerance_deg=2.0,
         min_width_deg=0.25,
         max_width_deg=400.0,
     )
-    assert design.label_bound >= 11.25 / 360.0 - 1e-12
+    assert [0.35, 11.6] in design.unresolved.tolist()
+    assert design.label_bound == pytest.approx((11.25 + 0.25) / 360.0)

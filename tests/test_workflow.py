@@ -13,16 +13,47 @@ import numpy as np
 import pandas as pd
 import pytest
 import yaml
-from workflow_helpers import ROOT, SNAKEMAKE, merged_config, planned_jobs, planned_rules, scratch_copy, snakemake
+from workflow_helpers import (
+    ROOT,
+    SMOKE_RESULTS,
+    SNAKEMAKE,
+    merged_config,
+    planned_jobs,
+    planned_rules,
+    scratch_copy,
+    snakemake,
+)
 
 pytestmark = pytest.mark.slow
 # the study and the benchmarks (not part of the default target), at smoke scale
 SMOKE = ("all", "bench", "--configfile", "config/smoke.yaml")
 
 
+def committed_results() -> list[str]:
+    """The results and the shipped model the repository commits (git ls-files results models)."""
+    proc = subprocess.run(["git", "ls-files", "results", "models"], cwd=ROOT, capture_output=True, text=True)
+    assert proc.returncode == 0, f"not a git checkout: {proc.stderr}"
+    return proc.stdout.split()
+
+
+def digests(root: Path, files: list[str]) -> dict[str, str]:
+    import hashlib
+
+    return {f: hashlib.sha256((root / f).read_bytes()).hexdigest() for f in files if (root / f).is_file()}
+
+
 @pytest.fixture(scope="session")
 def smoke_run(tmp_path_factory) -> Path:
+    """The smoke study and its benchmarks in a scratch copy that also holds every committed result,
+    as a fresh clone does (their digests before the run: .committed.json)."""
+    import shutil
+
     work = scratch_copy(tmp_path_factory.mktemp("smoke"))
+    committed = committed_results()
+    for f in committed:
+        (work / f).parent.mkdir(parents=True, exist_ok=True)
+        shutil.copy2(ROOT / f, work / f)
+    (work / ".committed.json").write_text(json.dumps(digests(work, committed)))
     proc = snakemake(work, *SMOKE)
     assert proc.returncode == 0, proc.stderr[-4000:]
     # the onstart hook ran: no per-job re-scheduling timers in a local run (feeder.workflow)
@@ -31,7 +62,7 @@ def smoke_run(tmp_path_factory) -> Path:
 
 
 def test_smoke_workflow_builds_every_table_and_figure(smoke_run):
-    tables = smoke_run / "results" / "tables"
+    tables = smoke_run / SMOKE_RESULTS / "tables"
     for name in ["table1", "table4", "table5", "table6", "table7", "table8", "cost_by_stage"]:
         frame = pd.read_csv(tables / f"{name}.csv")
         assert len(frame) > 0, name
@@ -46,14 +77,25 @@ def test_smoke_workflow_builds_every_table_and_figure(smoke_run):
         "worse",
         "no clear difference",
     }
-    card = json.loads((smoke_run / "results" / "smoke" / "models" / "m3" / "card.json").read_text())
+    card = json.loads((smoke_run / SMOKE_RESULTS / "shipped" / "m3" / "card.json").read_text())
     assert card["model"] == "m3" and card["seed"] == 0  # the smoke overlay exports beside its results
     cost = pd.read_csv(tables / "cost_by_stage.csv").set_index("stage")
     assert {"simulate", "models", "TOTAL"} <= set(cost.index)
     assert cost.loc["TOTAL", "jobs"] == cost.drop("TOTAL")["jobs"].sum()
-    for png in (smoke_run / "results" / "figures").glob("*.png"):
+    for png in (smoke_run / SMOKE_RESULTS / "figures").glob("*.png"):
         assert png.stat().st_size > 1000, png
     assert not list(smoke_run.rglob("*.tmp")), "a temporary file was left behind"
+
+
+def test_a_smoke_run_changes_no_committed_file(smoke_run):
+    """An overlay writes under its own results folder (config key `results`): the committed results
+    of other runs and the shipped model (models/) stay byte for byte as they were."""
+    before = json.loads((smoke_run / ".committed.json").read_text())
+    assert before, "no committed result was copied in"
+    after = digests(smoke_run, list(before))
+    changed = sorted(f for f in before if after.get(f) != before[f])
+    assert not changed, f"the smoke run rewrote committed files: {changed[:10]}"
+    assert (smoke_run / SMOKE_RESULTS / "tables" / "table6.csv").is_file()  # it wrote its own
 
 
 def test_report_holds_every_table_and_figure_with_its_caption(smoke_run, tmp_path):
@@ -67,7 +109,7 @@ def test_report_holds_every_table_and_figure_with_its_caption(smoke_run, tmp_pat
     for rst in captions:
         first = rst.read_text().split()[:4]
         assert " ".join(first) in text, f"caption {rst.name} is not in the report"
-    for png in (smoke_run / "results" / "figures").glob("*.png"):
+    for png in (smoke_run / SMOKE_RESULTS / "figures").glob("*.png"):
         assert png.name in text, f"{png.name} is not in the report"
 
 
@@ -98,7 +140,7 @@ def test_crash_midway_then_restart_gives_identical_outputs(smoke_run, tmp_path):
         stdout=subprocess.DEVNULL,
         stderr=subprocess.DEVNULL,
     )
-    sims = work / "results" / "sim"
+    sims = work / SMOKE_RESULTS / "sim"
     deadline = time.time() + 300
     while time.time() < deadline and len(list(sims.rglob("*.npz"))) < 3:
         time.sleep(0.2)
@@ -107,11 +149,11 @@ def test_crash_midway_then_restart_gives_identical_outputs(smoke_run, tmp_path):
     assert snakemake(work, "--unlock").returncode == 0
     resumed = snakemake(work, *SMOKE)
     assert resumed.returncode == 0, resumed.stderr[-4000:]
-    for ref in sorted((smoke_run / "results" / "sim").rglob("*.npz")):
+    for ref in sorted((smoke_run / SMOKE_RESULTS / "sim").rglob("*.npz")):
         with np.load(ref) as a, np.load(work / ref.relative_to(smoke_run)) as b:
             for key in ("final_yaw_deg", "initial_yaw_deg", "status"):
                 np.testing.assert_array_equal(a[key], b[key], err_msg=f"{ref.name}:{key}")
-    with np.load(smoke_run / "results/datasets/dataset.npz") as a, np.load(work / "results/datasets/dataset.npz") as b:
+    with np.load(smoke_run / SMOKE_RESULTS / "datasets/dataset.npz") as a, np.load(work / SMOKE_RESULTS / "datasets/dataset.npz") as b:
         for key in ("pmf", "part_raw", "feeder_raw"):
             np.testing.assert_array_equal(a[key], b[key])
 
@@ -146,7 +188,7 @@ def _sim_outputs(config: dict) -> set[str]:
 
     parts = list_parts(str(ROOT / config["parts"]["dir"]), config["parts"]["include"])
     table = configurations(config, parts)
-    return {f"results/sim/{p}/{c}.npz" for p, c in zip(table["part"], table["config_id"])}
+    return {f"{config['results']}/sim/{p}/{c}.npz" for p, c in zip(table["part"], table["config_id"])}
 
 
 def test_editing_one_fence_angle_reruns_only_the_simulations_that_use_it(smoke_run, tmp_path):
@@ -186,7 +228,7 @@ def test_editing_one_model_config_reruns_only_that_model(smoke_run, edit):
     edit("config/hydra/model/m3.yaml", "lr: 0.0004", "lr: 0.0005")
     jobs = planned_jobs(smoke_run, *SMOKE)
     trained = {out for rule, out in jobs if rule == "train_model"}
-    assert trained == {f"results/models/m3/seed{seed}/model.pt" for seed in (0, 1, 2)}  # every seed, no other model
+    assert trained == {f"{SMOKE_RESULTS}/models/m3/seed{seed}/model.pt" for seed in (0, 1, 2)}  # every seed, no other model
     rules = {rule for rule, _ in jobs}
     assert (
         rules

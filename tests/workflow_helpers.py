@@ -9,6 +9,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 SNAKEMAKE = str(Path(sys.executable).parent / "snakemake")
+SMOKE_RESULTS = "results/smoke"  # config/smoke.yaml's results folder (config key `results`)
 
 
 def scratch_copy(dest: Path) -> Path:

@@ -12,32 +12,32 @@ from feeder.bench.emulation import entries as emulation_bench_entries, run_setti
 from feeder.bench.predict import DEFAULT_PARTS as PREDICT_BENCH_DEFAULT_PARTS
 
 BENCH_TARGETS = [
-    "results/tables/sim_accuracy_vs_time.csv",
-    "results/figures/sim_accuracy_vs_time.png",
-    "results/tables/jam_rates.csv",
-    "results/figures/jam_rates.png",
-    "results/tables/yaw_sampling.csv",
-    "results/figures/yaw_sampling.png",
-    "results/tables/sim_cost.csv",
-    "results/figures/sim_cost.png",
-    "results/tables/label_designs.csv",
-    "results/tables/label_designs_summary.csv",
-    "results/figures/label_designs.png",
-    "results/tables/label_emulation.csv",
-    "results/tables/label_emulation_summary.csv",
-    "results/figures/label_emulation.png",
+    RESULTS + "/tables/sim_accuracy_vs_time.csv",
+    RESULTS + "/figures/sim_accuracy_vs_time.png",
+    RESULTS + "/tables/jam_rates.csv",
+    RESULTS + "/figures/jam_rates.png",
+    RESULTS + "/tables/yaw_sampling.csv",
+    RESULTS + "/figures/yaw_sampling.png",
+    RESULTS + "/tables/sim_cost.csv",
+    RESULTS + "/figures/sim_cost.png",
+    RESULTS + "/tables/label_designs.csv",
+    RESULTS + "/tables/label_designs_summary.csv",
+    RESULTS + "/figures/label_designs.png",
+    RESULTS + "/tables/label_emulation.csv",
+    RESULTS + "/tables/label_emulation_summary.csv",
+    RESULTS + "/figures/label_emulation.png",
 ]
 # the design bench's configurations: one simulation job each (resumable), raw data kept, in a
 # directory named by the preset and the reference's resolution, so a smaller run (smoke) never
 # overwrites the committed references
 DESIGN_KEYS = [e["key"] for e in design_bench_entries(config)]
-DESIGN_DIR = "results/bench/designs/{preset}-{reference_yaws}".format(**config["sim"]["design_bench"])
+DESIGN_DIR = RESULTS + "/bench/designs/{preset}-{reference_yaws}".format(**config["sim"]["design_bench"])
 # the emulation bench's configurations: one simulation job each, raw data kept; a job's settings
 # hold its own configuration only, so adding one to the list reruns no other
 EMULATION_KEYS = [e["key"] for e in emulation_bench_entries(config)]
 # the parts bench_predict times: its default panel, those in use (else the first part in use)
 PREDICT_BENCH_PARTS = [p for p in PREDICT_BENCH_DEFAULT_PARTS if p in PARTS] or PARTS[:1]
-EMULATION_DIR = "results/bench/emulation/{preset}".format(**config["sim"]["emulation_bench"])
+EMULATION_DIR = RESULTS + "/bench/emulation/{preset}".format(**config["sim"]["emulation_bench"])
 
 
 rule bench:
@@ -52,14 +52,14 @@ rule bench_sim:
         code("bench-sim"),
     output:
         report(
-            "results/tables/sim_accuracy_vs_time.csv",
+            RESULTS + "/tables/sim_accuracy_vs_time.csv",
             caption="../report/sim_accuracy_vs_time_table.rst",
             category="Simulation",
         ),
     log:
-        "logs/bench_sim/bench_sim.log",
+        LOGS + "/bench_sim/bench_sim.log",
     benchmark:
-        "benchmarks/bench_sim/bench_sim.tsv"
+        BENCHMARKS + "/bench_sim/bench_sim.tsv"
     conda:
         "../envs/feeder.yaml"
     threads: config["sim"]["bench"]["workers"]
@@ -75,11 +75,11 @@ rule bench_jams:
         code("bench-jams"),
         parts=expand("{dir}/{part}.stl", dir=config["parts"]["dir"], part=config["sim"]["jam_survey"]["parts"]),
     output:
-        report("results/tables/jam_rates.csv", caption="../report/jam_rates.rst", category="Simulation"),
+        report(RESULTS + "/tables/jam_rates.csv", caption="../report/jam_rates.rst", category="Simulation"),
     log:
-        "logs/bench_jams/bench_jams.log",
+        LOGS + "/bench_jams/bench_jams.log",
     benchmark:
-        "benchmarks/bench_jams/bench_jams.tsv"
+        BENCHMARKS + "/bench_jams/bench_jams.tsv"
     conda:
         "../envs/feeder.yaml"
     threads: config["sim"]["jam_survey"]["workers"]
@@ -94,11 +94,11 @@ rule bench_yaws:
     input:
         code("bench-yaws"),
     output:
-        report("results/tables/yaw_sampling.csv", caption="../report/yaw_sampling_table.rst", category="Simulation"),
+        report(RESULTS + "/tables/yaw_sampling.csv", caption="../report/yaw_sampling_table.rst", category="Simulation"),
     log:
-        "logs/bench_yaws/bench_yaws.log",
+        LOGS + "/bench_yaws/bench_yaws.log",
     benchmark:
-        "benchmarks/bench_yaws/bench_yaws.tsv"
+        BENCHMARKS + "/bench_yaws/bench_yaws.tsv"
     conda:
         "../envs/feeder.yaml"
     threads: config["sim"]["yaw_bench"]["workers"]
@@ -114,12 +114,12 @@ rule bench_cost:
         code("bench-cost"),
         parts=expand("{dir}/{part}.stl", dir=config["parts"]["dir"], part=PARTS),
     output:
-        sample=report("results/tables/sim_cost_sample.csv", caption="../report/sim_cost_sample.rst", category="Cost"),
-        summary=report("results/tables/sim_cost.csv", caption="../report/sim_cost.rst", category="Cost"),
+        sample=report(RESULTS + "/tables/sim_cost_sample.csv", caption="../report/sim_cost_sample.rst", category="Cost"),
+        summary=report(RESULTS + "/tables/sim_cost.csv", caption="../report/sim_cost.rst", category="Cost"),
     log:
-        "logs/bench_cost/bench_cost.log",
+        LOGS + "/bench_cost/bench_cost.log",
     benchmark:
-        "benchmarks/bench_cost/bench_cost.tsv"
+        BENCHMARKS + "/bench_cost/bench_cost.tsv"
     conda:
         "../envs/feeder.yaml"
     threads: config["sim"]["cost_bench"]["workers"]
@@ -149,9 +149,9 @@ rule bench_reference:
     output:
         f"{DESIGN_DIR}/reference/{{key}}.npz",
     log:
-        "logs/bench_reference/{key}.log",
+        LOGS + "/bench_reference/{key}.log",
     benchmark:
-        "benchmarks/bench_reference/{key}.tsv"
+        BENCHMARKS + "/bench_reference/{key}.tsv"
     conda:
         "../envs/feeder.yaml"
     params:
@@ -167,9 +167,9 @@ rule bench_designs_run:
     output:
         f"{DESIGN_DIR}/adaptive/{{key}}.npz",
     log:
-        "logs/bench_designs/{key}.log",
+        LOGS + "/bench_designs/{key}.log",
     benchmark:
-        "benchmarks/bench_designs/{key}.tsv"
+        BENCHMARKS + "/bench_designs/{key}.tsv"
     conda:
         "../envs/feeder.yaml"
     params:
@@ -185,16 +185,16 @@ rule bench_designs:
         references=expand(f"{DESIGN_DIR}/reference/{{key}}.npz", key=DESIGN_KEYS),
         adaptive=expand(f"{DESIGN_DIR}/adaptive/{{key}}.npz", key=DESIGN_KEYS),
     output:
-        rows=report("results/tables/label_designs.csv", caption="../report/label_designs.rst", category="Simulation"),
+        rows=report(RESULTS + "/tables/label_designs.csv", caption="../report/label_designs.rst", category="Simulation"),
         summary=report(
-            "results/tables/label_designs_summary.csv",
+            RESULTS + "/tables/label_designs_summary.csv",
             caption="../report/label_designs_summary.rst",
             category="Simulation",
         ),
     log:
-        "logs/bench_designs/table.log",
+        LOGS + "/bench_designs/table.log",
     benchmark:
-        "benchmarks/bench_designs/table.tsv"
+        BENCHMARKS + "/bench_designs/table.tsv"
     conda:
         "../envs/feeder.yaml"
     params:
@@ -212,9 +212,9 @@ rule bench_emulation_run:
     output:
         f"{EMULATION_DIR}/{{key}}.npz",
     log:
-        "logs/bench_emulation/{key}.log",
+        LOGS + "/bench_emulation/{key}.log",
     benchmark:
-        "benchmarks/bench_emulation/{key}.tsv"
+        BENCHMARKS + "/bench_emulation/{key}.tsv"
     conda:
         "../envs/feeder.yaml"
     params:
@@ -230,17 +230,17 @@ rule bench_emulation:
         runs=expand(f"{EMULATION_DIR}/{{key}}.npz", key=EMULATION_KEYS),
     output:
         rows=report(
-            "results/tables/label_emulation.csv", caption="../report/label_emulation.rst", category="Simulation"
+            RESULTS + "/tables/label_emulation.csv", caption="../report/label_emulation.rst", category="Simulation"
         ),
         summary=report(
-            "results/tables/label_emulation_summary.csv",
+            RESULTS + "/tables/label_emulation_summary.csv",
             caption="../report/label_emulation_summary.rst",
             category="Simulation",
         ),
     log:
-        "logs/bench_emulation/table.log",
+        LOGS + "/bench_emulation/table.log",
     benchmark:
-        "benchmarks/bench_emulation/table.tsv"
+        BENCHMARKS + "/bench_emulation/table.tsv"
     conda:
         "../envs/feeder.yaml"
     params:
@@ -259,10 +259,10 @@ rule bench_predict:
         model=f"{REFERENCE_MODEL_DIR}/model.pt",
         parts=expand("{dir}/{part}.stl", dir=config["parts"]["dir"], part=PREDICT_BENCH_PARTS),
     output:
-        raw="results/tables/predict_speed.csv",
-        summary="results/tables/predict_speed_summary.csv",
+        raw=RESULTS + "/tables/predict_speed.csv",
+        summary=RESULTS + "/tables/predict_speed_summary.csv",
     log:
-        "logs/bench_predict/bench_predict.log",
+        LOGS + "/bench_predict/bench_predict.log",
     conda:
         "../envs/feeder.yaml"
     params:

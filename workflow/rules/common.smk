@@ -19,6 +19,12 @@ from feeder.workflow import (
 
 validate(config, schema="../schemas/config.schema.yaml")
 
+# Every output of a run goes under its results directory (config key `results`), so overlays never
+# overwrite each other's files: the default study writes results/ (and logs/, benchmarks/), an
+# overlay its own folder, e.g. results/smoke/ with results/smoke/logs/ and results/smoke/benchmarks/.
+RESULTS = config["results"]
+LOGS, BENCHMARKS = ("logs", "benchmarks") if RESULTS == "results" else (f"{RESULTS}/logs", f"{RESULTS}/benchmarks")
+
 put_interpreter_on_path()
 
 PARTS = list_parts(config["parts"]["dir"], config["parts"]["include"])
@@ -26,7 +32,7 @@ CONFIGS = configurations(config, PARTS)
 
 
 def sim_path(part, config_id):
-    return f"results/sim/{part}/{config_id}.npz"
+    return f"{RESULTS}/sim/{part}/{config_id}.npz"
 
 
 def code(command, *args):

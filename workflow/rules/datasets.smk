@@ -3,19 +3,19 @@
 # results/figdata/, one drawing job per figure). Uses PARTS, CONFIGS, sim_path, code
 # and settings_json from common.smk.
 
-DATASET = "results/datasets/dataset.npz"
+DATASET = RESULTS + "/datasets/dataset.npz"
 
 DATASETS_TARGETS = [
-    "results/datasets/configurations.csv",
+    RESULTS + "/datasets/configurations.csv",
     DATASET,
-    "results/tables/table4.csv",
-    "results/tables/table4.md",
-    "results/tables/convergence_dkw.csv",
-    "results/tables/convergence_js.csv",
-    "results/figures/fig4_js_vs_drops.png",
-    "results/figures/fig5_js_hist.png",
-    "results/figures/fig9_example_pmfs.png",
-    "results/figures/convergence_dkw.png",
+    RESULTS + "/tables/table4.csv",
+    RESULTS + "/tables/table4.md",
+    RESULTS + "/tables/convergence_dkw.csv",
+    RESULTS + "/tables/convergence_js.csv",
+    RESULTS + "/figures/fig4_js_vs_drops.png",
+    RESULTS + "/figures/fig5_js_hist.png",
+    RESULTS + "/figures/fig9_example_pmfs.png",
+    RESULTS + "/figures/convergence_dkw.png",
 ]
 
 
@@ -24,11 +24,11 @@ rule datasets_configurations:
     input:
         code("datasets"),
     output:
-        "results/datasets/configurations.csv",
+        RESULTS + "/datasets/configurations.csv",
     log:
-        "logs/datasets/configurations.log",
+        LOGS + "/datasets/configurations.log",
     benchmark:
-        "benchmarks/datasets/configurations.tsv"
+        BENCHMARKS + "/datasets/configurations.tsv"
     conda:
         "../envs/feeder.yaml"
     params:
@@ -43,22 +43,24 @@ rule datasets_build:
     """Merge every simulation file and the part features into dataset.npz (docs/data.md)."""
     input:
         code("datasets"),
-        configurations="results/datasets/configurations.csv",
+        configurations=RESULTS + "/datasets/configurations.csv",
         sims=[sim_path(p, c) for p, c in zip(CONFIGS["part"], CONFIGS["config_id"])],
-        features=expand("results/features/{part}.json", part=sorted(set(CONFIGS["part"]))),
+        features=expand(RESULTS + "/features/{part}.json", part=sorted(set(CONFIGS["part"]))),
     output:
         DATASET,
     log:
-        "logs/datasets/build.log",
+        LOGS + "/datasets/build.log",
     benchmark:
-        "benchmarks/datasets/build.tsv"
+        BENCHMARKS + "/datasets/build.tsv"
     conda:
         "../envs/feeder.yaml"
     params:
         settings=settings_json("sim.min_ok_mass", "labels", "datasets"),
+        features_dir=f"{RESULTS}/features",
+        sim_dir=f"{RESULTS}/sim",
     shell:
-        "feeder datasets build --configurations {input.configurations} --features-dir results/features"
-        " --sim-dir results/sim --settings '{params.settings}' --out {output} > {log} 2>&1"
+        "feeder datasets build --configurations {input.configurations} --features-dir {params.features_dir}"
+        " --sim-dir {params.sim_dir} --settings '{params.settings}' --out {output} > {log} 2>&1"
 
 
 rule datasets_table4:
@@ -67,12 +69,12 @@ rule datasets_table4:
         code("datasets"),
         dataset=DATASET,
     output:
-        csv=report("results/tables/table4.csv", caption="../report/table4.rst", category="Datasets"),
-        md=report("results/tables/table4.md", caption="../report/table4.rst", category="Datasets"),
+        csv=report(RESULTS + "/tables/table4.csv", caption="../report/table4.rst", category="Datasets"),
+        md=report(RESULTS + "/tables/table4.md", caption="../report/table4.rst", category="Datasets"),
     log:
-        "logs/datasets/table4.log",
+        LOGS + "/datasets/table4.log",
     benchmark:
-        "benchmarks/datasets/table4.tsv"
+        BENCHMARKS + "/datasets/table4.tsv"
     conda:
         "../envs/feeder.yaml"
     shell:
@@ -86,17 +88,17 @@ rule datasets_convergence:
         dataset=DATASET,
     output:
         dkw_csv=report(
-            "results/tables/convergence_dkw.csv", caption="../report/convergence_dkw_table.rst", category="Datasets"
+            RESULTS + "/tables/convergence_dkw.csv", caption="../report/convergence_dkw_table.rst", category="Datasets"
         ),
-        js_csv=report("results/tables/convergence_js.csv", caption="../report/convergence_js.rst", category="Datasets"),
-        fig4="results/figdata/fig4_js_vs_drops.csv",
-        fig5="results/figdata/fig5_js_hist.npz",
-        fig9="results/figdata/fig9_example_pmfs.npz",
-        dkw="results/figdata/convergence_dkw.npz",
+        js_csv=report(RESULTS + "/tables/convergence_js.csv", caption="../report/convergence_js.rst", category="Datasets"),
+        fig4=RESULTS + "/figdata/fig4_js_vs_drops.csv",
+        fig5=RESULTS + "/figdata/fig5_js_hist.npz",
+        fig9=RESULTS + "/figdata/fig9_example_pmfs.npz",
+        dkw=RESULTS + "/figdata/convergence_dkw.npz",
     log:
-        "logs/datasets/convergence.log",
+        LOGS + "/datasets/convergence.log",
     benchmark:
-        "benchmarks/datasets/convergence.tsv"
+        BENCHMARKS + "/datasets/convergence.tsv"
     conda:
         "../envs/feeder.yaml"
     params:

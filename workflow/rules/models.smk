@@ -18,20 +18,20 @@ HYDRA_ARGS = " ".join(shlex.quote(o) for o in HYDRA_OVERRIDES)
 REFERENCE_MODEL = "m3"  # the paper's Model 3: Figs. 12-13 and the GroupKFold table
 SEEDS = config["models"]["seeds"]
 # the first seed's Model 3: Figs. 12-13 and the model `feeder predict` uses
-REFERENCE_MODEL_DIR = f"results/models/{REFERENCE_MODEL}/seed{SEEDS[0]}"
+REFERENCE_MODEL_DIR = f"{RESULTS}/models/{REFERENCE_MODEL}/seed{SEEDS[0]}"
 EXPORT_DIR = config["models"]["export_dir"]  # the shipped model's folder (models/ in the default study)
 BOOTSTRAP_ARGS = "--resamples {resamples} --level {level} --bootstrap-seed {seed}".format(
     **config["models"]["bootstrap"]
 )
 
 MODELS_TARGETS = [
-    *expand("results/tables/table{n}.{ext}", n=[5, 6, 7, 8], ext=["csv", "md"]),
-    "results/tables/model_vs_baselines.csv",
-    f"results/tables/groupkfold_{REFERENCE_MODEL}_paired.csv",
-    *expand("results/tables/breakdown_{split}.{ext}", split=["fences", "parts"], ext=["csv", "md"]),
-    f"results/tables/groupkfold_{REFERENCE_MODEL}.csv",
-    "results/figures/fig12_test_predictions.png",
-    "results/figures/fig13_parts_predictions.png",
+    *expand(RESULTS + "/tables/table{n}.{ext}", n=[5, 6, 7, 8], ext=["csv", "md"]),
+    RESULTS + "/tables/model_vs_baselines.csv",
+    f"{RESULTS}/tables/groupkfold_{REFERENCE_MODEL}_paired.csv",
+    *expand(RESULTS + "/tables/breakdown_{split}.{ext}", split=["fences", "parts"], ext=["csv", "md"]),
+    f"{RESULTS}/tables/groupkfold_{REFERENCE_MODEL}.csv",
+    RESULTS + "/figures/fig12_test_predictions.png",
+    RESULTS + "/figures/fig13_parts_predictions.png",
     f"{EXPORT_DIR}/{REFERENCE_MODEL}",
 ]
 # resolved Hydra settings of every model the DAG can train (composed once, at parse time)
@@ -45,12 +45,12 @@ rule train_model:
         code("train"),
         dataset=DATASET,
     output:
-        model="results/models/{model}/seed{seed}/model.pt",
-        metrics="results/models/{model}/seed{seed}/metrics.json",
+        model=RESULTS + "/models/{model}/seed{seed}/model.pt",
+        metrics=RESULTS + "/models/{model}/seed{seed}/metrics.json",
     log:
-        "logs/models/train_{model}_seed{seed}.log",
+        LOGS + "/models/train_{model}_seed{seed}.log",
     benchmark:
-        "benchmarks/models/train_{model}_seed{seed}.tsv"
+        BENCHMARKS + "/models/train_{model}_seed{seed}.tsv"
     conda:
         "../envs/feeder.yaml"
     params:
@@ -68,19 +68,19 @@ rule evaluate_models:
     input:
         code("evaluate"),
         dataset=DATASET,
-        models=expand("results/models/{model}/seed{seed}/model.pt", model=MODELS, seed=SEEDS),
+        models=expand(RESULTS + "/models/{model}/seed{seed}/model.pt", model=MODELS, seed=SEEDS),
     output:
-        t5=report("results/tables/table5.csv", caption="../report/table5.rst", category="Models"),
-        t6=report("results/tables/table6.csv", caption="../report/table6.rst", category="Models"),
-        t7=report("results/tables/table7.csv", caption="../report/table7.rst", category="Models"),
-        t8=report("results/tables/table8.csv", caption="../report/table8.rst", category="Models"),
+        t5=report(RESULTS + "/tables/table5.csv", caption="../report/table5.rst", category="Models"),
+        t6=report(RESULTS + "/tables/table6.csv", caption="../report/table6.rst", category="Models"),
+        t7=report(RESULTS + "/tables/table7.csv", caption="../report/table7.rst", category="Models"),
+        t8=report(RESULTS + "/tables/table8.csv", caption="../report/table8.rst", category="Models"),
         md=[
-            report(f"results/tables/table{n}.md", caption=f"../report/table{n}.rst", category="Models")
+            report(f"{RESULTS}/tables/table{n}.md", caption=f"../report/table{n}.rst", category="Models")
             for n in (5, 6, 7, 8)
         ],
         breakdowns=[
             report(
-                f"results/tables/breakdown_{split}.{ext}",
+                f"{RESULTS}/tables/breakdown_{split}.{ext}",
                 caption=f"../report/breakdown_{split}.rst",
                 category="Models",
             )
@@ -88,13 +88,13 @@ rule evaluate_models:
             for ext in ("csv", "md")
         ],
         paired=report(
-            "results/tables/model_vs_baselines.csv", caption="../report/model_vs_baselines.rst", category="Models"
+            RESULTS + "/tables/model_vs_baselines.csv", caption="../report/model_vs_baselines.rst", category="Models"
         ),
-        paired_md="results/tables/model_vs_baselines.md",
+        paired_md=RESULTS + "/tables/model_vs_baselines.md",
     log:
-        "logs/models/evaluate.log",
+        LOGS + "/models/evaluate.log",
     benchmark:
-        "benchmarks/models/evaluate.tsv"
+        BENCHMARKS + "/models/evaluate.tsv"
     conda:
         "../envs/feeder.yaml"
     params:
@@ -111,18 +111,18 @@ rule groupkfold_model:
         code("evaluate"),
         dataset=DATASET,
     output:
-        csv=report("results/tables/groupkfold_{model}.csv", caption="../report/groupkfold.rst", category="Models"),
-        md=report("results/tables/groupkfold_{model}.md", caption="../report/groupkfold.rst", category="Models"),
+        csv=report(RESULTS + "/tables/groupkfold_{model}.csv", caption="../report/groupkfold.rst", category="Models"),
+        md=report(RESULTS + "/tables/groupkfold_{model}.md", caption="../report/groupkfold.rst", category="Models"),
         paired=report(
-            "results/tables/groupkfold_{model}_paired.csv",
+            RESULTS + "/tables/groupkfold_{model}_paired.csv",
             caption="../report/groupkfold_paired.rst",
             category="Models",
         ),
-        paired_md="results/tables/groupkfold_{model}_paired.md",
+        paired_md=RESULTS + "/tables/groupkfold_{model}_paired.md",
     log:
-        "logs/models/groupkfold_{model}.log",
+        LOGS + "/models/groupkfold_{model}.log",
     benchmark:
-        "benchmarks/models/groupkfold_{model}.tsv"
+        BENCHMARKS + "/models/groupkfold_{model}.tsv"
     conda:
         "../envs/feeder.yaml"
     params:
@@ -142,12 +142,12 @@ rule prediction_figure_data:
         dataset=DATASET,
         model=f"{REFERENCE_MODEL_DIR}/model.pt",
     output:
-        fig12="results/figdata/fig12_test_predictions.npz",
-        fig13="results/figdata/fig13_parts_predictions.npz",
+        fig12=RESULTS + "/figdata/fig12_test_predictions.npz",
+        fig13=RESULTS + "/figdata/fig13_parts_predictions.npz",
     log:
-        "logs/models/prediction_figure_data.log",
+        LOGS + "/models/prediction_figure_data.log",
     benchmark:
-        "benchmarks/models/prediction_figure_data.tsv"
+        BENCHMARKS + "/models/prediction_figure_data.tsv"
     conda:
         "../envs/feeder.yaml"
     shell:
@@ -164,16 +164,16 @@ rule export_model:
         model=f"{REFERENCE_MODEL_DIR}/model.pt",
         dataset=DATASET,
         tables=[
-            *expand("results/tables/table{n}.csv", n=[6, 7, 8]),
-            f"results/tables/groupkfold_{REFERENCE_MODEL}.csv",
-            "results/tables/model_vs_baselines.csv",
+            *expand(RESULTS + "/tables/table{n}.csv", n=[6, 7, 8]),
+            f"{RESULTS}/tables/groupkfold_{REFERENCE_MODEL}.csv",
+            RESULTS + "/tables/model_vs_baselines.csv",
         ],
     output:
         directory(f"{EXPORT_DIR}/{REFERENCE_MODEL}"),
     log:
-        "logs/models/export_model.log",
+        LOGS + "/models/export_model.log",
     benchmark:
-        "benchmarks/models/export_model.tsv"
+        BENCHMARKS + "/models/export_model.tsv"
     conda:
         "../envs/feeder.yaml"
     shell:

@@ -17,11 +17,11 @@ rule part_features:
             else f"{config['parts']['dir']}/{w.part}.stl"
         ),
     output:
-        "results/features/{part}.json",
+        RESULTS + "/features/{part}.json",
     log:
-        "logs/features/{part}.log",
+        LOGS + "/features/{part}.log",
     benchmark:
-        "benchmarks/features/{part}.tsv"
+        BENCHMARKS + "/features/{part}.tsv"
     conda:
         "../envs/feeder.yaml"
     shell:
@@ -42,11 +42,11 @@ rule parts_fig6_data:
             for p in ([q for q in config["parts"]["fig6"] if q in PARTS] or PARTS[:8])
         ],
     output:
-        "results/figdata/fig6_dft_reconstruction.npz",
+        RESULTS + "/figdata/fig6_dft_reconstruction.npz",
     log:
-        "logs/features/fig6_data.log",
+        LOGS + "/features/fig6_data.log",
     benchmark:
-        "benchmarks/features/fig6_data.tsv"
+        BENCHMARKS + "/features/fig6_data.tsv"
     conda:
         "../envs/feeder.yaml"
     shell:
@@ -67,11 +67,11 @@ rule parts_s1:
             for p in PARTS
         ],
     output:
-        report("results/tables/s1_dft_mse.csv", caption="../report/s1_dft_mse_table.rst", category="Parts"),
+        report(RESULTS + "/tables/s1_dft_mse.csv", caption="../report/s1_dft_mse_table.rst", category="Parts"),
     log:
-        "logs/features/s1.log",
+        LOGS + "/features/s1.log",
     benchmark:
-        "benchmarks/features/s1.tsv"
+        BENCHMARKS + "/features/s1.tsv"
     conda:
         "../envs/feeder.yaml"
     params:

@@ -4,8 +4,8 @@
 
 from feeder.parts.features import DFT
 
-TABLES = "results/tables"
-FIGURES = "results/figures"
+TABLES = RESULTS + "/tables"
+FIGURES = RESULTS + "/figures"
 
 PARTS_TARGETS = [
     f"{FIGURES}/fig6_dft_reconstruction.png",
@@ -26,23 +26,24 @@ rule cost_by_stage:
         code("cost"),
     output:
         csv=report(f"{TABLES}/cost_by_stage.csv", caption="../report/cost_by_stage.rst", category="Cost"),
-        provenance="results/provenance.json",
+        provenance=RESULTS + "/provenance.json",
     log:
-        "logs/report/cost_by_stage.log",
+        LOGS + "/report/cost_by_stage.log",
     benchmark:
-        "benchmarks/report/cost_by_stage.tsv"
+        BENCHMARKS + "/report/cost_by_stage.tsv"
     conda:
         "../envs/feeder.yaml"
     params:
         config=settings_json(*config),
+        benchmarks=BENCHMARKS,
     shell:
-        "feeder cost --benchmarks benchmarks --out-csv {output.csv}"
+        "feeder cost --benchmarks {params.benchmarks} --out-csv {output.csv}"
         " --provenance {output.provenance} --config-json '{params.config}' > {log} 2>&1"
 
 
 # name: data file it is drawn from, report caption, report category, extra `feeder figure` options
 FIGURE_TABLE = {
-    "fig6_dft_reconstruction": ("results/figdata/fig6_dft_reconstruction.npz", "fig6_dft_reconstruction", "Parts", {}),
+    "fig6_dft_reconstruction": (RESULTS + "/figdata/fig6_dft_reconstruction.npz", "fig6_dft_reconstruction", "Parts", {}),
     "s1_dft_mse": (f"{TABLES}/s1_dft_mse.csv", "s1_dft_mse", "Parts", {"chosen": DFT.coefficients}),
     "sim_accuracy_vs_time": (
         f"{TABLES}/sim_accuracy_vs_time.csv",
@@ -55,12 +56,12 @@ FIGURE_TABLE = {
     "sim_cost": (f"{TABLES}/sim_cost_sample.csv", "sim_cost_figure", "Cost", {}),
     "label_designs": (f"{TABLES}/label_designs_summary.csv", "label_designs_figure", "Simulation", {}),
     "label_emulation": (f"{TABLES}/label_emulation.csv", "label_emulation_figure", "Simulation", {}),
-    "fig4_js_vs_drops": ("results/figdata/fig4_js_vs_drops.csv", "fig4_js_vs_drops", "Datasets", {}),
-    "fig5_js_hist": ("results/figdata/fig5_js_hist.npz", "fig5_js_hist", "Datasets", {}),
-    "fig9_example_pmfs": ("results/figdata/fig9_example_pmfs.npz", "fig9_example_pmfs", "Datasets", {}),
-    "convergence_dkw": ("results/figdata/convergence_dkw.npz", "convergence_dkw", "Datasets", {}),
-    "fig12_test_predictions": ("results/figdata/fig12_test_predictions.npz", "fig12_test_predictions", "Models", {}),
-    "fig13_parts_predictions": ("results/figdata/fig13_parts_predictions.npz", "fig13_parts_predictions", "Models", {}),
+    "fig4_js_vs_drops": (RESULTS + "/figdata/fig4_js_vs_drops.csv", "fig4_js_vs_drops", "Datasets", {}),
+    "fig5_js_hist": (RESULTS + "/figdata/fig5_js_hist.npz", "fig5_js_hist", "Datasets", {}),
+    "fig9_example_pmfs": (RESULTS + "/figdata/fig9_example_pmfs.npz", "fig9_example_pmfs", "Datasets", {}),
+    "convergence_dkw": (RESULTS + "/figdata/convergence_dkw.npz", "convergence_dkw", "Datasets", {}),
+    "fig12_test_predictions": (RESULTS + "/figdata/fig12_test_predictions.npz", "fig12_test_predictions", "Models", {}),
+    "fig13_parts_predictions": (RESULTS + "/figdata/fig13_parts_predictions.npz", "fig13_parts_predictions", "Models", {}),
     "fig14_cross_convergence": (f"{TABLES}/p2_levels.csv", "fig14_cross_convergence", "VAE and delta", {}),
     "s11_delta_sweep": (f"{TABLES}/table10.csv", "s11_delta_sweep", "VAE and delta", {}),
     "cost_by_stage": (f"{TABLES}/cost_by_stage.csv", "cost_by_stage_figure", "Cost", {}),
@@ -78,9 +79,9 @@ for fig, (data, caption, category, options) in FIGURE_TABLE.items():
         output:
             report(f"{FIGURES}/{fig}.png", caption=f"../report/{caption}.rst", category=category),
         log:
-            f"logs/figures/{fig}.log",
+            f"{LOGS}/figures/{fig}.log",
         benchmark:
-            f"benchmarks/figures/{fig}.tsv"
+            f"{BENCHMARKS}/figures/{fig}.tsv"
         conda:
             "../envs/feeder.yaml"
         params:

@@ -10,11 +10,11 @@ rule simulate:
         code("simulate"),
         part=lambda wildcards: f"{config['parts']['dir']}/{wildcards.part}.stl",
     output:
-        "results/sim/{part}/{fence}.npz",
+        RESULTS + "/sim/{part}/{fence}.npz",
     log:
-        "logs/simulate/{part}/{fence}.log",
+        LOGS + "/simulate/{part}/{fence}.log",
     benchmark:
-        "benchmarks/simulate/{part}/{fence}.tsv"
+        BENCHMARKS + "/simulate/{part}/{fence}.tsv"
     wildcard_constraints:
         part=r"[A-Za-z0-9-]+",
         fence=r"[a-z0-9.]+_[a-z0-9.]+",
@@ -42,11 +42,11 @@ rule scene_table:
     input:
         code("scene-table"),
     output:
-        report("results/tables/table1.csv", caption="../report/table1.rst", category="Simulation"),
+        report(RESULTS + "/tables/table1.csv", caption="../report/table1.rst", category="Simulation"),
     log:
-        "logs/scene_table/table1.log",
+        LOGS + "/scene_table/table1.log",
     benchmark:
-        "benchmarks/scene_table/table1.tsv"
+        BENCHMARKS + "/scene_table/table1.tsv"
     conda:
         "../envs/feeder.yaml"
     params:

@@ -17,14 +17,14 @@ VAE_HYDRA = rule_params("vae", VAE_OVERRIDES)
 DELTA_HYDRA = rule_params("delta", DELTA_OVERRIDES)
 
 VAE_TARGETS = [
-    "results/tables/table9.csv",
-    "results/tables/table9.md",
-    "results/tables/p2_levels.csv",
-    "results/tables/p2_levels.md",
-    "results/figures/fig14_cross_convergence.png",
-    "results/tables/table10.csv",
-    "results/tables/table10.md",
-    "results/figures/s11_delta_sweep.png",
+    RESULTS + "/tables/table9.csv",
+    RESULTS + "/tables/table9.md",
+    RESULTS + "/tables/p2_levels.csv",
+    RESULTS + "/tables/p2_levels.md",
+    RESULTS + "/figures/fig14_cross_convergence.png",
+    RESULTS + "/tables/table10.csv",
+    RESULTS + "/tables/table10.md",
+    RESULTS + "/figures/s11_delta_sweep.png",
 ]
 
 
@@ -34,11 +34,11 @@ rule vae_train:
         code("vae"),
         dataset=DATASET,
     output:
-        "results/vae/main.pt",
+        RESULTS + "/vae/main.pt",
     log:
-        "logs/vae/train.log",
+        LOGS + "/vae/train.log",
     benchmark:
-        "benchmarks/vae/train.tsv"
+        BENCHMARKS + "/vae/train.tsv"
     conda:
         "../envs/feeder.yaml"
     params:
@@ -53,14 +53,14 @@ rule vae_table9:
     input:
         code("vae"),
         dataset=DATASET,
-        model="results/vae/main.pt",
+        model=RESULTS + "/vae/main.pt",
     output:
-        csv=report("results/tables/table9.csv", caption="../report/table9.rst", category="VAE and delta"),
-        md=report("results/tables/table9.md", caption="../report/table9.rst", category="VAE and delta"),
+        csv=report(RESULTS + "/tables/table9.csv", caption="../report/table9.rst", category="VAE and delta"),
+        md=report(RESULTS + "/tables/table9.md", caption="../report/table9.rst", category="VAE and delta"),
     log:
-        "logs/vae/table9.log",
+        LOGS + "/vae/table9.log",
     benchmark:
-        "benchmarks/vae/table9.tsv"
+        BENCHMARKS + "/vae/table9.tsv"
     conda:
         "../envs/feeder.yaml"
     shell:
@@ -73,11 +73,11 @@ rule vae_p2_level:
         code("vae"),
         dataset=DATASET,
     output:
-        "results/vae/p2/level_{level}.json",
+        RESULTS + "/vae/p2/level_{level}.json",
     log:
-        "logs/vae/p2_level_{level}.log",
+        LOGS + "/vae/p2_level_{level}.log",
     benchmark:
-        "benchmarks/vae/p2_level_{level}.tsv"
+        BENCHMARKS + "/vae/p2_level_{level}.tsv"
     wildcard_constraints:
         level=r"\d+",
     conda:
@@ -93,14 +93,14 @@ rule vae_p2_gather:
     """P2 table of every level (within-level vs cross-convergence R², the data of Fig. 14)."""
     input:
         code("vae"),
-        levels=expand("results/vae/p2/level_{level}.json", level=P2_LEVELS),
+        levels=expand(RESULTS + "/vae/p2/level_{level}.json", level=P2_LEVELS),
     output:
-        csv=report("results/tables/p2_levels.csv", caption="../report/p2_levels.rst", category="VAE and delta"),
-        md=report("results/tables/p2_levels.md", caption="../report/p2_levels.rst", category="VAE and delta"),
+        csv=report(RESULTS + "/tables/p2_levels.csv", caption="../report/p2_levels.rst", category="VAE and delta"),
+        md=report(RESULTS + "/tables/p2_levels.md", caption="../report/p2_levels.rst", category="VAE and delta"),
     log:
-        "logs/vae/p2_gather.log",
+        LOGS + "/vae/p2_gather.log",
     benchmark:
-        "benchmarks/vae/p2_gather.tsv"
+        BENCHMARKS + "/vae/p2_gather.tsv"
     conda:
         "../envs/feeder.yaml"
     shell:
@@ -113,11 +113,11 @@ rule delta_sweep_level:
         code("delta"),
         dataset=DATASET,
     output:
-        "results/delta/level_{level}.json",
+        RESULTS + "/delta/level_{level}.json",
     log:
-        "logs/delta/level_{level}.log",
+        LOGS + "/delta/level_{level}.log",
     benchmark:
-        "benchmarks/delta/level_{level}.tsv"
+        BENCHMARKS + "/delta/level_{level}.tsv"
     wildcard_constraints:
         level=r"\d+",
     conda:
@@ -134,14 +134,14 @@ rule delta_table:
     is the data of Fig. S11)."""
     input:
         code("delta"),
-        levels=expand("results/delta/level_{level}.json", level=DELTA_LEVELS),
+        levels=expand(RESULTS + "/delta/level_{level}.json", level=DELTA_LEVELS),
     output:
-        csv=report("results/tables/table10.csv", caption="../report/table10.rst", category="VAE and delta"),
-        md=report("results/tables/table10.md", caption="../report/table10.rst", category="VAE and delta"),
+        csv=report(RESULTS + "/tables/table10.csv", caption="../report/table10.rst", category="VAE and delta"),
+        md=report(RESULTS + "/tables/table10.md", caption="../report/table10.rst", category="VAE and delta"),
     log:
-        "logs/delta/table.log",
+        LOGS + "/delta/table.log",
     benchmark:
-        "benchmarks/delta/table.tsv"
+        BENCHMARKS + "/delta/table.tsv"
     conda:
         "../envs/feeder.yaml"
     params:
