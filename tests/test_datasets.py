@@ -5,7 +5,6 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
-import yaml
 
 from feeder.cli import main as cli
 from feeder.errors import FeederError
@@ -133,13 +132,21 @@ def test_holdout_list_and_errors():
         G.configurations(small_config(fences_parts=9), PARTS)
 
 
-def test_default_config_matches_table4_scale():
-    cfg = yaml.safe_load((ROOT / "config/config.yaml").read_text())
+@pytest.mark.parametrize("overlay", [None, "config/full.yaml"], ids=["default", "full"])
+def test_config_matches_table4_scale(overlay):
+    """The default's cut grid and the paper-scale grid (config/full.yaml) have the datasets of
+    Table 4: holdout parts, Main rows per part, a Fences set over its own parts."""
+    from feeder.config import load_study_config
+
+    cfg = load_study_config(*([overlay] if overlay else []), root=ROOT)
     parts = [f"p{i:02d}" for i in range(41)]
     df = G.configurations(cfg, parts)
     sizes = df.groupby("dataset").agg(n=("part", "size"), parts=("part", "nunique"))
     assert sizes.loc["main", "parts"] == 38 and sizes.loc["main", "n"] == 38 * cfg["fences"]["main_per_part"]
-    assert sizes.loc["fences", "n"] == cfg["datasets"]["fences_samples"] and sizes.loc["fences", "parts"] == 18
+    fences = sizes.loc["fences"]
+    assert fences.n == cfg["datasets"]["fences_samples"] and fences.parts == cfg["datasets"]["fences_parts"]
+    if overlay:  # the paper's scale: 19 Main configurations per part, 78 Fences rows over 18 parts
+        assert cfg["fences"]["main_per_part"] == 19 and (fences.n, fences.parts) == (78, 18)
     assert sizes.loc["parts", "parts"] == 3
     # no straight fence at an angle where parts jam (tan(90 - angle) <= 0.5)
     assert max(cfg["fences"]["straight_angles"]) < 63.4

@@ -153,7 +153,10 @@ def test_crash_midway_then_restart_gives_identical_outputs(smoke_run, tmp_path):
         with np.load(ref) as a, np.load(work / ref.relative_to(smoke_run)) as b:
             for key in ("final_yaw_deg", "initial_yaw_deg", "status"):
                 np.testing.assert_array_equal(a[key], b[key], err_msg=f"{ref.name}:{key}")
-    with np.load(smoke_run / SMOKE_RESULTS / "datasets/dataset.npz") as a, np.load(work / SMOKE_RESULTS / "datasets/dataset.npz") as b:
+    with (
+        np.load(smoke_run / SMOKE_RESULTS / "datasets/dataset.npz") as a,
+        np.load(work / SMOKE_RESULTS / "datasets/dataset.npz") as b,
+    ):
         for key in ("pmf", "part_raw", "feeder_raw"):
             np.testing.assert_array_equal(a[key], b[key])
 
@@ -228,7 +231,9 @@ def test_editing_one_model_config_reruns_only_that_model(smoke_run, edit):
     edit("config/hydra/model/m3.yaml", "lr: 0.0004", "lr: 0.0005")
     jobs = planned_jobs(smoke_run, *SMOKE)
     trained = {out for rule, out in jobs if rule == "train_model"}
-    assert trained == {f"{SMOKE_RESULTS}/models/m3/seed{seed}/model.pt" for seed in (0, 1, 2)}  # every seed, no other model
+    assert trained == {
+        f"{SMOKE_RESULTS}/models/m3/seed{seed}/model.pt" for seed in (0, 1, 2)
+    }  # every seed, no other model
     rules = {rule for rule, _ in jobs}
     assert (
         rules
@@ -239,6 +244,7 @@ def test_editing_one_model_config_reruns_only_that_model(smoke_run, edit):
             "prediction_figure_data",
             "draw_fig12_test_predictions",
             "draw_fig13_parts_predictions",
+            "export_model",  # the shipped Model 3 (seed 0) and its card
         }
         | ALWAYS
     )

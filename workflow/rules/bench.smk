@@ -12,32 +12,34 @@ from feeder.bench.emulation import entries as emulation_bench_entries, run_setti
 from feeder.bench.predict import DEFAULT_PARTS as PREDICT_BENCH_DEFAULT_PARTS
 
 BENCH_TARGETS = [
-    RESULTS + "/tables/sim_accuracy_vs_time.csv",
-    RESULTS + "/figures/sim_accuracy_vs_time.png",
-    RESULTS + "/tables/jam_rates.csv",
-    RESULTS + "/figures/jam_rates.png",
-    RESULTS + "/tables/yaw_sampling.csv",
-    RESULTS + "/figures/yaw_sampling.png",
-    RESULTS + "/tables/sim_cost.csv",
-    RESULTS + "/figures/sim_cost.png",
-    RESULTS + "/tables/label_designs.csv",
-    RESULTS + "/tables/label_designs_summary.csv",
-    RESULTS + "/figures/label_designs.png",
-    RESULTS + "/tables/label_emulation.csv",
-    RESULTS + "/tables/label_emulation_summary.csv",
-    RESULTS + "/figures/label_emulation.png",
+    f"{RESULTS}/tables/sim_accuracy_vs_time.csv",
+    f"{RESULTS}/figures/sim_accuracy_vs_time.png",
+    f"{RESULTS}/tables/jam_rates.csv",
+    f"{RESULTS}/figures/jam_rates.png",
+    f"{RESULTS}/tables/yaw_sampling.csv",
+    f"{RESULTS}/figures/yaw_sampling.png",
+    f"{RESULTS}/tables/sim_cost.csv",
+    f"{RESULTS}/figures/sim_cost.png",
+    f"{RESULTS}/tables/label_designs.csv",
+    f"{RESULTS}/tables/label_designs_summary.csv",
+    f"{RESULTS}/figures/label_designs.png",
+    f"{RESULTS}/tables/label_emulation.csv",
+    f"{RESULTS}/tables/label_emulation_summary.csv",
+    f"{RESULTS}/figures/label_emulation.png",
 ]
 # the design bench's configurations: one simulation job each (resumable), raw data kept, in a
 # directory named by the preset and the reference's resolution, so a smaller run (smoke) never
 # overwrites the committed references
 DESIGN_KEYS = [e["key"] for e in design_bench_entries(config)]
-DESIGN_DIR = RESULTS + "/bench/designs/{preset}-{reference_yaws}".format(**config["sim"]["design_bench"])
+DESIGN_DIR = "{results}/bench/designs/{preset}-{reference_yaws}".format(
+    results=RESULTS, **config["sim"]["design_bench"]
+)
 # the emulation bench's configurations: one simulation job each, raw data kept; a job's settings
 # hold its own configuration only, so adding one to the list reruns no other
 EMULATION_KEYS = [e["key"] for e in emulation_bench_entries(config)]
 # the parts bench_predict times: its default panel, those in use (else the first part in use)
 PREDICT_BENCH_PARTS = [p for p in PREDICT_BENCH_DEFAULT_PARTS if p in PARTS] or PARTS[:1]
-EMULATION_DIR = RESULTS + "/bench/emulation/{preset}".format(**config["sim"]["emulation_bench"])
+EMULATION_DIR = "{results}/bench/emulation/{preset}".format(results=RESULTS, **config["sim"]["emulation_bench"])
 
 
 rule bench:
@@ -52,14 +54,14 @@ rule bench_sim:
         code("bench-sim"),
     output:
         report(
-            RESULTS + "/tables/sim_accuracy_vs_time.csv",
+            f"{RESULTS}/tables/sim_accuracy_vs_time.csv",
             caption="../report/sim_accuracy_vs_time_table.rst",
             category="Simulation",
         ),
     log:
-        LOGS + "/bench_sim/bench_sim.log",
+        f"{LOGS}/bench_sim/bench_sim.log",
     benchmark:
-        BENCHMARKS + "/bench_sim/bench_sim.tsv"
+        f"{BENCHMARKS}/bench_sim/bench_sim.tsv"
     conda:
         "../envs/feeder.yaml"
     threads: config["sim"]["bench"]["workers"]
@@ -75,11 +77,11 @@ rule bench_jams:
         code("bench-jams"),
         parts=expand("{dir}/{part}.stl", dir=config["parts"]["dir"], part=config["sim"]["jam_survey"]["parts"]),
     output:
-        report(RESULTS + "/tables/jam_rates.csv", caption="../report/jam_rates.rst", category="Simulation"),
+        report(f"{RESULTS}/tables/jam_rates.csv", caption="../report/jam_rates.rst", category="Simulation"),
     log:
-        LOGS + "/bench_jams/bench_jams.log",
+        f"{LOGS}/bench_jams/bench_jams.log",
     benchmark:
-        BENCHMARKS + "/bench_jams/bench_jams.tsv"
+        f"{BENCHMARKS}/bench_jams/bench_jams.tsv"
     conda:
         "../envs/feeder.yaml"
     threads: config["sim"]["jam_survey"]["workers"]
@@ -94,11 +96,11 @@ rule bench_yaws:
     input:
         code("bench-yaws"),
     output:
-        report(RESULTS + "/tables/yaw_sampling.csv", caption="../report/yaw_sampling_table.rst", category="Simulation"),
+        report(f"{RESULTS}/tables/yaw_sampling.csv", caption="../report/yaw_sampling_table.rst", category="Simulation"),
     log:
-        LOGS + "/bench_yaws/bench_yaws.log",
+        f"{LOGS}/bench_yaws/bench_yaws.log",
     benchmark:
-        BENCHMARKS + "/bench_yaws/bench_yaws.tsv"
+        f"{BENCHMARKS}/bench_yaws/bench_yaws.tsv"
     conda:
         "../envs/feeder.yaml"
     threads: config["sim"]["yaw_bench"]["workers"]
@@ -114,12 +116,12 @@ rule bench_cost:
         code("bench-cost"),
         parts=expand("{dir}/{part}.stl", dir=config["parts"]["dir"], part=PARTS),
     output:
-        sample=report(RESULTS + "/tables/sim_cost_sample.csv", caption="../report/sim_cost_sample.rst", category="Cost"),
-        summary=report(RESULTS + "/tables/sim_cost.csv", caption="../report/sim_cost.rst", category="Cost"),
+        sample=report(f"{RESULTS}/tables/sim_cost_sample.csv", caption="../report/sim_cost_sample.rst", category="Cost"),
+        summary=report(f"{RESULTS}/tables/sim_cost.csv", caption="../report/sim_cost.rst", category="Cost"),
     log:
-        LOGS + "/bench_cost/bench_cost.log",
+        f"{LOGS}/bench_cost/bench_cost.log",
     benchmark:
-        BENCHMARKS + "/bench_cost/bench_cost.tsv"
+        f"{BENCHMARKS}/bench_cost/bench_cost.tsv"
     conda:
         "../envs/feeder.yaml"
     threads: config["sim"]["cost_bench"]["workers"]
@@ -149,9 +151,9 @@ rule bench_reference:
     output:
         f"{DESIGN_DIR}/reference/{{key}}.npz",
     log:
-        LOGS + "/bench_reference/{key}.log",
+        f"{LOGS}/bench_reference/{{key}}.log",
     benchmark:
-        BENCHMARKS + "/bench_reference/{key}.tsv"
+        f"{BENCHMARKS}/bench_reference/{{key}}.tsv"
     conda:
         "../envs/feeder.yaml"
     params:
@@ -167,9 +169,9 @@ rule bench_designs_run:
     output:
         f"{DESIGN_DIR}/adaptive/{{key}}.npz",
     log:
-        LOGS + "/bench_designs/{key}.log",
+        f"{LOGS}/bench_designs/{{key}}.log",
     benchmark:
-        BENCHMARKS + "/bench_designs/{key}.tsv"
+        f"{BENCHMARKS}/bench_designs/{{key}}.tsv"
     conda:
         "../envs/feeder.yaml"
     params:
@@ -185,16 +187,16 @@ rule bench_designs:
         references=expand(f"{DESIGN_DIR}/reference/{{key}}.npz", key=DESIGN_KEYS),
         adaptive=expand(f"{DESIGN_DIR}/adaptive/{{key}}.npz", key=DESIGN_KEYS),
     output:
-        rows=report(RESULTS + "/tables/label_designs.csv", caption="../report/label_designs.rst", category="Simulation"),
+        rows=report(f"{RESULTS}/tables/label_designs.csv", caption="../report/label_designs.rst", category="Simulation"),
         summary=report(
-            RESULTS + "/tables/label_designs_summary.csv",
+            f"{RESULTS}/tables/label_designs_summary.csv",
             caption="../report/label_designs_summary.rst",
             category="Simulation",
         ),
     log:
-        LOGS + "/bench_designs/table.log",
+        f"{LOGS}/bench_designs/table.log",
     benchmark:
-        BENCHMARKS + "/bench_designs/table.tsv"
+        f"{BENCHMARKS}/bench_designs/table.tsv"
     conda:
         "../envs/feeder.yaml"
     params:
@@ -212,9 +214,9 @@ rule bench_emulation_run:
     output:
         f"{EMULATION_DIR}/{{key}}.npz",
     log:
-        LOGS + "/bench_emulation/{key}.log",
+        f"{LOGS}/bench_emulation/{{key}}.log",
     benchmark:
-        BENCHMARKS + "/bench_emulation/{key}.tsv"
+        f"{BENCHMARKS}/bench_emulation/{{key}}.tsv"
     conda:
         "../envs/feeder.yaml"
     params:
@@ -230,17 +232,17 @@ rule bench_emulation:
         runs=expand(f"{EMULATION_DIR}/{{key}}.npz", key=EMULATION_KEYS),
     output:
         rows=report(
-            RESULTS + "/tables/label_emulation.csv", caption="../report/label_emulation.rst", category="Simulation"
+            f"{RESULTS}/tables/label_emulation.csv", caption="../report/label_emulation.rst", category="Simulation"
         ),
         summary=report(
-            RESULTS + "/tables/label_emulation_summary.csv",
+            f"{RESULTS}/tables/label_emulation_summary.csv",
             caption="../report/label_emulation_summary.rst",
             category="Simulation",
         ),
     log:
-        LOGS + "/bench_emulation/table.log",
+        f"{LOGS}/bench_emulation/table.log",
     benchmark:
-        BENCHMARKS + "/bench_emulation/table.tsv"
+        f"{BENCHMARKS}/bench_emulation/table.tsv"
     conda:
         "../envs/feeder.yaml"
     params:
@@ -259,10 +261,10 @@ rule bench_predict:
         model=f"{REFERENCE_MODEL_DIR}/model.pt",
         parts=expand("{dir}/{part}.stl", dir=config["parts"]["dir"], part=PREDICT_BENCH_PARTS),
     output:
-        raw=RESULTS + "/tables/predict_speed.csv",
-        summary=RESULTS + "/tables/predict_speed_summary.csv",
+        raw=f"{RESULTS}/tables/predict_speed.csv",
+        summary=f"{RESULTS}/tables/predict_speed_summary.csv",
     log:
-        LOGS + "/bench_predict/bench_predict.log",
+        f"{LOGS}/bench_predict/bench_predict.log",
     conda:
         "../envs/feeder.yaml"
     params:

@@ -2,20 +2,21 @@
 # convergence study (Figs. 4, 5, 9 and the DKW view: one compute job writes their data to
 # results/figdata/, one drawing job per figure). Uses PARTS, CONFIGS, sim_path, code
 # and settings_json from common.smk.
+import os
 
-DATASET = RESULTS + "/datasets/dataset.npz"
+DATASET = f"{RESULTS}/datasets/dataset.npz"
 
 DATASETS_TARGETS = [
-    RESULTS + "/datasets/configurations.csv",
+    f"{RESULTS}/datasets/configurations.csv",
     DATASET,
-    RESULTS + "/tables/table4.csv",
-    RESULTS + "/tables/table4.md",
-    RESULTS + "/tables/convergence_dkw.csv",
-    RESULTS + "/tables/convergence_js.csv",
-    RESULTS + "/figures/fig4_js_vs_drops.png",
-    RESULTS + "/figures/fig5_js_hist.png",
-    RESULTS + "/figures/fig9_example_pmfs.png",
-    RESULTS + "/figures/convergence_dkw.png",
+    f"{RESULTS}/tables/table4.csv",
+    f"{RESULTS}/tables/table4.md",
+    f"{RESULTS}/tables/convergence_dkw.csv",
+    f"{RESULTS}/tables/convergence_js.csv",
+    f"{RESULTS}/figures/fig4_js_vs_drops.png",
+    f"{RESULTS}/figures/fig5_js_hist.png",
+    f"{RESULTS}/figures/fig9_example_pmfs.png",
+    f"{RESULTS}/figures/convergence_dkw.png",
 ]
 
 
@@ -24,11 +25,11 @@ rule datasets_configurations:
     input:
         code("datasets"),
     output:
-        RESULTS + "/datasets/configurations.csv",
+        f"{RESULTS}/datasets/configurations.csv",
     log:
-        LOGS + "/datasets/configurations.log",
+        f"{LOGS}/datasets/configurations.log",
     benchmark:
-        BENCHMARKS + "/datasets/configurations.tsv"
+        f"{BENCHMARKS}/datasets/configurations.tsv"
     conda:
         "../envs/feeder.yaml"
     params:
@@ -43,21 +44,21 @@ rule datasets_build:
     """Merge every simulation file and the part features into dataset.npz (docs/data.md)."""
     input:
         code("datasets"),
-        configurations=RESULTS + "/datasets/configurations.csv",
+        configurations=f"{RESULTS}/datasets/configurations.csv",
         sims=[sim_path(p, c) for p, c in zip(CONFIGS["part"], CONFIGS["config_id"])],
-        features=expand(RESULTS + "/features/{part}.json", part=sorted(set(CONFIGS["part"]))),
+        features=expand(f"{RESULTS}/features/{{part}}.json", part=sorted(set(CONFIGS["part"]))),
     output:
         DATASET,
     log:
-        LOGS + "/datasets/build.log",
+        f"{LOGS}/datasets/build.log",
     benchmark:
-        BENCHMARKS + "/datasets/build.tsv"
+        f"{BENCHMARKS}/datasets/build.tsv"
     conda:
         "../envs/feeder.yaml"
     params:
         settings=settings_json("sim.min_ok_mass", "labels", "datasets"),
-        features_dir=f"{RESULTS}/features",
-        sim_dir=f"{RESULTS}/sim",
+        features_dir=lambda w, input: os.path.dirname(input.features[0]),
+        sim_dir=lambda w, input: os.path.dirname(os.path.dirname(input.sims[0])),  # <results>/sim
     shell:
         "feeder datasets build --configurations {input.configurations} --features-dir {params.features_dir}"
         " --sim-dir {params.sim_dir} --settings '{params.settings}' --out {output} > {log} 2>&1"
@@ -69,12 +70,12 @@ rule datasets_table4:
         code("datasets"),
         dataset=DATASET,
     output:
-        csv=report(RESULTS + "/tables/table4.csv", caption="../report/table4.rst", category="Datasets"),
-        md=report(RESULTS + "/tables/table4.md", caption="../report/table4.rst", category="Datasets"),
+        csv=report(f"{RESULTS}/tables/table4.csv", caption="../report/table4.rst", category="Datasets"),
+        md=report(f"{RESULTS}/tables/table4.md", caption="../report/table4.rst", category="Datasets"),
     log:
-        LOGS + "/datasets/table4.log",
+        f"{LOGS}/datasets/table4.log",
     benchmark:
-        BENCHMARKS + "/datasets/table4.tsv"
+        f"{BENCHMARKS}/datasets/table4.tsv"
     conda:
         "../envs/feeder.yaml"
     shell:
@@ -88,17 +89,19 @@ rule datasets_convergence:
         dataset=DATASET,
     output:
         dkw_csv=report(
-            RESULTS + "/tables/convergence_dkw.csv", caption="../report/convergence_dkw_table.rst", category="Datasets"
+            f"{RESULTS}/tables/convergence_dkw.csv", caption="../report/convergence_dkw_table.rst", category="Datasets"
         ),
-        js_csv=report(RESULTS + "/tables/convergence_js.csv", caption="../report/convergence_js.rst", category="Datasets"),
-        fig4=RESULTS + "/figdata/fig4_js_vs_drops.csv",
-        fig5=RESULTS + "/figdata/fig5_js_hist.npz",
-        fig9=RESULTS + "/figdata/fig9_example_pmfs.npz",
-        dkw=RESULTS + "/figdata/convergence_dkw.npz",
+        js_csv=report(
+            f"{RESULTS}/tables/convergence_js.csv", caption="../report/convergence_js.rst", category="Datasets"
+        ),
+        fig4=f"{RESULTS}/figdata/fig4_js_vs_drops.csv",
+        fig5=f"{RESULTS}/figdata/fig5_js_hist.npz",
+        fig9=f"{RESULTS}/figdata/fig9_example_pmfs.npz",
+        dkw=f"{RESULTS}/figdata/convergence_dkw.npz",
     log:
-        LOGS + "/datasets/convergence.log",
+        f"{LOGS}/datasets/convergence.log",
     benchmark:
-        BENCHMARKS + "/datasets/convergence.tsv"
+        f"{BENCHMARKS}/datasets/convergence.tsv"
     conda:
         "../envs/feeder.yaml"
     params:

@@ -25,13 +25,13 @@ BOOTSTRAP_ARGS = "--resamples {resamples} --level {level} --bootstrap-seed {seed
 )
 
 MODELS_TARGETS = [
-    *expand(RESULTS + "/tables/table{n}.{ext}", n=[5, 6, 7, 8], ext=["csv", "md"]),
-    RESULTS + "/tables/model_vs_baselines.csv",
+    *expand(f"{RESULTS}/tables/table{{n}}.{{ext}}", n=[5, 6, 7, 8], ext=["csv", "md"]),
+    f"{RESULTS}/tables/model_vs_baselines.csv",
     f"{RESULTS}/tables/groupkfold_{REFERENCE_MODEL}_paired.csv",
-    *expand(RESULTS + "/tables/breakdown_{split}.{ext}", split=["fences", "parts"], ext=["csv", "md"]),
+    *expand(f"{RESULTS}/tables/breakdown_{{split}}.{{ext}}", split=["fences", "parts"], ext=["csv", "md"]),
     f"{RESULTS}/tables/groupkfold_{REFERENCE_MODEL}.csv",
-    RESULTS + "/figures/fig12_test_predictions.png",
-    RESULTS + "/figures/fig13_parts_predictions.png",
+    f"{RESULTS}/figures/fig12_test_predictions.png",
+    f"{RESULTS}/figures/fig13_parts_predictions.png",
     f"{EXPORT_DIR}/{REFERENCE_MODEL}",
 ]
 # resolved Hydra settings of every model the DAG can train (composed once, at parse time)
@@ -45,12 +45,12 @@ rule train_model:
         code("train"),
         dataset=DATASET,
     output:
-        model=RESULTS + "/models/{model}/seed{seed}/model.pt",
-        metrics=RESULTS + "/models/{model}/seed{seed}/metrics.json",
+        model=f"{RESULTS}/models/{{model}}/seed{{seed}}/model.pt",
+        metrics=f"{RESULTS}/models/{{model}}/seed{{seed}}/metrics.json",
     log:
-        LOGS + "/models/train_{model}_seed{seed}.log",
+        f"{LOGS}/models/train_{{model}}_seed{{seed}}.log",
     benchmark:
-        BENCHMARKS + "/models/train_{model}_seed{seed}.tsv"
+        f"{BENCHMARKS}/models/train_{{model}}_seed{{seed}}.tsv"
     conda:
         "../envs/feeder.yaml"
     params:
@@ -68,12 +68,12 @@ rule evaluate_models:
     input:
         code("evaluate"),
         dataset=DATASET,
-        models=expand(RESULTS + "/models/{model}/seed{seed}/model.pt", model=MODELS, seed=SEEDS),
+        models=expand(f"{RESULTS}/models/{{model}}/seed{{seed}}/model.pt", model=MODELS, seed=SEEDS),
     output:
-        t5=report(RESULTS + "/tables/table5.csv", caption="../report/table5.rst", category="Models"),
-        t6=report(RESULTS + "/tables/table6.csv", caption="../report/table6.rst", category="Models"),
-        t7=report(RESULTS + "/tables/table7.csv", caption="../report/table7.rst", category="Models"),
-        t8=report(RESULTS + "/tables/table8.csv", caption="../report/table8.rst", category="Models"),
+        t5=report(f"{RESULTS}/tables/table5.csv", caption="../report/table5.rst", category="Models"),
+        t6=report(f"{RESULTS}/tables/table6.csv", caption="../report/table6.rst", category="Models"),
+        t7=report(f"{RESULTS}/tables/table7.csv", caption="../report/table7.rst", category="Models"),
+        t8=report(f"{RESULTS}/tables/table8.csv", caption="../report/table8.rst", category="Models"),
         md=[
             report(f"{RESULTS}/tables/table{n}.md", caption=f"../report/table{n}.rst", category="Models")
             for n in (5, 6, 7, 8)
@@ -88,13 +88,13 @@ rule evaluate_models:
             for ext in ("csv", "md")
         ],
         paired=report(
-            RESULTS + "/tables/model_vs_baselines.csv", caption="../report/model_vs_baselines.rst", category="Models"
+            f"{RESULTS}/tables/model_vs_baselines.csv", caption="../report/model_vs_baselines.rst", category="Models"
         ),
-        paired_md=RESULTS + "/tables/model_vs_baselines.md",
+        paired_md=f"{RESULTS}/tables/model_vs_baselines.md",
     log:
-        LOGS + "/models/evaluate.log",
+        f"{LOGS}/models/evaluate.log",
     benchmark:
-        BENCHMARKS + "/models/evaluate.tsv"
+        f"{BENCHMARKS}/models/evaluate.tsv"
     conda:
         "../envs/feeder.yaml"
     params:
@@ -111,18 +111,18 @@ rule groupkfold_model:
         code("evaluate"),
         dataset=DATASET,
     output:
-        csv=report(RESULTS + "/tables/groupkfold_{model}.csv", caption="../report/groupkfold.rst", category="Models"),
-        md=report(RESULTS + "/tables/groupkfold_{model}.md", caption="../report/groupkfold.rst", category="Models"),
+        csv=report(f"{RESULTS}/tables/groupkfold_{{model}}.csv", caption="../report/groupkfold.rst", category="Models"),
+        md=report(f"{RESULTS}/tables/groupkfold_{{model}}.md", caption="../report/groupkfold.rst", category="Models"),
         paired=report(
-            RESULTS + "/tables/groupkfold_{model}_paired.csv",
+            f"{RESULTS}/tables/groupkfold_{{model}}_paired.csv",
             caption="../report/groupkfold_paired.rst",
             category="Models",
         ),
-        paired_md=RESULTS + "/tables/groupkfold_{model}_paired.md",
+        paired_md=f"{RESULTS}/tables/groupkfold_{{model}}_paired.md",
     log:
-        LOGS + "/models/groupkfold_{model}.log",
+        f"{LOGS}/models/groupkfold_{{model}}.log",
     benchmark:
-        BENCHMARKS + "/models/groupkfold_{model}.tsv"
+        f"{BENCHMARKS}/models/groupkfold_{{model}}.tsv"
     conda:
         "../envs/feeder.yaml"
     params:
@@ -142,12 +142,12 @@ rule prediction_figure_data:
         dataset=DATASET,
         model=f"{REFERENCE_MODEL_DIR}/model.pt",
     output:
-        fig12=RESULTS + "/figdata/fig12_test_predictions.npz",
-        fig13=RESULTS + "/figdata/fig13_parts_predictions.npz",
+        fig12=f"{RESULTS}/figdata/fig12_test_predictions.npz",
+        fig13=f"{RESULTS}/figdata/fig13_parts_predictions.npz",
     log:
-        LOGS + "/models/prediction_figure_data.log",
+        f"{LOGS}/models/prediction_figure_data.log",
     benchmark:
-        BENCHMARKS + "/models/prediction_figure_data.tsv"
+        f"{BENCHMARKS}/models/prediction_figure_data.tsv"
     conda:
         "../envs/feeder.yaml"
     shell:
@@ -164,16 +164,16 @@ rule export_model:
         model=f"{REFERENCE_MODEL_DIR}/model.pt",
         dataset=DATASET,
         tables=[
-            *expand(RESULTS + "/tables/table{n}.csv", n=[6, 7, 8]),
+            *expand(f"{RESULTS}/tables/table{{n}}.csv", n=[6, 7, 8]),
             f"{RESULTS}/tables/groupkfold_{REFERENCE_MODEL}.csv",
-            RESULTS + "/tables/model_vs_baselines.csv",
+            f"{RESULTS}/tables/model_vs_baselines.csv",
         ],
     output:
         directory(f"{EXPORT_DIR}/{REFERENCE_MODEL}"),
     log:
-        LOGS + "/models/export_model.log",
+        f"{LOGS}/models/export_model.log",
     benchmark:
-        BENCHMARKS + "/models/export_model.tsv"
+        f"{BENCHMARKS}/models/export_model.tsv"
     conda:
         "../envs/feeder.yaml"
     shell:

@@ -17,11 +17,11 @@ rule part_features:
             else f"{config['parts']['dir']}/{w.part}.stl"
         ),
     output:
-        RESULTS + "/features/{part}.json",
+        f"{RESULTS}/features/{{part}}.json",
     log:
-        LOGS + "/features/{part}.log",
+        f"{LOGS}/features/{{part}}.log",
     benchmark:
-        BENCHMARKS + "/features/{part}.tsv"
+        f"{BENCHMARKS}/features/{{part}}.tsv"
     conda:
         "../envs/feeder.yaml"
     shell:
@@ -42,11 +42,11 @@ rule parts_fig6_data:
             for p in ([q for q in config["parts"]["fig6"] if q in PARTS] or PARTS[:8])
         ],
     output:
-        RESULTS + "/figdata/fig6_dft_reconstruction.npz",
+        f"{RESULTS}/figdata/fig6_dft_reconstruction.npz",
     log:
-        LOGS + "/features/fig6_data.log",
+        f"{LOGS}/features/fig6_data.log",
     benchmark:
-        BENCHMARKS + "/features/fig6_data.tsv"
+        f"{BENCHMARKS}/features/fig6_data.tsv"
     conda:
         "../envs/feeder.yaml"
     shell:
@@ -67,11 +67,11 @@ rule parts_s1:
             for p in PARTS
         ],
     output:
-        report(RESULTS + "/tables/s1_dft_mse.csv", caption="../report/s1_dft_mse_table.rst", category="Parts"),
+        report(f"{RESULTS}/tables/s1_dft_mse.csv", caption="../report/s1_dft_mse_table.rst", category="Parts"),
     log:
-        LOGS + "/features/s1.log",
+        f"{LOGS}/features/s1.log",
     benchmark:
-        BENCHMARKS + "/features/s1.tsv"
+        f"{BENCHMARKS}/features/s1.tsv"
     conda:
         "../envs/feeder.yaml"
     params:

@@ -4,8 +4,8 @@
 
 from feeder.parts.features import DFT
 
-TABLES = RESULTS + "/tables"
-FIGURES = RESULTS + "/figures"
+TABLES = f"{RESULTS}/tables"
+FIGURES = f"{RESULTS}/figures"
 
 PARTS_TARGETS = [
     f"{FIGURES}/fig6_dft_reconstruction.png",
@@ -26,11 +26,11 @@ rule cost_by_stage:
         code("cost"),
     output:
         csv=report(f"{TABLES}/cost_by_stage.csv", caption="../report/cost_by_stage.rst", category="Cost"),
-        provenance=RESULTS + "/provenance.json",
+        provenance=f"{RESULTS}/provenance.json",
     log:
-        LOGS + "/report/cost_by_stage.log",
+        f"{LOGS}/report/cost_by_stage.log",
     benchmark:
-        BENCHMARKS + "/report/cost_by_stage.tsv"
+        f"{BENCHMARKS}/report/cost_by_stage.tsv"
     conda:
         "../envs/feeder.yaml"
     params:
@@ -43,7 +43,12 @@ rule cost_by_stage:
 
 # name: data file it is drawn from, report caption, report category, extra `feeder figure` options
 FIGURE_TABLE = {
-    "fig6_dft_reconstruction": (RESULTS + "/figdata/fig6_dft_reconstruction.npz", "fig6_dft_reconstruction", "Parts", {}),
+    "fig6_dft_reconstruction": (
+        f"{RESULTS}/figdata/fig6_dft_reconstruction.npz",
+        "fig6_dft_reconstruction",
+        "Parts",
+        {},
+    ),
     "s1_dft_mse": (f"{TABLES}/s1_dft_mse.csv", "s1_dft_mse", "Parts", {"chosen": DFT.coefficients}),
     "sim_accuracy_vs_time": (
         f"{TABLES}/sim_accuracy_vs_time.csv",
@@ -56,12 +61,17 @@ FIGURE_TABLE = {
     "sim_cost": (f"{TABLES}/sim_cost_sample.csv", "sim_cost_figure", "Cost", {}),
     "label_designs": (f"{TABLES}/label_designs_summary.csv", "label_designs_figure", "Simulation", {}),
     "label_emulation": (f"{TABLES}/label_emulation.csv", "label_emulation_figure", "Simulation", {}),
-    "fig4_js_vs_drops": (RESULTS + "/figdata/fig4_js_vs_drops.csv", "fig4_js_vs_drops", "Datasets", {}),
-    "fig5_js_hist": (RESULTS + "/figdata/fig5_js_hist.npz", "fig5_js_hist", "Datasets", {}),
-    "fig9_example_pmfs": (RESULTS + "/figdata/fig9_example_pmfs.npz", "fig9_example_pmfs", "Datasets", {}),
-    "convergence_dkw": (RESULTS + "/figdata/convergence_dkw.npz", "convergence_dkw", "Datasets", {}),
-    "fig12_test_predictions": (RESULTS + "/figdata/fig12_test_predictions.npz", "fig12_test_predictions", "Models", {}),
-    "fig13_parts_predictions": (RESULTS + "/figdata/fig13_parts_predictions.npz", "fig13_parts_predictions", "Models", {}),
+    "fig4_js_vs_drops": (f"{RESULTS}/figdata/fig4_js_vs_drops.csv", "fig4_js_vs_drops", "Datasets", {}),
+    "fig5_js_hist": (f"{RESULTS}/figdata/fig5_js_hist.npz", "fig5_js_hist", "Datasets", {}),
+    "fig9_example_pmfs": (f"{RESULTS}/figdata/fig9_example_pmfs.npz", "fig9_example_pmfs", "Datasets", {}),
+    "convergence_dkw": (f"{RESULTS}/figdata/convergence_dkw.npz", "convergence_dkw", "Datasets", {}),
+    "fig12_test_predictions": (f"{RESULTS}/figdata/fig12_test_predictions.npz", "fig12_test_predictions", "Models", {}),
+    "fig13_parts_predictions": (
+        f"{RESULTS}/figdata/fig13_parts_predictions.npz",
+        "fig13_parts_predictions",
+        "Models",
+        {},
+    ),
     "fig14_cross_convergence": (f"{TABLES}/p2_levels.csv", "fig14_cross_convergence", "VAE and delta", {}),
     "s11_delta_sweep": (f"{TABLES}/table10.csv", "s11_delta_sweep", "VAE and delta", {}),
     "cost_by_stage": (f"{TABLES}/cost_by_stage.csv", "cost_by_stage_figure", "Cost", {}),

@@ -10,11 +10,11 @@ rule simulate:
         code("simulate"),
         part=lambda wildcards: f"{config['parts']['dir']}/{wildcards.part}.stl",
     output:
-        RESULTS + "/sim/{part}/{fence}.npz",
+        f"{RESULTS}/sim/{{part}}/{{fence}}.npz",
     log:
-        LOGS + "/simulate/{part}/{fence}.log",
+        f"{LOGS}/simulate/{{part}}/{{fence}}.log",
     benchmark:
-        BENCHMARKS + "/simulate/{part}/{fence}.tsv"
+        f"{BENCHMARKS}/simulate/{{part}}/{{fence}}.tsv"
     wildcard_constraints:
         part=r"[A-Za-z0-9-]+",
         fence=r"[a-z0-9.]+_[a-z0-9.]+",
@@ -42,11 +42,11 @@ rule scene_table:
     input:
         code("scene-table"),
     output:
-        report(RESULTS + "/tables/table1.csv", caption="../report/table1.rst", category="Simulation"),
+        report(f"{RESULTS}/tables/table1.csv", caption="../report/table1.rst", category="Simulation"),
     log:
-        LOGS + "/scene_table/table1.log",
+        f"{LOGS}/scene_table/table1.log",
     benchmark:
-        BENCHMARKS + "/scene_table/table1.tsv"
+        f"{BENCHMARKS}/scene_table/table1.tsv"
     conda:
         "../envs/feeder.yaml"
     params:

@@ -17,14 +17,14 @@ VAE_HYDRA = rule_params("vae", VAE_OVERRIDES)
 DELTA_HYDRA = rule_params("delta", DELTA_OVERRIDES)
 
 VAE_TARGETS = [
-    RESULTS + "/tables/table9.csv",
-    RESULTS + "/tables/table9.md",
-    RESULTS + "/tables/p2_levels.csv",
-    RESULTS + "/tables/p2_levels.md",
-    RESULTS + "/figures/fig14_cross_convergence.png",
-    RESULTS + "/tables/table10.csv",
-    RESULTS + "/tables/table10.md",
-    RESULTS + "/figures/s11_delta_sweep.png",
+    f"{RESULTS}/tables/table9.csv",
+    f"{RESULTS}/tables/table9.md",
+    f"{RESULTS}/tables/p2_levels.csv",
+    f"{RESULTS}/tables/p2_levels.md",
+    f"{RESULTS}/figures/fig14_cross_convergence.png",
+    f"{RESULTS}/tables/table10.csv",
+    f"{RESULTS}/tables/table10.md",
+    f"{RESULTS}/figures/s11_delta_sweep.png",
 ]
 
 
@@ -34,11 +34,11 @@ rule vae_train:
         code("vae"),
         dataset=DATASET,
     output:
-        RESULTS + "/vae/main.pt",
+        f"{RESULTS}/vae/main.pt",
     log:
-        LOGS + "/vae/train.log",
+        f"{LOGS}/vae/train.log",
     benchmark:
-        BENCHMARKS + "/vae/train.tsv"
+        f"{BENCHMARKS}/vae/train.tsv"
     conda:
         "../envs/feeder.yaml"
     params:
@@ -53,14 +53,14 @@ rule vae_table9:
     input:
         code("vae"),
         dataset=DATASET,
-        model=RESULTS + "/vae/main.pt",
+        model=f"{RESULTS}/vae/main.pt",
     output:
-        csv=report(RESULTS + "/tables/table9.csv", caption="../report/table9.rst", category="VAE and delta"),
-        md=report(RESULTS + "/tables/table9.md", caption="../report/table9.rst", category="VAE and delta"),
+        csv=report(f"{RESULTS}/tables/table9.csv", caption="../report/table9.rst", category="VAE and delta"),
+        md=report(f"{RESULTS}/tables/table9.md", caption="../report/table9.rst", category="VAE and delta"),
     log:
-        LOGS + "/vae/table9.log",
+        f"{LOGS}/vae/table9.log",
     benchmark:
-        BENCHMARKS + "/vae/table9.tsv"
+        f"{BENCHMARKS}/vae/table9.tsv"
     conda:
         "../envs/feeder.yaml"
     shell:
@@ -73,11 +73,11 @@ rule vae_p2_level:
         code("vae"),
         dataset=DATASET,
     output:
-        RESULTS + "/vae/p2/level_{level}.json",
+        f"{RESULTS}/vae/p2/level_{{level}}.json",
     log:
-        LOGS + "/vae/p2_level_{level}.log",
+        f"{LOGS}/vae/p2_level_{{level}}.log",
     benchmark:
-        BENCHMARKS + "/vae/p2_level_{level}.tsv"
+        f"{BENCHMARKS}/vae/p2_level_{{level}}.tsv"
     wildcard_constraints:
         level=r"\d+",
     conda:
@@ -93,14 +93,14 @@ rule vae_p2_gather:
     """P2 table of every level (within-level vs cross-convergence R², the data of Fig. 14)."""
     input:
         code("vae"),
-        levels=expand(RESULTS + "/vae/p2/level_{level}.json", level=P2_LEVELS),
+        levels=expand(f"{RESULTS}/vae/p2/level_{{level}}.json", level=P2_LEVELS),
     output:
-        csv=report(RESULTS + "/tables/p2_levels.csv", caption="../report/p2_levels.rst", category="VAE and delta"),
-        md=report(RESULTS + "/tables/p2_levels.md", caption="../report/p2_levels.rst", category="VAE and delta"),
+        csv=report(f"{RESULTS}/tables/p2_levels.csv", caption="../report/p2_levels.rst", category="VAE and delta"),
+        md=report(f"{RESULTS}/tables/p2_levels.md", caption="../report/p2_levels.rst", category="VAE and delta"),
     log:
-        LOGS + "/vae/p2_gather.log",
+        f"{LOGS}/vae/p2_gather.log",
     benchmark:
-        BENCHMARKS + "/vae/p2_gather.tsv"
+        f"{BENCHMARKS}/vae/p2_gather.tsv"
     conda:
         "../envs/feeder.yaml"
     shell:
@@ -113,11 +113,11 @@ rule delta_sweep_level:
         code("delta"),
         dataset=DATASET,
     output:
-        RESULTS + "/delta/level_{level}.json",
+        f"{RESULTS}/delta/level_{{level}}.json",
     log:
-        LOGS + "/delta/level_{level}.log",
+        f"{LOGS}/delta/level_{{level}}.log",
     benchmark:
-        BENCHMARKS + "/delta/level_{level}.tsv"
+        f"{BENCHMARKS}/delta/level_{{level}}.tsv"
     wildcard_constraints:
         level=r"\d+",
     conda:
@@ -134,14 +134,14 @@ rule delta_table:
     is the data of Fig. S11)."""
     input:
         code("delta"),
-        levels=expand(RESULTS + "/delta/level_{level}.json", level=DELTA_LEVELS),
+        levels=expand(f"{RESULTS}/delta/level_{{level}}.json", level=DELTA_LEVELS),
     output:
-        csv=report(RESULTS + "/tables/table10.csv", caption="../report/table10.rst", category="VAE and delta"),
-        md=report(RESULTS + "/tables/table10.md", caption="../report/table10.rst", category="VAE and delta"),
+        csv=report(f"{RESULTS}/tables/table10.csv", caption="../report/table10.rst", category="VAE and delta"),
+        md=report(f"{RESULTS}/tables/table10.md", caption="../report/table10.rst", category="VAE and delta"),
     log:
-        LOGS + "/delta/table.log",
+        f"{LOGS}/delta/table.log",
     benchmark:
-        BENCHMARKS + "/delta/table.tsv"
+        f"{BENCHMARKS}/delta/table.tsv"
     conda:
         "../envs/feeder.yaml"
     params:

@@ -55,7 +55,7 @@ def sim_targets(study: Path, configfiles: list[str], n_jobs: int) -> list[str]:
     parts = list_parts(str(study / cfg["parts"]["dir"]), cfg["parts"]["include"])
     grid = configurations(cfg, parts)
     rows = spread(list(zip(grid["part"], grid["config_id"])), n_jobs)
-    return [f"results/sim/{part}/{config_id}.npz" for part, config_id in rows]
+    return [f"{cfg['results']}/sim/{part}/{config_id}.npz" for part, config_id in rows]
 
 
 def run_variant(
