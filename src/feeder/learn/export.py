@@ -225,19 +225,21 @@ def table_metrics(tables: Path, name: str, split_rows: dict[str, int]) -> dict:
     return out
 
 
-def _read_provenance(path: Path | None) -> dict | None:
-    if path is None:
-        return None
-    path = Path(path)
+def _read_json(path: Path, missing: str) -> dict:
+    """A JSON object from ``path``; one-line errors (``missing`` says what to do when it is absent)."""
     try:
         obj = json.loads(path.read_text())
     except FileNotFoundError:
-        raise FeederError(f"provenance file {path} is missing") from None
+        raise FeederError(f"{path}: missing ({missing})") from None
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as err:
-        raise FeederError(f"provenance file {path} is not readable JSON ({err})".replace("\n", " ")) from None
+        raise FeederError(f"{path}: not readable JSON ({err})".replace("\n", " ")) from None
     if not isinstance(obj, dict):
-        raise FeederError(f"provenance file {path} is not a JSON object")
+        raise FeederError(f"{path}: not a JSON object")
     return obj
+
+
+def _read_provenance(path: Path | None) -> dict | None:
+    return None if path is None else _read_json(Path(path), "the provenance file of the run")
 
 
 def _sim_design(settings: dict | None) -> dict | None:
@@ -299,12 +301,7 @@ def build_card(model_dir: Path, tables: Path, dataset: Path, provenance_path: Pa
     model_dir = Path(model_dir)
     model = TrainedModel.load(model_dir)
     metrics_path = model_dir / "metrics.json"
-    try:
-        metrics = json.loads(metrics_path.read_text())
-    except FileNotFoundError:
-        raise FeederError(f"{metrics_path}: missing (is {model_dir} a `feeder train` output?)") from None
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as err:
-        raise FeederError(f"{metrics_path}: not readable JSON ({err})".replace("\n", " ")) from None
+    metrics = _read_json(metrics_path, f"is {model_dir} a `feeder train` output?")
     name = model.spec.name
     provenance = _read_provenance(provenance_path)
     data = training_data(dataset, provenance)
