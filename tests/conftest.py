@@ -19,6 +19,14 @@ def regression_dataset(tmp_path_factory):
 
 
 @pytest.fixture(scope="session")
+def push_regression_dataset(tmp_path_factory):
+    """dataset.npz of :func:`factories.make_regression_dataset` with the synthetic push block."""
+    path = tmp_path_factory.mktemp("regression_push") / "dataset.npz"
+    make_regression_dataset(path, push=True)
+    return path
+
+
+@pytest.fixture(scope="session")
 def level_dataset(tmp_path_factory):
     """dataset.npz of :func:`factories.make_level_dataset` with its defaults."""
     path = tmp_path_factory.mktemp("levels") / "dataset.npz"

@@ -5,7 +5,9 @@ datasets in session fixtures. Two dataset shapes, both in the docs/data.md layou
 
 * :func:`make_regression_dataset`: a few parts with random DFT-like triplets and fence
   configurations, PMFs from von Mises mixtures whose modes depend on the part features and fence
-  angles, so a network can learn them (train, evaluate, predict);
+  angles, so a network can learn them (train, evaluate, predict); with ``push=True`` also a
+  synthetic analytic push block (``push_raw``, ``push_feature_names``, ``pmf_analytic``:
+  :func:`add_push_block`);
 * :func:`make_level_dataset`: PMFs from simulated drops with every partial level ``LEVELS`` of
   the first k % of drops (VAE, delta model).
 """
@@ -21,6 +23,9 @@ from feeder.labels.metrics import partial_pmfs
 BINS = 360
 LEVELS = np.arange(5, 105, 5)
 FENCE_TYPES = ("none", "straight", "curved")
+PUSH_SEED_OFFSET = 1000  # the synthetic push block's random stream, apart from the dataset's
+PUSH_MAX_SHIFT_DEG = 20  # the synthetic analytic PMF: the label turned by up to this many degrees
+PUSH_BLUR_BINS = 4.0  # and blurred by this wrapped-Gaussian sigma
 
 
 def _vm_pmf(mus, kappas, weights):
@@ -29,9 +34,32 @@ def _vm_pmf(mus, kappas, weights):
     return dens / dens.sum()
 
 
-def make_regression_dataset(path, n_parts=5, per_part=30, holdout=1, seed=0, one_hot=False, zero_features=False):
+def add_push_block(arrays: dict, seed: int = 0) -> dict:
+    """A synthetic analytic push block for a regression dataset's rows (in place, returned):
+    ``pmf_analytic`` the label turned by a random whole number of degrees (up to
+    ``PUSH_MAX_SHIFT_DEG``) and blurred, a rough but informative analytic prediction; ``push_raw``
+    its Fourier coefficients (the block's layout: :data:`feeder.parts.push.PUSH_FEATURE_NAMES`)
+    and noise for the other features. Its own random stream: the paper arrays do not change."""
+    from feeder.labels.metrics import wrapped_gaussian_smooth
+    from feeder.parts.push import FOURIER_K, PUSH_FEATURE_NAMES, fourier_coefficients
+
+    rng = np.random.default_rng(seed + PUSH_SEED_OFFSET)
+    pmf = arrays["pmf"]
+    shifts = rng.integers(-PUSH_MAX_SHIFT_DEG, PUSH_MAX_SHIFT_DEG + 1, size=len(pmf))
+    analytic = wrapped_gaussian_smooth(np.stack([np.roll(p, k) for p, k in zip(pmf, shifts)]), PUSH_BLUR_BINS)
+    coef = fourier_coefficients(analytic, FOURIER_K)
+    push = rng.normal(size=(len(pmf), len(PUSH_FEATURE_NAMES)))
+    push[:, : 2 * FOURIER_K] = np.stack([coef.real, coef.imag], axis=-1).reshape(len(pmf), -1)
+    arrays.update(push_raw=push, push_feature_names=np.array(PUSH_FEATURE_NAMES), pmf_analytic=analytic)
+    return arrays
+
+
+def make_regression_dataset(
+    path, n_parts=5, per_part=30, holdout=1, seed=0, one_hot=False, zero_features=False, push=False
+):
     """Synthetic dataset.npz for the regression models; the last ``holdout`` parts form the Parts
-    split, part 0 gets a reserved fence combination (curved_curved) as the Fences split."""
+    split, part 0 gets a reserved fence combination (curved_curved) as the Fences split. ``push``:
+    add the synthetic push block of :func:`add_push_block` (the other arrays are the same)."""
     rng = np.random.default_rng(seed)
     rows = []
     w = rng.normal(size=45)
@@ -82,6 +110,8 @@ def make_regression_dataset(path, n_parts=5, per_part=30, holdout=1, seed=0, one
         levels_pct=np.array([50, 100]),
         n_ok=np.full(len(rows), 1000),
     )
+    if push:
+        add_push_block(arrays, seed)
     write_npz(path, **arrays)
     return arrays
 

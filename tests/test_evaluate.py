@@ -78,6 +78,13 @@ def test_baselines_hand_check():
     # row 3 (x=0.9) -> training row 1; row 0 -> row 1 (not itself); row 2 -> row 1
     assert np.allclose(near[3], [0, 1, 1]) and np.allclose(near[0], [0, 1, 1]) and np.allclose(near[2], [0, 1, 1])
     assert np.allclose(near[1], [1, 1, 1])  # row 1 -> row 0
+    assert list(out) == [E.BASELINE_MEAN, E.BASELINE_NEAREST] == E.baseline_names(data)  # no pmf_analytic
+    # with the analytic PMF: its cumulative sum, row by row, and the other two unchanged
+    analytic = np.array([[0.0, 0.5, 0.5], [0.2, 0.2, 0.6], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
+    out2 = E.baseline_predictions({**data, "pmf_analytic": analytic}, train)
+    assert list(out2) == [E.BASELINE_MEAN, E.BASELINE_NEAREST, E.BASELINE_ANALYTIC]
+    assert np.allclose(out2[E.BASELINE_ANALYTIC][0], [[0, 0.5, 1], [0.2, 0.4, 1], [1, 1, 1], [0, 0, 1]])
+    assert np.array_equal(out2[E.BASELINE_NEAREST][0], near)
 
 
 def test_combo_label():

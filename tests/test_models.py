@@ -120,6 +120,29 @@ def test_branched_branches_see_their_features_only():
     assert net.body.part[0].in_features == 45 and net.body.feeder[0].in_features == 8
 
 
+def test_push_inputs_widen_the_input_and_reach_the_feeder_branch():
+    from feeder.parts.push import PUSH_FEATURE_NAMES
+
+    n_push = len(PUSH_FEATURE_NAMES)
+    std = spec(inputs="paper+push")
+    assert std.push_dim == n_push and std.input_dim == models.INPUT_DIM + n_push
+    assert RegressionModel(std, BINS).body.net[0].in_features == models.INPUT_DIM + n_push
+    s = spec(arch="branched", part_hidden=(4,), feeder_hidden=(3,), shared_hidden=(5,), inputs="paper+push")
+    torch.manual_seed(0)
+    net = RegressionModel(s, BINS)
+    assert net.body.part[0].in_features == 45 and net.body.feeder[0].in_features == 8 + n_push
+    x = torch.randn(2, s.input_dim, requires_grad=True)
+    net.body.feeder(x[:, models.PART_DIM :]).sum().backward()
+    assert x.grad[:, : models.PART_DIM].abs().sum() == 0  # the feeder branch: fences and push block
+    assert x.grad[:, models.INPUT_DIM :].abs().sum() > 0
+    assert spec().push_dim == 0 and spec().input_dim == models.INPUT_DIM
+    # the saved spec names the inputs only when they are not the paper's (old files have no key)
+    assert "inputs" not in spec().to_dict() and s.to_dict()["inputs"] == "paper+push"
+    assert ModelSpec.from_dict(s.to_dict()) == s and ModelSpec.from_dict(spec().to_dict()).inputs == "paper"
+    with pytest.raises(ValueError, match="inputs"):
+        spec(inputs="push")
+
+
 def test_spec_validation():
     with pytest.raises(ValueError):
         spec(output_activation="linear")  # full PMF needs softmax

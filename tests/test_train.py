@@ -27,6 +27,7 @@ def test_every_model_composes_with_paper_settings():
         assert cfg.model.name == name and cfg.model.lr == lr
         assert cfg.trainer.batch_size == 64 and cfg.trainer.max_epochs == 400
         assert cfg.trainer.patience == 20 and cfg.trainer.val_fraction == 0.1
+        assert cfg.model.inputs == "paper"  # the paper's 53 inputs unless model.inputs=paper+push
     assert compose_config("train", ["model=m1"]).model.components == 170
     assert compose_config("train", ["model=m5"]).model.components == 85
     assert dict(compose_config("train", ["model=m3"]).model.loss) == {"cdf_mse": 1.0, "pmf_kl_fwd": 1.0, "cdf_ks": 1.0}
@@ -63,6 +64,20 @@ def test_each_model_trains_and_saves(dataset, tmp_path, model):
     pmf, cdf = tm.predict(data["part_raw"][:5], data["feeder_raw"][:5])
     assert (pmf >= 0).all() and np.allclose(pmf.sum(1), 1) and np.allclose(cdf[:, -1], 1)
     assert (np.diff(cdf, axis=1) >= -1e-12).all()
+
+
+@pytest.mark.parametrize("model", ["m1", "m2", "m5", "m8"])
+def test_every_architecture_trains_with_the_push_block(push_regression_dataset, tmp_path, model):
+    """PCA and full outputs, standard and branched: model.inputs=paper+push trains and predicts."""
+    from feeder.learn.models import TrainedModel
+
+    extra = ["model.inputs=paper+push"]
+    metrics = T.train(compose_config("train", small_overrides(push_regression_dataset, tmp_path, model, 2, extra)))
+    assert np.isfinite(metrics["r2_test"])
+    tm = TrainedModel.load(tmp_path)
+    assert tm.inputs == "paper+push"
+    pmf, cdf = tm.predict_rows(load_dataset(push_regression_dataset), np.arange(5))
+    assert np.allclose(pmf.sum(1), 1) and np.allclose(cdf[:, -1], 1)
 
 
 def test_same_seed_same_metrics_different_seed_differs(dataset, tmp_path):

@@ -4,9 +4,17 @@ input scaler, ``dataset.npz`` (docs/data.md) and Table 4; and the ``feeder datas
 * :func:`build_dataset` merges the simulation file of every row of the configuration table
   (:func:`feeder.labels.grid.configurations`) with its part's DFT features into the arrays of
   ``dataset.npz``: labels (PMF, CDF, partial-level PMFs) in the label frame, the raw 45 + 8
-  inputs, the leave-parts-out fold of every row and the excluded configurations.
+  inputs, the leave-parts-out fold of every row and the excluded configurations. Given the part
+  files (``--parts-dir``, default ``parts.dir`` of the settings), also the analytic push block of
+  every row (:func:`push_arrays`): ``push_raw`` (the :data:`feeder.parts.push.PUSH_FEATURE_NAMES`
+  features, named in ``push_feature_names``) and ``pmf_analytic`` (the analytic PMF, in the label
+  frame and with the labels' smoothing). Datasets without them still load; models that need
+  them say so (:func:`raw_inputs`).
 * :func:`load_dataset` reads ``dataset.npz`` back, checked: the one reader every stage uses.
 * :class:`Scaler` / :func:`fit_scaler`: the model-input scaler, fit on training rows only.
+* Model inputs (``model.inputs`` of the Hydra model configs, :data:`INPUTS`): ``paper``, the
+  paper's 53 (:data:`INPUT_NAMES`), or ``paper+push``, those and the push block
+  (:func:`input_names`, :func:`features_version`).
 
 ``feeder datasets configurations|build|table4|convergence`` (``feeder datasets <cmd> -h``); the
 grid and splits are in :mod:`feeder.labels.grid`, the convergence study in
@@ -20,6 +28,7 @@ import json
 import logging
 import math
 import sys
+import time
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -34,6 +43,7 @@ from feeder.labels.convergence import convergence_data
 from feeder.labels.grid import SPLITS, configurations
 from feeder.labels.pmf import check_ok_mass, level_drops, sim_label
 from feeder.parts.features import DFT, DFT_FEATURE_NAMES, FEATURES_VERSION
+from feeder.parts.push import PUSH_FEATURE_NAMES, PUSH_FEATURES_VERSION
 from feeder.sim.fences import TYPES, Fence, parse_config_id
 from feeder.sim.record import BadData, SimRecord, load_sim
 
@@ -44,6 +54,8 @@ N_FEEDER = 8
 # what every learner reads from dataset.npz, and the partial-level labels the VAE and delta use
 DATASET_KEYS = ("part", "config_id", "split", "group_fold", "part_raw", "feeder_raw", "pmf", "cdf")
 LEVEL_KEYS = ("pmf_levels", "levels_pct")
+# the analytic push block (build_dataset with the part files): features, their names, the PMF
+PUSH_KEYS = ("push_raw", "push_feature_names", "pmf_analytic")
 # the 8 feeder inputs in the order of :func:`feeder_vector`: per location the one-hot fence type,
 # then the angle
 FEEDER_FEATURE_NAMES = tuple(
@@ -51,21 +63,52 @@ FEEDER_FEATURE_NAMES = tuple(
 )
 INPUT_NAMES = DFT_FEATURE_NAMES + FEEDER_FEATURE_NAMES  # the 53 raw model inputs, in order
 FEATURES_DIGEST_CHARS = 12  # hex digits of the sha256 kept in features_version()
+PAPER_INPUTS = "paper"  # model.inputs: the paper's 53 inputs
+PUSH_INPUTS = "paper+push"  # model.inputs: the 53 and the analytic push block
+INPUTS = (PAPER_INPUTS, PUSH_INPUTS)
+PUSH_INPUT_PREFIX = "push_"  # the push block's input names: push_<PUSH_FEATURE_NAMES entry>
 
 
-def features_version() -> str:
+def check_inputs(inputs: str) -> str:
+    """``inputs`` itself when it is one of :data:`INPUTS`, else a one-line FeederError."""
+    if inputs not in INPUTS:
+        raise FeederError(f"model.inputs must be one of {', '.join(INPUTS)}, got {inputs!r}")
+    return inputs
+
+
+def input_names(inputs: str = PAPER_INPUTS) -> tuple[str, ...]:
+    """The raw model inputs of ``model.inputs`` in network order: :data:`INPUT_NAMES`, then for
+    ``paper+push`` the push block (``push_`` + :data:`feeder.parts.push.PUSH_FEATURE_NAMES`)."""
+    if check_inputs(inputs) == PAPER_INPUTS:
+        return INPUT_NAMES
+    return INPUT_NAMES + tuple(PUSH_INPUT_PREFIX + name for name in PUSH_FEATURE_NAMES)
+
+
+def features_version(inputs: str = PAPER_INPUTS) -> str:
     """The version of the model inputs this code computes, ``"<FEATURES_VERSION>-<digest>"``:
     the hand-bumped :data:`feeder.parts.features.FEATURES_VERSION` and a short sha256 of it, the
-    ordered :data:`INPUT_NAMES` and the DFT settings (:data:`feeder.parts.features.DFT`). A model
-    card records it; a model whose inputs were computed otherwise gets a different one."""
+    ordered :data:`INPUT_NAMES` and the DFT settings (:data:`feeder.parts.features.DFT`); for
+    ``inputs="paper+push"`` also the push block's names, its hand-bumped
+    :data:`feeder.parts.push.PUSH_FEATURES_VERSION` and settings (the ``paper`` version is the one
+    the paper's models always had). A model card records it; a model whose inputs were computed
+    otherwise gets a different one."""
     import dataclasses
     import hashlib
 
+    from feeder.parts import push
+
     if len(INPUT_NAMES) != N_DFT + N_FEEDER:
         raise FeederError(f"INPUT_NAMES lists {len(INPUT_NAMES)} inputs, the models take {N_DFT + N_FEEDER}")
-    blob = json.dumps(
-        {"version": FEATURES_VERSION, "inputs": list(INPUT_NAMES), "dft": dataclasses.asdict(DFT)}, sort_keys=True
-    )
+    content: dict = {"version": FEATURES_VERSION, "inputs": list(INPUT_NAMES), "dft": dataclasses.asdict(DFT)}
+    if check_inputs(inputs) == PUSH_INPUTS:
+        content["push"] = {
+            "version": PUSH_FEATURES_VERSION,
+            "names": list(PUSH_FEATURE_NAMES),
+            "smooth_deg": push.DEFAULT_SMOOTH_DEG,
+            "fourier_k": push.FOURIER_K,
+            "yaw_samples": push.YAW_SAMPLES,
+        }
+    blob = json.dumps(content, sort_keys=True)
     return f"{FEATURES_VERSION}-{hashlib.sha256(blob.encode()).hexdigest()[:FEATURES_DIGEST_CHARS]}"
 
 
@@ -132,16 +175,31 @@ def feeder_vector(loc1: Fence, loc2: Fence) -> np.ndarray:
 # ----------------------------------------------------------------------------------------------
 # Scaler
 # ----------------------------------------------------------------------------------------------
+_SCALER_KEYS = ("mean", "std", "angle_min", "angle_max")
+_PUSH_SCALER_KEYS = ("push_mean", "push_std")
+
+
 @dataclass
 class Scaler:
-    """z-score of the 45 DFT values and min-max of the two fence angles, fit on training rows."""
+    """z-score of the 45 DFT values and min-max of the two fence angles, fit on training rows;
+    for ``paper+push`` models also the z-score of the push block (``push_mean``/``push_std``,
+    None for the paper's inputs)."""
 
     mean: np.ndarray  # (45,)
     std: np.ndarray  # (45,), zero SDs replaced by 1
     angle_min: np.ndarray  # (2,)
     angle_max: np.ndarray  # (2,)
+    push_mean: np.ndarray | None = None  # (P,)
+    push_std: np.ndarray | None = None  # (P,), zero SDs replaced by 1
 
-    def transform(self, part_raw, feeder_raw) -> np.ndarray:
+    @property
+    def inputs(self) -> str:
+        """The model inputs the scaler was fit on (:data:`INPUTS`)."""
+        return PAPER_INPUTS if self.push_mean is None else PUSH_INPUTS
+
+    def transform(self, part_raw, feeder_raw, push_raw=None) -> np.ndarray:
+        """The scaled model inputs: 53 columns, then the push block's for a push scaler (which
+        needs ``push_raw``; a paper scaler ignores it)."""
         part_raw = np.atleast_2d(np.asarray(part_raw, dtype=np.float64))
         feeder_raw = np.atleast_2d(np.asarray(feeder_raw, dtype=np.float64))
         if part_raw.shape[1] != N_DFT or feeder_raw.shape[1] != N_FEEDER or len(part_raw) != len(feeder_raw):
@@ -154,33 +212,74 @@ class Scaler:
             span = self.angle_max[j] - self.angle_min[j]
             span = span if span > 0 else 1.0
             f[:, col] = np.where(present, (f[:, col] - self.angle_min[j]) / span, 0.0)
-        return np.concatenate([z, f], axis=1)
+        if self.push_mean is None:
+            return np.concatenate([z, f], axis=1)
+        if push_raw is None:
+            raise FeederError("this model takes the analytic push features (model.inputs: paper+push): none given")
+        push_raw = np.atleast_2d(np.asarray(push_raw, dtype=np.float64))
+        if push_raw.shape != (len(part_raw), self.push_mean.size):
+            raise FeederError(
+                f"Scaler.transform needs ({len(part_raw)}, {self.push_mean.size}) push features, got {push_raw.shape}"
+            )
+        return np.concatenate([z, f, (push_raw - self.push_mean) / self.push_std], axis=1)
 
     def to_dict(self) -> dict:
-        return {k: getattr(self, k).tolist() for k in ("mean", "std", "angle_min", "angle_max")}
+        keys = _SCALER_KEYS if self.push_mean is None else _SCALER_KEYS + _PUSH_SCALER_KEYS
+        return {k: getattr(self, k).tolist() for k in keys}
 
     @classmethod
     def from_dict(cls, d: dict) -> Scaler:
-        return cls(**{k: np.asarray(d[k], dtype=np.float64) for k in ("mean", "std", "angle_min", "angle_max")})
+        keys = _SCALER_KEYS + tuple(k for k in _PUSH_SCALER_KEYS if d.get(k) is not None)
+        return cls(**{k: np.asarray(d[k], dtype=np.float64) for k in keys})
 
 
-def fit_scaler(part_raw, feeder_raw, mask) -> Scaler:
-    """Fit on the rows selected by ``mask`` (bool (N,) or indices) only: no other row is read."""
+def _zscore(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Column means and SDs (ddof = 0), zero SDs replaced by 1."""
+    std = x.std(axis=0)
+    return x.mean(axis=0), np.where(std > 0, std, 1.0)
+
+
+def fit_scaler(part_raw, feeder_raw, mask, push_raw=None) -> Scaler:
+    """Fit on the rows selected by ``mask`` (bool (N,) or indices) only: no other row is read.
+    With ``push_raw`` ((N, P) push features) the scaler also z-scores the push block."""
     part_raw = np.asarray(part_raw, dtype=np.float64)
     feeder_raw = np.asarray(feeder_raw, dtype=np.float64)
     p = part_raw[mask]
     f = feeder_raw[mask]
     if p.ndim != 2 or len(p) == 0:
         raise FeederError("fit_scaler: no training rows selected")
-    mean = p.mean(axis=0)
-    std = p.std(axis=0)
-    std = np.where(std > 0, std, 1.0)
+    mean, std = _zscore(p)
     lo, hi = np.zeros(2), np.ones(2)
     for j in range(2):
         a = f[f[:, 4 * j] == 0, 4 * j + 3]
         if a.size:
             lo[j], hi[j] = a.min(), a.max()
-    return Scaler(mean=mean, std=std, angle_min=lo, angle_max=hi)
+    push_mean = push_std = None
+    if push_raw is not None:
+        push_mean, push_std = _zscore(np.asarray(push_raw, dtype=np.float64)[mask])
+    return Scaler(mean=mean, std=std, angle_min=lo, angle_max=hi, push_mean=push_mean, push_std=push_std)
+
+
+def raw_inputs(data: dict[str, np.ndarray], inputs: str = PAPER_INPUTS, rows=None) -> tuple[np.ndarray, ...]:
+    """The raw arrays a model of ``inputs`` reads from a dataset (of ``rows``, default all):
+    ``(part_raw, feeder_raw)``, and ``push_raw`` for ``paper+push``. A dataset without the push
+    block, or with one of other features than this code computes, is a one-line FeederError."""
+    arrays = [data["part_raw"], data["feeder_raw"]]
+    if check_inputs(inputs) == PUSH_INPUTS:
+        if "push_raw" not in data:
+            raise FeederError(
+                "model.inputs: paper+push needs the dataset's analytic push features (push_raw), which this "
+                "dataset.npz lacks: rebuild it with `feeder datasets build --parts-dir DIR`"
+            )
+        names = tuple(str(n) for n in np.asarray(data.get("push_feature_names", PUSH_FEATURE_NAMES)).ravel())
+        if names != PUSH_FEATURE_NAMES:
+            raise FeederError(
+                "the dataset's push features (push_feature_names) are not the ones this code computes: rebuild it"
+            )
+        arrays.append(data["push_raw"])
+    if rows is None:
+        return tuple(arrays)
+    return tuple(a[rows] for a in arrays)
 
 
 # ----------------------------------------------------------------------------------------------
@@ -270,6 +369,70 @@ def _label_arrays(rows: _Rows, levels: np.ndarray, bins: int, sigma: float, emul
     }
 
 
+def label_smooth_deg(bins: int, sigma_bins: float) -> float:
+    """The labels' wrapped-Gaussian smoothing (``labels.sigma_bins``) in degrees."""
+    return float(sigma_bins) * L.FULL_TURN_DEG / int(bins)
+
+
+def push_arrays(
+    parts: np.ndarray,
+    config_ids: np.ndarray,
+    outlines: dict[str, np.ndarray],
+    frames: dict[str, float],
+    scene: dict,
+    bins: int,
+    smooth_deg: float,
+) -> tuple[np.ndarray, np.ndarray, float]:
+    """Per row: the push features and the analytic PMF (:func:`feeder.parts.push.push_block`) of
+    the row's part outline in its fence configuration, both in the label frame (``frame_deg`` of
+    the part: the PMF of ``yaw + frame_deg``, as :func:`label_yaws`), the PMF smoothed by
+    ``smooth_deg``. Each part's geometry is built once and its fence responses are shared by its
+    rows; a repeated (part, configuration) is computed once. Returns ``(push_raw, pmf_analytic,
+    seconds)``."""
+    from feeder.parts.push import push_block, push_geometry
+
+    t0 = time.perf_counter()
+    geoms: dict[str, object] = {}
+    memos: dict[str, dict] = {}
+    done: dict[tuple[str, str], tuple[np.ndarray, np.ndarray]] = {}
+    n = len(parts)
+    push_raw = np.empty((n, len(PUSH_FEATURE_NAMES)))
+    pmf = np.empty((n, int(bins)))
+    for i, (part, cid) in enumerate(_progress(zip(parts, config_ids, strict=True), n, "push features")):
+        key = (str(part), str(cid))
+        if key not in done:
+            if part not in geoms:
+                geoms[part] = push_geometry(outlines[part])
+                memos[part] = {}
+            loc1, loc2 = parse_config_id(cid)
+            done[key] = push_block(
+                geoms[part],
+                loc1,
+                loc2,
+                scene,
+                frame_deg=frames[part],
+                bins=int(bins),
+                pmf_smooth_deg=smooth_deg,
+                responses=memos[part],
+            )
+        push_raw[i], pmf[i] = done[key]
+    return push_raw, pmf, time.perf_counter() - t0
+
+
+def _part_outlines(parts, parts_dir: Path, units: str) -> dict[str, np.ndarray]:
+    """The outline of every part (``<parts_dir>/<part>.stl``, metres, the part file's frame, as
+    the simulator reads it); a missing or bad file is a one-line FeederError naming it."""
+    from feeder.parts.geometry import load_outline
+
+    out = {}
+    for part in sorted(set(parts)):
+        path = parts_dir / f"{part}.stl"
+        if not path.is_file():
+            raise FeederError(f"part file {path} is missing (the push features need every part's outline)")
+        out[part] = load_outline(path, units)
+    return out
+
+
 def _group_folds(parts: np.ndarray, n_folds: int) -> np.ndarray:
     """Leave-parts-out fold of every row (sklearn GroupKFold over the parts)."""
     from sklearn.model_selection import GroupKFold
@@ -284,13 +447,34 @@ def _group_folds(parts: np.ndarray, n_folds: int) -> np.ndarray:
     return group_fold
 
 
-def build_dataset(configs: pd.DataFrame, features_dir, sim_dir, settings: dict) -> dict:
-    """The arrays of ``dataset.npz`` (docs/data.md) for the rows of ``configs``."""
+def parts_dir_of(settings: dict, parts_dir=None) -> Path | None:
+    """Where the part files are: ``parts_dir`` when given, else ``parts.dir`` of the settings,
+    else None (no push block)."""
+    if parts_dir is not None:
+        return Path(parts_dir)
+    value = (settings.get("parts") or {}).get("dir")
+    return None if value is None else Path(value)
+
+
+def build_dataset(configs: pd.DataFrame, features_dir, sim_dir, settings: dict, parts_dir=None) -> dict:
+    """The arrays of ``dataset.npz`` (docs/data.md) for the rows of ``configs``.
+
+    ``parts_dir`` (default ``parts.dir`` of ``settings``): the part files; with them the dataset
+    also holds the analytic push block (:data:`PUSH_KEYS`, :func:`push_arrays`), in the scene of
+    ``settings["scene"]`` (default: the study config's) with the parts read in ``parts.units``
+    (default ``auto``). Without them it has none (a ``paper+push`` model cannot train on it)."""
     labels = settings["labels"]
     bins = int(labels["bins"])
     sigma = float(labels["sigma_bins"])
     levels = np.asarray(labels["levels_pct"], dtype=np.int64)
     frame = check_label_frame(labels["frame"])  # before any file is read
+    parts_dir = parts_dir_of(settings, parts_dir)
+    outlines = None
+    if parts_dir is not None:  # read first: a missing part file fails before the simulation files are read
+        if not parts_dir.is_dir():
+            raise FeederError(f"parts directory {parts_dir} does not exist")
+        units = str((settings.get("parts") or {}).get("units", "auto"))
+        outlines = _part_outlines(configs["part"], parts_dir, units)
     rows = _read_rows(configs, Path(features_dir), Path(sim_dir), labels, float(settings["sim"]["min_ok_mass"]))
     lab = _label_arrays(rows, levels, bins, sigma, int(labels["emulated_drops"]))
     parts = np.array([r.part for r in rows.kept])
@@ -321,6 +505,19 @@ def build_dataset(configs: pd.DataFrame, features_dir, sim_dir, settings: dict) 
         "excluded_split": ex[:, 4],
         "settings": np.array(json.dumps(settings, sort_keys=True)),
     }
+    if outlines is None:
+        log.warning("no part files (--parts-dir or parts.dir): the dataset has no analytic push block")
+    else:
+        from feeder.parts.push import default_scene
+
+        scene = settings["scene"] if "scene" in settings else default_scene()
+        push_raw, pmf_analytic, secs = push_arrays(
+            parts, out["config_id"], outlines, rows.frames, scene, bins, label_smooth_deg(bins, sigma)
+        )
+        out["push_raw"] = push_raw
+        out["push_feature_names"] = np.array(PUSH_FEATURE_NAMES)
+        out["pmf_analytic"] = pmf_analytic
+        log.info("push block of %d rows (%d parts) in %.1f s", len(parts), len(set(parts)), secs)
     for key, arr in out.items():
         if arr.dtype.kind == "f" and key != "final_yaw_deg" and not np.isfinite(arr).all():
             raise FeederError(f"dataset array {key} has non-finite values")  # never a silent NaN row
@@ -336,13 +533,17 @@ def _check_dataset(path: Path, data: dict[str, np.ndarray]) -> None:
         if data["pmf"].ndim != 2:
             raise FeederError(f"{path}: pmf must be (configurations, bins), got shape {data['pmf'].shape}")
         n, bins = data["pmf"].shape
-        want = {"part_raw": (n, N_DFT), "feeder_raw": (n, N_FEEDER), "cdf": (n, bins)}
+        want = {"part_raw": (n, N_DFT), "feeder_raw": (n, N_FEEDER), "cdf": (n, bins), "pmf_analytic": (n, bins)}
         if "levels_pct" in data:
             want["pmf_levels"] = (n, data["levels_pct"].size, bins)
+        if "push_feature_names" in data:
+            want["push_raw"] = (n, data["push_feature_names"].size)
         bad = [k for k, shape in want.items() if k in data and data[k].shape != shape]
         if bad:
             raise FeederError(f"{path}: the shapes of {', '.join(bad)} do not match pmf (docs/data.md)")
-    for key in ("part_raw", "feeder_raw", "pmf", "cdf", "pmf_levels"):
+    if ("push_raw" in data) != ("push_feature_names" in data):
+        raise FeederError(f"{path}: push_raw and push_feature_names go together")
+    for key in ("part_raw", "feeder_raw", "pmf", "cdf", "pmf_levels", "push_raw", "pmf_analytic"):
         if key in data and not np.isfinite(data[key]).all():
             raise FeederError(f"{path}: {key} has non-finite values")
 
@@ -354,7 +555,7 @@ def load_dataset(path, keys: tuple[str, ...] = DATASET_KEYS) -> dict[str, np.nda
     path = Path(path)
     data = fio.read_npz(path, keys, what="dataset file")
     _check_dataset(path, data)
-    for key in ("part", "config_id", "split"):
+    for key in ("part", "config_id", "split", "push_feature_names"):
         if key in data:
             data[key] = data[key].astype(str)
     return data
@@ -431,7 +632,17 @@ def main(argv: list[str]) -> int:
     p.add_argument("--configurations", required=True, type=Path)
     p.add_argument("--features-dir", required=True, type=Path)
     p.add_argument("--sim-dir", required=True, type=Path)
-    p.add_argument("--settings", required=True, help="JSON with the sim, labels and datasets sections")
+    p.add_argument(
+        "--parts-dir",
+        type=Path,
+        help="the part files (<id>.stl) for the analytic push block (default: parts.dir of --settings; "
+        "without either the dataset has none)",
+    )
+    p.add_argument(
+        "--settings",
+        required=True,
+        help="JSON with the sim, labels and datasets sections (and optionally scene, parts.dir, parts.units)",
+    )
     p.add_argument("--out", required=True, type=Path)
     p = sub.add_parser("table4", help="Table 4 (dataset summary) as CSV and Markdown")
     p.add_argument("--dataset", required=True, type=Path)
@@ -453,7 +664,9 @@ def main(argv: list[str]) -> int:
         print(df.groupby("split").size().to_string(), file=sys.stderr)
     elif args.cmd == "build":
         settings = parse_settings(args.settings, "sim", "labels", "datasets")
-        ds = build_dataset(_read_configs(args.configurations), args.features_dir, args.sim_dir, settings)
+        ds = build_dataset(
+            _read_configs(args.configurations), args.features_dir, args.sim_dir, settings, args.parts_dir
+        )
         fio.write_npz(args.out, **ds)
         log.info("%d configurations, %d excluded -> %s", len(ds["part"]), ds["excluded_part"].size, args.out)
     elif args.cmd == "table4":

@@ -8,15 +8,21 @@ the circle; ``cw1``: circular W1, the W1 minimised over cuts), which do not depe
 falls in the label frame; a table reports mean ± population SD (ddof = 0) over the configurations
 of a split.
 
-Two baselines sit beside the models in every table:
+Two baselines sit beside the models in every table, and a third when the dataset has the
+analytic push block (:func:`baseline_names`):
 
 * ``baseline_mean_pmf``: the mean PMF of the training rows, for every configuration;
 * ``baseline_nearest_part``: the PMF of the nearest training configuration in the scaled 53-d
   input space (Euclidean; the scaler is fit on the training rows). A training row is never its
-  own neighbour (leave-one-out), so the Train table shows an honest baseline.
+  own neighbour (leave-one-out), so the Train table shows an honest baseline;
+* ``baseline_analytic_pmf``: the analytic PMF of the configuration itself (the dataset's
+  ``pmf_analytic``: quasi-static pushing of the part's outline, :mod:`feeder.parts.push`, in the
+  label frame with the labels' smoothing), no training row read. Only with ``pmf_analytic``.
 
 ``train_s`` is the training wall time (from the model's ``metrics.json``, the mean over seeds);
-for the baselines it is the measured time to build them.
+for the baselines it is the measured time to build them from the dataset (for the analytic one,
+its cumulative sums: the analytic PMFs themselves are computed by ``feeder datasets build``,
+which logs their time).
 
 **Seeds.** Every model is trained once per seed (``models.seeds``). A table's metric columns are
 the mean over seeds of each seed's statistic over configurations; ``seeds`` counts them and the
@@ -83,6 +89,8 @@ PAIRED_METRICS = {"r2": 1, "r2c": 1, "w1": -1, "cw1": -1}
 PAIRED_SPLITS = ("test", "fences", "parts")
 BASELINE_MEAN = "baseline_mean_pmf"
 BASELINE_NEAREST = "baseline_nearest_part"
+BASELINE_ANALYTIC = "baseline_analytic_pmf"
+ANALYTIC_KEY = "pmf_analytic"  # the dataset array the analytic baseline reads
 # Figs. 12-13: the rows at these quantiles of the model's R² (best to worst) are shown.
 FIGURE_QUANTILES = (0.9, 0.6, 0.3, 0.1)
 
@@ -223,8 +231,15 @@ def nearest_rows(query: np.ndarray, ref: np.ndarray, exclude_same: np.ndarray | 
     return out
 
 
+def baseline_names(data: dict) -> list[str]:
+    """The baselines a dataset supports, in table order: the mean PMF, the nearest configuration,
+    and the analytic PMF when the dataset has ``pmf_analytic``."""
+    return [BASELINE_MEAN, BASELINE_NEAREST] + ([BASELINE_ANALYTIC] if ANALYTIC_KEY in data else [])
+
+
 def baseline_predictions(data: dict, train_mask: np.ndarray) -> dict[str, tuple[np.ndarray, float]]:
-    """CDF predictions of both baselines for every row, with the seconds each took to build."""
+    """CDF predictions of every baseline of :func:`baseline_names` for every row, with the
+    seconds each took to build."""
     from feeder.labels.dataset import fit_scaler
 
     t0 = time.perf_counter()
@@ -243,7 +258,12 @@ def baseline_predictions(data: dict, train_mask: np.ndarray) -> dict[str, tuple[
     nearest = train_rows[nearest_rows(x, x[train_rows], exclude_same=position)]
     near_cdf = np.cumsum(data["pmf"][nearest], axis=1)
     t_near = time.perf_counter() - t0
-    return {BASELINE_MEAN: (mean_cdf, t_mean), BASELINE_NEAREST: (near_cdf, t_near)}
+    out = {BASELINE_MEAN: (mean_cdf, t_mean), BASELINE_NEAREST: (near_cdf, t_near)}
+    if ANALYTIC_KEY in data:
+        t0 = time.perf_counter()
+        analytic_cdf = np.cumsum(np.asarray(data[ANALYTIC_KEY], dtype=np.float64), axis=1)
+        out[BASELINE_ANALYTIC] = (analytic_cdf, time.perf_counter() - t0)
+    return out
 
 
 def combo_label(config_id: str) -> str:
@@ -293,7 +313,7 @@ def _per_seed_predictions(data: dict, models) -> dict[str, list[tuple[np.ndarray
     train_mask = data["split"] == "train"
     preds: dict[str, list[tuple[int, np.ndarray, float]]] = {}
     for name, seed, model, train_s in models:
-        _, cdf = model.predict(data["part_raw"], data["feeder_raw"])
+        _, cdf = model.predict_rows(data)
         preds.setdefault(name, []).append((seed, cdf, train_s))
     out = {name: [(cdf, s) for _, cdf, s in sorted(runs, key=lambda r: r[0])] for name, runs in preds.items()}
     for name, (cdf, secs) in baseline_predictions(data, train_mask).items():
@@ -303,7 +323,7 @@ def _per_seed_predictions(data: dict, models) -> dict[str, list[tuple[np.ndarray
 
 def evaluation_tables(data: dict, models, bootstrap: dict | None = None):
     """Tables 5–8 (split -> DataFrame), the Fences/Parts breakdowns and the paired comparison of
-    every model with both baselines (None when ``bootstrap`` is None)."""
+    every model with every baseline (:func:`baseline_names`; None when ``bootstrap`` is None)."""
     preds = _per_seed_predictions(data, models)
     per_row = {name: [row_metrics(data["cdf"], cdf) for cdf, _ in runs] for name, runs in preds.items()}
     train_s = {name: float(np.mean([s for _, s in runs])) for name, runs in preds.items()}
@@ -326,7 +346,7 @@ def evaluation_tables(data: dict, models, bootstrap: dict | None = None):
     breakdowns = {"fences": breakdown("fences", combos), "parts": breakdown("parts", data["part"])}
     if bootstrap is None:
         return tables, breakdowns, None
-    baselines = (BASELINE_MEAN, BASELINE_NEAREST)
+    baselines = baseline_names(data)
     paired = []
     for split in PAIRED_SPLITS:
         mask = data["split"] == split
@@ -392,7 +412,8 @@ def groupkfold(data: dict, cfg, seeds=None, progress: bool | None = None, bootst
     """Train ``cfg.model`` once per ``group_fold`` and seed on every row of the other folds and
     predict the held-out parts. Rows: per part, all held-out configurations, and the mean ± SD of
     the per-part means ("over parts"), for the model (averaged over ``seeds``, default
-    ``[cfg.seed]``, with the spread across seeds) and both baselines (built per fold).
+    ``[cfg.seed]``, with the spread across seeds) and every baseline of :func:`baseline_names`
+    (built per fold).
 
     Returns the table, and with ``bootstrap`` also the paired comparison over parts (else None)."""
     from feeder.learn.train import fit
@@ -405,7 +426,7 @@ def groupkfold(data: dict, cfg, seeds=None, progress: bool | None = None, bootst
         raise FeederError(f"GroupKFold seeds {seeds}: give at least one, without repeats")
     n_rows, bins = data["cdf"].shape
     name = str(cfg.model.name)
-    baselines = [BASELINE_MEAN, BASELINE_NEAREST]
+    baselines = baseline_names(data)
     runs = {
         name: [np.full((n_rows, bins), np.nan) for _ in seeds],
         **{b: [np.full((n_rows, bins), np.nan)] for b in baselines},
@@ -416,7 +437,7 @@ def groupkfold(data: dict, cfg, seeds=None, progress: bool | None = None, bootst
         train = ~test
         for i, seed in enumerate(seeds):
             fitted = fit(cfg, data, train, seed=seed + int(fold), progress=progress)
-            _, runs[name][i][test] = fitted.model.predict(data["part_raw"][test], data["feeder_raw"][test])
+            _, runs[name][i][test] = fitted.model.predict_rows(data, test)
             secs[name] += fitted.train_s / len(seeds)
         for b, (cdf, s) in baseline_predictions(data, train).items():
             runs[b][0][test] = cdf[test]
@@ -481,7 +502,7 @@ def prediction_data(dataset, model_dir) -> dict[str, dict[str, np.ndarray]]:
 
     data = load_dataset(dataset)
     model = TrainedModel.load(model_dir)
-    _, cdf = model.predict(data["part_raw"], data["feeder_raw"])
+    _, cdf = model.predict_rows(data)
     r2 = r2_cdf(data["cdf"], cdf)
     bins = data["cdf"].shape[1]
     out = {}
@@ -563,7 +584,7 @@ def main(argv: list[str]) -> int:
     p = sub.add_parser("groupkfold", help="leave-parts-out GroupKFold of one model (trains one per fold and seed)")
     p.add_argument("--dataset", type=Path, required=True)
     p.add_argument("--out", type=Path, required=True, help="CSV (a .md twin is written beside it)")
-    p.add_argument("--paired-out", type=Path, help="CSV of the model against both baselines, paired over parts")
+    p.add_argument("--paired-out", type=Path, help="CSV of the model against each baseline, paired over parts")
     p.add_argument("--seeds", type=int, nargs="+", help="training seeds (default: the Hydra config's seed)")
     _bootstrap_options(p)
     p.add_argument("overrides", nargs="*", help="Hydra overrides, e.g. model=m3 trainer.max_epochs=50")
@@ -604,7 +625,7 @@ def main(argv: list[str]) -> int:
             _write_table(
                 args.paired_out,
                 paired,
-                f"{name} against both baselines on unseen parts (GroupKFold), paired over parts: mean "
+                f"{name} against each baseline on unseen parts (GroupKFold), paired over parts: mean "
                 f"difference of per-part means with a {bootstrap['level']:.0%} percentile bootstrap "
                 f"interval ({bootstrap['resamples']} resamples); better/worse only when it excludes 0.",
             )

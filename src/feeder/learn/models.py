@@ -6,6 +6,12 @@ A model is described by its Hydra node ``model`` (``config/hydra/model/m1.yaml``
 * ``repr``: ``full`` (360 bins) or ``pca`` (``components`` principal-component scores);
 * ``arch``: ``standard`` (53 → ``hidden`` → out) or ``branched`` (45 part features →
   ``part_hidden``, 8 feeder features → ``feeder_hidden``, concatenated → ``shared_hidden`` → out);
+* ``inputs``: ``paper`` (the paper's 53 inputs; the default, and what a model saved without the
+  key has) or ``paper+push``: the 53 and the analytic push block
+  (:data:`feeder.parts.push.PUSH_FEATURE_NAMES`, z-scored like the DFT values), appended after
+  them. A branched network feeds the push block to its feeder branch (8 + P → ``feeder_hidden``):
+  the block describes how the fences act on the part, the configuration-specific side of the
+  input; the part branch keeps the 45 shape features alone;
 * ``output_activation``: ``softmax`` (full PMF), ``sigmoid`` or ``linear`` (full CDF),
   ``linear`` (PCA scores).
 
@@ -34,6 +40,7 @@ from torch import nn
 PART_DIM = 45
 FEEDER_DIM = 8
 INPUT_DIM = PART_DIM + FEEDER_DIM
+INPUTS = ("paper", "paper+push")  # model.inputs (feeder.labels.dataset.INPUTS)
 
 LABELS = ("pmf", "cdf")
 REPRS = ("full", "pca")
@@ -108,11 +115,11 @@ def _mlp(sizes: list[int], final_relu: bool) -> nn.Sequential:
 
 
 class StandardFC(nn.Module):
-    """53 → hidden (ReLU) → out (no activation)."""
+    """53 (+ push block) → hidden (ReLU) → out (no activation)."""
 
-    def __init__(self, hidden: list[int], out_dim: int):
+    def __init__(self, hidden: list[int], out_dim: int, push_dim: int = 0):
         super().__init__()
-        self.net = _mlp([INPUT_DIM, *hidden, out_dim], final_relu=False)
+        self.net = _mlp([INPUT_DIM + push_dim, *hidden, out_dim], final_relu=False)
 
     @property
     def head(self) -> nn.Linear:
@@ -123,15 +130,22 @@ class StandardFC(nn.Module):
 
 
 class BranchedFC(nn.Module):
-    """Part branch (45 → part_hidden) and feeder branch (8 → feeder_hidden), concatenated,
-    then shared layers (→ shared_hidden → out). ReLU after every hidden layer."""
+    """Part branch (45 → part_hidden) and feeder branch (8 + push block → feeder_hidden),
+    concatenated, then shared layers (→ shared_hidden → out). ReLU after every hidden layer."""
 
-    def __init__(self, part_hidden: list[int], feeder_hidden: list[int], shared_hidden: list[int], out_dim: int):
+    def __init__(
+        self,
+        part_hidden: list[int],
+        feeder_hidden: list[int],
+        shared_hidden: list[int],
+        out_dim: int,
+        push_dim: int = 0,
+    ):
         super().__init__()
         if not part_hidden or not feeder_hidden:
             raise ValueError("a branched network needs at least one layer in each branch")
         self.part = _mlp([PART_DIM, *part_hidden], final_relu=True)
-        self.feeder = _mlp([FEEDER_DIM, *feeder_hidden], final_relu=True)
+        self.feeder = _mlp([FEEDER_DIM + push_dim, *feeder_hidden], final_relu=True)
         self.shared = _mlp([part_hidden[-1] + feeder_hidden[-1], *shared_hidden, out_dim], final_relu=False)
 
     @property
@@ -158,8 +172,11 @@ class ModelSpec:
     part_hidden: tuple[int, ...] = ()
     feeder_hidden: tuple[int, ...] = ()
     shared_hidden: tuple[int, ...] = ()
+    inputs: str = "paper"
 
     def __post_init__(self) -> None:
+        if self.inputs not in INPUTS:
+            raise ValueError(f"model {self.name}: inputs must be one of {INPUTS}, got {self.inputs!r}")
         if self.label not in LABELS:
             raise ValueError(f"model {self.name}: label must be one of {LABELS}, got {self.label!r}")
         if self.repr not in REPRS:
@@ -196,10 +213,29 @@ class ModelSpec:
             part_hidden=tup("part_hidden"),
             feeder_hidden=tup("feeder_hidden"),
             shared_hidden=tup("shared_hidden"),
+            inputs=str(get("inputs") or "paper"),
         )
 
+    @property
+    def push_dim(self) -> int:
+        """Width of the push block in the network input (0 for the paper's inputs)."""
+        if self.inputs == "paper":
+            return 0
+        from feeder.parts.push import PUSH_FEATURE_NAMES
+
+        return len(PUSH_FEATURE_NAMES)
+
+    @property
+    def input_dim(self) -> int:
+        return INPUT_DIM + self.push_dim
+
     def to_dict(self) -> dict:
-        return {k: (list(v) if isinstance(v, tuple) else v) for k, v in self.__dict__.items()}
+        """Plain values; ``inputs`` only when it is not ``paper``, so a paper model's saved spec
+        (and its model.pt, byte for byte) is what it was before the key existed."""
+        out = {k: (list(v) if isinstance(v, tuple) else v) for k, v in self.__dict__.items()}
+        if out["inputs"] == "paper":
+            del out["inputs"]
+        return out
 
     @classmethod
     def from_dict(cls, d: dict) -> ModelSpec:
@@ -221,9 +257,11 @@ class RegressionModel(nn.Module):
         if spec.arch == "standard":
             if not spec.hidden:
                 raise ValueError(f"model {spec.name}: a standard network needs hidden layers")
-            self.body = StandardFC(list(spec.hidden), n_out)
+            self.body = StandardFC(list(spec.hidden), n_out, spec.push_dim)
         else:
-            self.body = BranchedFC(list(spec.part_hidden), list(spec.feeder_hidden), list(spec.shared_hidden), n_out)
+            self.body = BranchedFC(
+                list(spec.part_hidden), list(spec.feeder_hidden), list(spec.shared_hidden), n_out, spec.push_dim
+            )
         if spec.repr == "pca":
             if pca_mean is None or pca_components is None or pca_components.shape[0] != n_out:
                 raise ValueError(f"model {spec.name}: PCA output needs mean and {n_out} components")
@@ -346,9 +384,26 @@ class TrainedModel:
         self.spec = net.spec
         self.scaler = scaler
         self.label_frame = label_frame  # labels.frame of the training data (feeder.labels.metrics)
+        if scaler.inputs != self.spec.inputs:
+            from feeder.errors import FeederError
+
+            raise FeederError(
+                f"model {self.spec.name}: its scaler is for inputs {scaler.inputs}, "
+                f"the network takes {self.spec.inputs}"
+            )
+
+    @property
+    def inputs(self) -> str:
+        """``model.inputs``: ``paper`` or ``paper+push``."""
+        return self.spec.inputs
+
+    @property
+    def needs_push(self) -> bool:
+        """Whether predictions need the analytic push block (``model.inputs: paper+push``)."""
+        return self.spec.inputs != "paper"
 
     def raw(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Raw (pmf, cdf) network outputs for scaled inputs ``x`` (N, 53), float64."""
+        """Raw (pmf, cdf) network outputs for scaled inputs ``x`` (N, 53 + push block), float64."""
         with torch.no_grad():
             out = self.net(torch.as_tensor(np.asarray(x), dtype=torch.float32))
         return out["pmf"].double().numpy(), out["cdf"].double().numpy()
@@ -357,13 +412,26 @@ class TrainedModel:
         """Post-processed (pmf, cdf) for scaled inputs."""
         return postprocess(self.spec, *self.raw(x))
 
-    def predict(self, part_raw: np.ndarray, feeder_raw: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Post-processed (pmf, cdf) for raw DFT triplets (N, 45) and feeder vectors (N, 8)."""
-        x = self.scaler.transform(np.atleast_2d(part_raw), np.atleast_2d(feeder_raw))
+    def predict(
+        self, part_raw: np.ndarray, feeder_raw: np.ndarray, push_raw: np.ndarray | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Post-processed (pmf, cdf) for raw DFT triplets (N, 45) and feeder vectors (N, 8), and
+        for a ``paper+push`` model the raw push features (N, P) (a one-line FeederError without
+        them; a paper model ignores them)."""
+        push = None if push_raw is None or not self.needs_push else np.atleast_2d(push_raw)
+        x = self.scaler.transform(np.atleast_2d(part_raw), np.atleast_2d(feeder_raw), push)
         return self.predict_scaled(x)
 
+    def predict_rows(self, data: dict, rows=None) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`predict` on the rows ``rows`` (default all) of a dataset dict
+        (:func:`feeder.labels.dataset.load_dataset`), with the inputs the model takes."""
+        from feeder.labels.dataset import raw_inputs
+
+        return self.predict(*raw_inputs(data, self.spec.inputs, rows))
+
     def save(self, out_dir) -> None:
-        """Write ``model.pt`` (spec + weights) and ``scaler.json`` atomically into ``out_dir``."""
+        """Write ``model.pt`` (spec + weights) and ``scaler.json`` atomically into ``out_dir``.
+        A ``paper+push`` model also records the names of its push features (``push_features``)."""
         import io as _io
         from pathlib import Path
 
@@ -371,20 +439,24 @@ class TrainedModel:
 
         out_dir = Path(out_dir)
         buf = _io.BytesIO()
-        torch.save(
-            {
-                "spec": self.spec.to_dict(),
-                "n_out": int(self.net.body.head.out_features),
-                "label_frame": self.label_frame,
-                "state_dict": self.net.state_dict(),
-            },
-            buf,
-        )
+        blob = {
+            "spec": self.spec.to_dict(),
+            "n_out": int(self.net.body.head.out_features),
+            "label_frame": self.label_frame,
+            "state_dict": self.net.state_dict(),
+        }
+        if self.needs_push:
+            from feeder.parts.push import PUSH_FEATURE_NAMES
+
+            blob["push_features"] = list(PUSH_FEATURE_NAMES)
+        torch.save(blob, buf)
         write_json(out_dir / SCALER_FILE, self.scaler.to_dict())
         write_bytes(out_dir / WEIGHTS_FILE, buf.getvalue())
 
     @classmethod
     def load(cls, model_dir) -> TrainedModel:
+        """The model saved in ``model_dir``; one whose push features are not the ones this code
+        computes (another :data:`feeder.parts.push.PUSH_FEATURE_NAMES`) is a one-line FeederError."""
         from pathlib import Path
 
         from feeder.errors import FeederError
@@ -395,7 +467,17 @@ class TrainedModel:
             if not path.is_file():
                 raise FeederError(f"{path}: missing (is {model_dir} a trained model directory?)")
         blob = torch.load(weights, map_location="cpu", weights_only=True)
-        spec = ModelSpec.from_dict(blob["spec"])
+        try:
+            spec = ModelSpec.from_dict(blob["spec"])
+        except ValueError as err:
+            raise FeederError(f"{weights}: {err}") from None
+        if spec.push_dim:
+            from feeder.parts.push import PUSH_FEATURE_NAMES
+
+            if tuple(blob.get("push_features") or ()) != PUSH_FEATURE_NAMES:
+                raise FeederError(
+                    f"{model_dir}: the model was trained on other push features than this code computes: retrain it"
+                )
         state = blob["state_dict"]
         pca_mean = state["pca_mean"].numpy() if "pca_mean" in state else None
         pca_comp = state["pca_components"].numpy() if "pca_components" in state else None

@@ -16,6 +16,11 @@ post-processed exactly as in evaluation, for the yaw of the part file's own fram
 on ``principal``-frame labels is shifted back by the part's ``frame_deg``). Without ``--out`` the
 CSV goes to stdout. The time spent on features and on the network is printed to stderr in
 milliseconds.
+
+A model with ``model.inputs: paper+push`` also reads the analytic push block of the part in the
+configuration (:func:`push_rows`: :func:`feeder.parts.push.push_features` of the STL's outline, in
+the study config's scene and the model's label frame, as ``feeder datasets build`` computes it):
+it needs ``--part`` as an STL (``--features`` and ``.xyz`` files hold no outline).
 """
 
 from __future__ import annotations
@@ -88,18 +93,67 @@ def part_vector(part: Path | None, features: Path | None) -> tuple[np.ndarray, f
     return as_vector(feats), feats["frame_deg"]
 
 
-def predict_frame(model, part_raw: np.ndarray, loc1: str, loc2: str, frame_deg: float | None = None) -> pd.DataFrame:
+def check_push_source(model, part: Path | None) -> None:
+    """Refuse, before any work, a ``paper+push`` model without a part outline to push: it needs
+    ``--part`` as an STL. Models of the paper's inputs need nothing more."""
+    if not model.needs_push:
+        return
+    if part is None or part.suffix.lower() != ".stl":
+        raise FeederError(
+            f"model {model.spec.name} takes the analytic push features (model.inputs: {model.inputs}), computed "
+            "from the part's outline: give --part PART.stl (a features JSON or .xyz file has no outline)"
+        )
+
+
+def push_rows(model, part: Path | None, pairs, frame_deg: float | None) -> np.ndarray | None:
+    """The raw push block of the part for every (loc1, loc2) in ``pairs`` ((N, P)), or None when
+    ``model`` takes the paper's inputs only. As the dataset has it: the STL's outline (units as
+    ``--units auto``) in the study config's scene, in the model's label frame (``frame_deg`` of the
+    part for a ``principal``-frame model, which it then needs) over the model's bins."""
+    if not model.needs_push:
+        return None
+    check_push_source(model, part)
+    from feeder.parts.geometry import load_outline
+    from feeder.parts.push import default_scene, push_features, push_geometry
+
+    frame = 0.0
+    if model.label_frame == "principal":
+        if frame_deg is None:
+            raise FeederError(
+                "this model's push features are in the parts' feature frame and need the part's frame_deg, "
+                f"which {part} does not give"
+            )
+        frame = float(frame_deg)
+    geom = push_geometry(load_outline(part, "auto"))
+    scene, memo = default_scene(), {}
+    rows = [
+        push_features(geom, loc1, loc2, scene, frame_deg=frame, bins=int(model.spec.bins), responses=memo)
+        for loc1, loc2 in pairs
+    ]
+    return np.stack(rows)
+
+
+def predict_frame(
+    model,
+    part_raw: np.ndarray,
+    loc1: str,
+    loc2: str,
+    frame_deg: float | None = None,
+    push_raw: np.ndarray | None = None,
+) -> pd.DataFrame:
     """The 360-bin prediction of ``model`` (a TrainedModel) as a DataFrame, in the part's own frame.
 
     A model trained on ``principal``-frame labels predicts the yaw of the part's feature frame;
     it is moved back by ``frame_deg`` (:func:`feeder.labels.metrics.shift_pmf`), which it then needs.
+    ``push_raw``: the push block (:func:`push_rows`) a ``paper+push`` model needs.
     """
     from feeder.labels import metrics as L
     from feeder.labels.dataset import feeder_vector
     from feeder.sim.fences import parse_location
 
     feeder_raw = feeder_vector(parse_location(loc1), parse_location(loc2))
-    pmf, cdf = model.predict(part_raw[None, :], feeder_raw[None, :])
+    push = None if push_raw is None else np.atleast_2d(push_raw)
+    pmf, cdf = model.predict(part_raw[None, :], feeder_raw[None, :], push)
     if model.label_frame == "principal":
         if frame_deg is None:
             raise FeederError(
@@ -195,10 +249,13 @@ def main(argv: list[str]) -> int:
 
         check_figure_path(args.plot)
     model = load_model(resolve_model_dir(args.model, "feeder predict"))
+    check_push_source(model, args.part)
     t0 = time.perf_counter()
     part_raw, frame_deg = part_vector(args.part, args.features)
+    t_dft = time.perf_counter()
+    push_raw = push_rows(model, args.part, [(args.loc1, args.loc2)], frame_deg)
     t1 = time.perf_counter()
-    frame = predict_frame(model, part_raw, args.loc1, args.loc2, frame_deg)
+    frame = predict_frame(model, part_raw, args.loc1, args.loc2, frame_deg, push_raw)
     t2 = time.perf_counter()
     if args.out is not None:
         from feeder.io import write_csv
@@ -219,5 +276,9 @@ def main(argv: list[str]) -> int:
             outline = load_outline(args.part, "auto")
         title = f"{model.spec.name}: {name}, loc1 {args.loc1}, loc2 {args.loc2}"
         save_figure(args.plot, plot(frame, title, outline))
-    print(f"feeder predict: features {1e3 * (t1 - t0):.1f} ms, network {1e3 * (t2 - t1):.1f} ms", file=sys.stderr)
+    push_ms = "" if push_raw is None else f", push features {1e3 * (t1 - t_dft):.1f} ms"
+    print(
+        f"feeder predict: features {1e3 * (t_dft - t0):.1f} ms{push_ms}, network {1e3 * (t2 - t1):.1f} ms",
+        file=sys.stderr,
+    )
     return 0

@@ -14,7 +14,9 @@ Without ``--model`` the shipped model is used (``models/m3``, written by ``feede
 :func:`feeder.learn.export.shipped_model_dir`).
 
 Predictions are only as good as the model (its card says how it did on unseen parts);
-``feeder simulate`` a configuration to check one.
+``feeder simulate`` a configuration to check one. A ``model.inputs: paper+push`` model needs
+``--part`` as an STL: the analytic push block of every configuration is computed from its outline
+(:func:`feeder.learn.predict.push_rows`).
 """
 
 from __future__ import annotations
@@ -70,10 +72,10 @@ def grid_configurations(fences: dict) -> list[str]:
     return [cid for combo in fences["combos"] for cid in combo_grid(fences, combo)]
 
 
-def rank(model, part_raw, frame_deg, config_ids, target_deg, tolerance_deg, order) -> pd.DataFrame:
+def rank(model, part_raw, frame_deg, config_ids, target_deg, tolerance_deg, order, push_raw=None) -> pd.DataFrame:
     """Every configuration's predicted probability of the target window, best first (ties in the
     given order); columns ``config_id, loc1, loc2, probability, mode_deg`` (the PMF's largest bin,
-    part frame)."""
+    part frame). ``push_raw``: the push block of every configuration, for a ``paper+push`` model."""
     from feeder.labels import metrics as L
     from feeder.labels.dataset import feeder_vector
     from feeder.sim.fences import parse_config_id
@@ -82,7 +84,7 @@ def rank(model, part_raw, frame_deg, config_ids, target_deg, tolerance_deg, orde
         raise FeederError("no fence configurations to rank")
     pairs = [parse_config_id(c) for c in config_ids]
     feeder_raw = np.stack([feeder_vector(f1, f2) for f1, f2 in pairs])
-    pmf, _ = model.predict(np.repeat(part_raw[None, :], len(pairs), axis=0), feeder_raw)
+    pmf, _ = model.predict(np.repeat(part_raw[None, :], len(pairs), axis=0), feeder_raw, push_raw)
     if model.label_frame == "principal":
         if frame_deg is None:
             raise FeederError(
@@ -105,7 +107,7 @@ def rank(model, part_raw, frame_deg, config_ids, target_deg, tolerance_deg, orde
 def main(argv: list[str]) -> int:
     from feeder.config import load_study_config
     from feeder.learn.export import add_model_option, resolve_model_dir
-    from feeder.learn.predict import load_model, part_vector
+    from feeder.learn.predict import check_push_source, load_model, part_vector, push_rows
 
     parser = argparse.ArgumentParser(prog="feeder recommend", description=__doc__.splitlines()[0])
     add_model_option(parser)
@@ -132,8 +134,14 @@ def main(argv: list[str]) -> int:
         config_ids = grid_configurations(load_study_config()["fences"])
     order = symmetry_order(args.symmetry, args.part)
     model = load_model(resolve_model_dir(args.model, "feeder recommend"))
+    check_push_source(model, args.part)
     part_raw, frame_deg = part_vector(args.part, args.features)
-    ranked = rank(model, part_raw, frame_deg, config_ids, args.target, args.tolerance, order)
+    push_raw = None
+    if model.needs_push:
+        from feeder.sim.fences import parse_config_id
+
+        push_raw = push_rows(model, args.part, [parse_config_id(c) for c in config_ids], frame_deg)
+    ranked = rank(model, part_raw, frame_deg, config_ids, args.target, args.tolerance, order, push_raw)
     if args.out is not None:
         from feeder.io import write_csv
 

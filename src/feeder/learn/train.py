@@ -4,6 +4,9 @@ The config is ``config/hydra/train.yaml`` (defaults: ``model: m3``, ``trainer: d
 model group ``config/hydra/model/m1.yaml`` … ``m8.yaml`` holds each model's label, architecture,
 learning rate and loss terms, ``config/hydra/trainer/default.yaml`` the shared settings (Adam, batch 64, at most
 400 epochs, early stopping with patience 20 on a 10 % validation carve-out of the training rows).
+``model.inputs`` (every model file: ``paper``) chooses the network inputs: the paper's 53, or with
+``model.inputs=paper+push`` also the analytic push block of the dataset (``push_raw``,
+:mod:`feeder.labels.dataset`), scaled on the training rows like the others.
 
     feeder train model=m3 paths.dataset=results/datasets/dataset.npz \\
         paths.out=results/models/m3 hydra.run.dir=results/models/m3/hydra
@@ -85,12 +88,13 @@ def _model_spec(cfg, bins: int):
 
 def _model_inputs(spec, data: dict[str, np.ndarray], train_mask: np.ndarray, rows: np.ndarray):
     """The input scaler and the PCA of the label (for PCA models), both fit on the training rows,
-    and the scaled inputs of every row."""
-    from feeder.labels.dataset import fit_scaler
+    and the scaled inputs of every row (those of ``spec.inputs``)."""
+    from feeder.labels.dataset import fit_scaler, raw_inputs
     from feeder.learn.models import fit_pca
 
-    scaler = fit_scaler(data["part_raw"], data["feeder_raw"], train_mask)
-    x_all = np.asarray(scaler.transform(data["part_raw"], data["feeder_raw"]), dtype=np.float64)
+    raw = raw_inputs(data, spec.inputs)
+    scaler = fit_scaler(*raw[:2], train_mask, *raw[2:])
+    x_all = np.asarray(scaler.transform(*raw), dtype=np.float64)
     pca = None
     if spec.repr == "pca":
         pca = fit_pca(data[spec.label][rows], spec.components)
@@ -239,8 +243,7 @@ def split_metrics(model, data: dict[str, np.ndarray]) -> dict[str, float]:
     from feeder.labels.grid import SPLITS
     from feeder.labels.metrics import r2_cdf, w1
 
-    x_raw = (data["part_raw"], data["feeder_raw"])
-    _, cdf = model.predict(*x_raw)
+    _, cdf = model.predict_rows(data)
     out: dict[str, float] = {}
     for split in SPLITS:
         mask = data["split"] == split

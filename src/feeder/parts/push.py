@@ -138,6 +138,9 @@ Features (:func:`push_features`, :data:`PUSH_FEATURE_NAMES`)
     entropy (bits) of the unsmoothed analytic PMF, the number of stable edges and the largest basin
     measure of the frictionless push function. When every drop jams, the PMF, peak mass and
     entropy describe the same configuration with jams ignored (ok mass is then 0).
+    :func:`push_block` gives the block and the analytic PMF from one pass of the drops (the
+    dataset's ``push_raw`` and ``pmf_analytic``, :mod:`feeder.labels.dataset`); a hand-bumped
+    :data:`PUSH_FEATURES_VERSION` marks changed values.
 """
 
 from __future__ import annotations
@@ -1120,13 +1123,17 @@ def analytic_distribution(
     samples: int = YAW_SAMPLES,
     fences: list[FenceModel] | None = None,
     jams: bool = True,
+    responses: dict | None = None,
 ) -> Distribution:
     """Push ``samples`` evenly spaced initial yaws (centred parts) through the configuration.
 
     ``mu``: part–fence friction (default :func:`fence_mu` of ``scene``); ``exit_turns``: apply the
     exit turn (False: parts leave a fence flush with it); ``fences``: an explicit list of fence
     models in the order met (overrides loc1/loc2); ``jams``: False pushes drops in the friction
-    cone as if they slid (their jam share is still reported)."""
+    cone as if they slid (their jam share is still reported); ``responses``: a memo of
+    :func:`fence_response` for this one part, filled and reused across calls (the exit-turn
+    integration is most of the cost, and configurations of a part share fences): give each part
+    its own dict."""
     geom = as_geometry(part)
     scene = default_scene() if scene is None else scene
     mu = fence_mu(scene) if mu is None else float(mu)
@@ -1140,7 +1147,12 @@ def analytic_distribution(
     w = np.full(n, 1.0 / n)
     touch, jam, margin = {}, {}, {}
     for m in fences:
-        resp = fence_response(geom, m, mu, exit_turns)
+        key = (m, mu, bool(exit_turns))
+        resp = None if responses is None else responses.get(key)
+        if resp is None:
+            resp = fence_response(geom, m, mu, exit_turns)
+            if responses is not None:
+                responses[key] = resp
         yaw, x, w, (t, j, mg) = _apply(geom, resp, mu, yaw, x, w, jams)
         touch[m.location], jam[m.location], margin[m.location] = t, j, mg
     ok = float(w.sum())
@@ -1205,6 +1217,9 @@ def fourier_coefficients(pmf, k: int = FOURIER_K) -> np.ndarray:
 LOCATIONS = ("loc1", "loc2")
 _PER_LOCATION = ("present", "touch", "jam", "margin_deg")
 _SCALARS = ("ok_mass", "peak_mass", "entropy_bits", "stable_edges", "largest_basin")
+# Bump by hand when the feature block's values change for the same names (a model trained on
+# the old values would read the new ones wrongly): part of feeder.labels.dataset.features_version.
+PUSH_FEATURES_VERSION = 1
 PUSH_FEATURE_NAMES: tuple[str, ...] = (
     *(f"{part}_c{k}" for k in range(1, FOURIER_K + 1) for part in ("re", "im")),
     *(f"{loc}_{name}" for loc in LOCATIONS for name in _PER_LOCATION),
@@ -1227,32 +1242,22 @@ def _peak_mass(yaws, weights) -> float:
     return float(sums.max())
 
 
-def push_features(
-    part,
-    loc1,
-    loc2,
-    scene: dict | None = None,
-    *,
-    frame_deg: float = 0.0,
-    smooth_deg: float = DEFAULT_SMOOTH_DEG,
-    bins: int = PMF_BINS,
-    mu: float | None = None,
-    exit_turns: bool = True,
-) -> np.ndarray:
-    """The fixed-size feature block (:data:`PUSH_FEATURE_NAMES`, layout in the module doc) of a
-    part (outline array, PartGeometry or PushGeometry) in a configuration (``none``,
-    ``straight:θ``, ``curved:θ`` or :class:`~feeder.sim.fences.Fence`)."""
-    geom = as_geometry(part)
-    scene = default_scene() if scene is None else scene
-    mu_f = fence_mu(scene) if mu is None else float(mu)
-    fences = fence_models(loc1, loc2, scene)
-    dist = analytic_distribution(geom, None, None, scene, mu=mu_f, exit_turns=exit_turns, fences=fences)
-    # the shape of the distribution: of the ok drops, or of all drops when every one jams
+def _shape_of(geom, scene, mu_f, exit_turns, fences, responses) -> tuple[Distribution, Distribution]:
+    """(the distribution of the ok drops, the distribution its PMF describes): the latter is the
+    same configuration with jams ignored when every drop jams."""
+    dist = analytic_distribution(
+        geom, None, None, scene, mu=mu_f, exit_turns=exit_turns, fences=fences, responses=responses
+    )
     shape = dist
     if dist.weights.sum() <= 0.0:
         shape = analytic_distribution(
-            geom, None, None, scene, mu=mu_f, exit_turns=exit_turns, fences=fences, jams=False
+            geom, None, None, scene, mu=mu_f, exit_turns=exit_turns, fences=fences, jams=False, responses=responses
         )
+    return dist, shape
+
+
+def _feature_vector(geom, loc1, loc2, scene, mu_f, dist, shape, frame_deg, smooth_deg, bins) -> np.ndarray:
+    """The feature block of :func:`push_features` from the configuration's distributions."""
     pmf = analytic_pmf(
         geom, None, None, scene, frame_deg=frame_deg, smooth_deg=smooth_deg, bins=bins, distribution=shape
     )
@@ -1281,3 +1286,55 @@ def push_features(
     vec = np.asarray(out, dtype=np.float64)
     assert vec.shape == (len(PUSH_FEATURE_NAMES),)
     return vec
+
+
+def push_features(
+    part,
+    loc1,
+    loc2,
+    scene: dict | None = None,
+    *,
+    frame_deg: float = 0.0,
+    smooth_deg: float = DEFAULT_SMOOTH_DEG,
+    bins: int = PMF_BINS,
+    mu: float | None = None,
+    exit_turns: bool = True,
+    responses: dict | None = None,
+) -> np.ndarray:
+    """The fixed-size feature block (:data:`PUSH_FEATURE_NAMES`, layout in the module doc) of a
+    part (outline array, PartGeometry or PushGeometry) in a configuration (``none``,
+    ``straight:θ``, ``curved:θ`` or :class:`~feeder.sim.fences.Fence`). ``responses``: the
+    per-part memo of :func:`analytic_distribution`."""
+    geom = as_geometry(part)
+    scene = default_scene() if scene is None else scene
+    mu_f = fence_mu(scene) if mu is None else float(mu)
+    fences = fence_models(loc1, loc2, scene)
+    dist, shape = _shape_of(geom, scene, mu_f, exit_turns, fences, responses)
+    return _feature_vector(geom, loc1, loc2, scene, mu_f, dist, shape, frame_deg, smooth_deg, bins)
+
+
+def push_block(
+    part,
+    loc1,
+    loc2,
+    scene: dict | None = None,
+    *,
+    frame_deg: float = 0.0,
+    bins: int = PMF_BINS,
+    pmf_smooth_deg: float = DEFAULT_SMOOTH_DEG,
+    responses: dict | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """``(push_features(...), analytic_pmf(...))`` of one configuration from a single pass of the
+    drops: the feature block with its default smoothing and the PMF smoothed by
+    ``pmf_smooth_deg`` (a dataset uses its labels' smoothing), both in the frame ``frame_deg``
+    over ``bins`` bins. Equal to the two calls (the scene's friction, exit turns on)."""
+    geom = as_geometry(part)
+    scene = default_scene() if scene is None else scene
+    mu_f = fence_mu(scene)
+    fences = fence_models(loc1, loc2, scene)
+    dist, shape = _shape_of(geom, scene, mu_f, True, fences, responses)
+    features = _feature_vector(geom, loc1, loc2, scene, mu_f, dist, shape, frame_deg, DEFAULT_SMOOTH_DEG, bins)
+    pmf = analytic_pmf(
+        geom, None, None, scene, frame_deg=frame_deg, smooth_deg=pmf_smooth_deg, bins=bins, distribution=shape
+    )
+    return features, pmf
