@@ -1,0 +1,183 @@
+"""The belt footprint (scene.belt.footprint): pads that stand for a uniform pressure, and the
+part built from pieces (walls and fences) and pad links (the belt only)."""
+
+from __future__ import annotations
+
+import copy
+import dataclasses
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+from shapely.geometry import Polygon
+
+from feeder.errors import FeederError
+from feeder.parts.geometry import PartGeometry
+from feeder.sim import body as simbody
+from feeder.sim import drops as sim
+from feeder.sim.fences import parse_location
+
+ROOT = Path(__file__).resolve().parents[1]
+CFG = yaml.safe_load((ROOT / "config" / "config.yaml").read_text())
+SCENE, FAST = CFG["scene"], CFG["sim"]["presets"]["fast"]
+RECT = PartGeometry.from_polygon("rect", [(0, 0), (0.04, 0), (0.04, 0.02), (0, 0.02)], 0.005)
+
+
+def padded(scene=SCENE, count=16, radius=0.001):
+    scene = copy.deepcopy(scene)
+    scene["belt"]["footprint"] = {"model": "pads", "pads": count, "pad_radius": radius}
+    return scene
+
+
+# ------------------------------------------------------------------------------------------
+# footprint_pads (pure)
+# ------------------------------------------------------------------------------------------
+def test_two_and_four_pads_of_a_2_by_1_rectangle_are_the_centres_of_its_halves_and_quarters():
+    rect = [(-1.0, -0.5), (1.0, -0.5), (1.0, 0.5), (-1.0, 0.5)]
+    # within a fraction of the sample spacing (about 400 samples a pad: 0.035 here)
+    two = simbody.footprint_pads(rect, 2)
+    np.testing.assert_allclose(sorted(two.tolist()), [[-0.5, 0.0], [0.5, 0.0]], atol=1e-2)
+    # each half is a unit square: split along x again (ties go to x): centres at +-0.25, +-0.75
+    four = simbody.footprint_pads(rect, 4)
+    np.testing.assert_allclose(sorted(four[:, 0]), [-0.75, -0.25, 0.25, 0.75], atol=1e-2)
+    np.testing.assert_allclose(four[:, 1], 0.0, atol=1e-2)
+
+
+@pytest.mark.parametrize("count", [1, 3, 7, 16, 33])
+def test_pads_mean_is_the_area_centroid_of_a_concave_outline(count):
+    # an L: its centroid is not the centre of its bounding box
+    ell = [(0, 0), (3, 0), (3, 1), (1, 1), (1, 3), (0, 3)]
+    pads = simbody.footprint_pads(ell, count)
+    c = Polygon(ell).centroid
+    assert pads.shape == (count, 2)
+    np.testing.assert_allclose(pads.mean(axis=0), [c.x, c.y], atol=1e-12)
+    if count == 1:
+        np.testing.assert_allclose(pads[0], [c.x, c.y], atol=1e-12)
+
+
+def test_pads_are_the_centroids_of_equal_area_cells():
+    """A uniform pressure: the pads' second moment about the centroid approaches the polygon's
+    (each pad stands for the same area), and more pads come closer."""
+    ell = Polygon([(0, 0), (3, 0), (3, 1), (1, 1), (1, 3), (0, 3)])
+    c = np.array([ell.centroid.x, ell.centroid.y])
+    # polar second moment per unit area of the L about its centroid, from a fine grid
+    xs = np.arange(0.0025, 3, 0.005)
+    gx, gy = np.meshgrid(xs, xs)
+    pts = np.column_stack([gx.ravel(), gy.ravel()])
+    pts = pts[(pts[:, 0] < 1) | (pts[:, 1] < 1)]
+    polar = np.mean(np.sum((pts - c) ** 2, axis=1))
+    errors = []
+    for count in (4, 16, 64):
+        pads = simbody.footprint_pads(list(ell.exterior.coords)[:-1], count)
+        errors.append(abs(np.mean(np.sum((pads - c) ** 2, axis=1)) - polar) / polar)
+    assert errors[0] > errors[1] > errors[2] and errors[2] < 0.05
+
+
+def test_footprint_pads_refuse_bad_input():
+    with pytest.raises(FeederError, match="at least one pad"):
+        simbody.footprint_pads([(0, 0), (1, 0), (0, 1)], 0)
+    with pytest.raises(FeederError, match="simple polygon"):
+        simbody.footprint_pads([(0, 0), (1, 1), (1, 0), (0, 1)], 4)  # a bow tie
+
+
+def test_footprint_setting_defaults_to_the_pieces_and_checks_the_pads():
+    assert simbody.footprint_setting({"belt": {}}) == ("pieces", 0, 0.0)
+    assert simbody.footprint_setting(padded(count=8, radius=0.002)) == ("pads", 8, 0.002)
+    for fp in ({"model": "pads", "pads": 0, "pad_radius": 0.001}, {"model": "pads", "pads": 4, "pad_radius": 0}):
+        with pytest.raises(FeederError, match="footprint"):
+            simbody.footprint_setting({"belt": {"footprint": fp}})
+    with pytest.raises(FeederError, match="pieces or pads"):
+        simbody.footprint_setting({"belt": {"footprint": {"model": "hull"}}})
+
+
+def test_part_model_carries_pads_in_the_principal_frame_only_when_asked():
+    assert simbody.part_model(RECT, SCENE).pads is None
+    model = simbody.part_model(RECT, padded(count=4))
+    # 40 x 20 mm about its centroid: four pads on the long axis at +-5 and +-15 mm
+    np.testing.assert_allclose(sorted(model.pads[:, 0]), [-0.015, -0.005, 0.005, 0.015], atol=2e-4)
+    np.testing.assert_allclose(model.pads[:, 1], 0.0, atol=2e-4)
+    assert model.pad_radius == 0.001
+
+
+# ------------------------------------------------------------------------------------------
+# the padded part in the world
+# ------------------------------------------------------------------------------------------
+def _world(scene, geom=RECT, lanes=1):
+    model = simbody.part_model(geom, scene)
+    plan = sim.make_plan(scene, parse_location("straight:45"), parse_location("none"), model, False)
+    return simbody.World(scene, FAST, plan, lanes, model), model, plan
+
+
+def test_a_padded_part_rides_the_belt_on_its_pads_only():
+    scene = padded(count=20)  # two pad links (16 + 4 spheres)
+    w, model, plan = _world(scene)
+    try:
+        w.reset_belt(0)
+        body = w.add_part(0, 0.0, plan.start_y - 0.3, 30.0)
+        for _ in range(400):
+            w.step()
+        pos, q = w.pb.getBasePositionAndOrientation(body)
+        lin, ang = w.pb.getBaseVelocity(body)
+        assert abs(pos[2] - 0.0025) < 1e-4 and abs(lin[1] - SCENE["belt"]["speed"]) < 1e-4
+        assert abs(ang[2]) < 1e-3 and simbody.quat_tilt_deg(q) < 0.01
+        assert np.degrees(simbody.quat_yaw(q) - model.alpha) == pytest.approx(30.0, abs=0.01)
+        contacts = w.pb.getContactPoints(bodyA=body, physicsClientId=w.cid)
+        assert {c[3] for c in contacts} == {0, 1}  # only the two pad links touch anything ...
+        assert {c[2] for c in contacts} == {w.belts[0]}  # ... and only the belt
+        assert len(contacts) == 20
+        masses = [w.pb.getDynamicsInfo(body, link)[0] for link in (-1, 0, 1)]
+        assert sum(masses) == pytest.approx(model.mass)
+    finally:
+        w.close()
+
+
+def test_padded_pieces_still_meet_the_fence():
+    """A fence turns a padded part as it turns a part on its pieces (the pieces meet fences): a
+    40 x 20 mm rectangle ends long side along a 45-degree fence, not at its initial yaw."""
+    yaws = np.array([10.0, 200.0])  # both far from a resting orientation along the fence
+    out = sim.run_drops(RECT, parse_location("straight:45"), parse_location("none"), yaws, padded(), FAST)
+    assert list(out["status"]) == ["ok"] * 2
+    turned = (out["final_yaw_deg"] - yaws + 180.0) % 360.0 - 180.0
+    assert np.all(np.abs(turned) > 5.0)
+    ref = sim.run_drops(RECT, parse_location("straight:45"), parse_location("none"), yaws, SCENE, FAST)
+    d = (out["final_yaw_deg"] - ref["final_yaw_deg"] + 180.0) % 360.0 - 180.0
+    # the same basin; within it the part leaves the fence's end turned by the belt's friction,
+    # which pads spread uniformly and the pieces put at the corners (measured: 4 deg apart)
+    assert np.all(np.abs(d) < 5.0)
+
+
+def _split(model, cuts):
+    """The model with its single rectangular piece cut into vertical strips at the x in ``cuts``."""
+    (x0, y0), (x1, y1) = model.pieces[0].min(axis=0), model.pieces[0].max(axis=0)
+    edges, gap = [x0, *cuts, x1], 1e-4  # neighbours inset by the margin, as real pieces are
+    pieces = [
+        np.array([[a + gap * (k > 0), y0], [b - gap * (k < len(cuts)), y0], [b - gap * (k < len(cuts)), y1],
+                  [a + gap * (k > 0), y1]])
+        for k, (a, b) in enumerate(zip(edges[:-1], edges[1:]))
+    ]
+    return dataclasses.replace(model, pieces=tuple(pieces))
+
+
+@pytest.mark.slow
+def test_pads_make_the_outcome_independent_of_how_the_outline_is_cut(monkeypatch):
+    """The same 40 x 20 mm rectangle as one piece and as three strips, same initial yaws, through
+    a straight and a curved fence. With the pieces on the belt the strips change where the weight
+    rests and so the outcome; with pads it is the same rectangle whatever the cut."""
+    from feeder.bench.designs import paired_basins
+
+    yaws = np.array([20.0, 75.0, 160.0, 250.0])
+    loc1, loc2 = parse_location("straight:30"), parse_location("curved:40")
+    finals = {}
+    for name, scene in (("pieces", SCENE), ("pads", padded())):
+        whole = simbody.part_model(RECT, scene)
+        for cut in ("whole", "strips"):
+            model = whole if cut == "whole" else _split(whole, [-0.01, 0.01])
+            monkeypatch.setattr(sim, "part_model", lambda geom, scene, tol=0.0, m=model: m)
+            out = sim.run_drops(RECT, loc1, loc2, yaws, scene, FAST)
+            finals[name, cut] = out["final_yaw_deg"], out["status"]
+    pads = paired_basins(*finals["pads", "whole"], *finals["pads", "strips"])
+    # within the simulator's own floor (a drop started 0.5 m earlier moves 0.01-0.2 deg)
+    assert pads["same_basin"] == 1.0 and pads["max_dyaw_deg"] < 0.2
+    pieces = paired_basins(*finals["pieces", "whole"], *finals["pieces", "strips"])
+    assert pieces["same_basin"] < 1.0 or pieces["median_dyaw_deg"] > 0.5  # what the pads remove
