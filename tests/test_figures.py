@@ -752,3 +752,39 @@ def test_label_designs_bands_span_each_designs_interval(tmp_path):
         for band, design in zip(bands, ("adaptive", "grid", "random"), strict=True):  # sorted by design
             sub = df[df.design == design].sort_values("simulations")
             _assert_band(band, sub.simulations, sub[f"{col}_lo"], sub[f"{col}_hi"])
+
+
+def _contact(path):
+    # two configurations per part with different values, so a missing mean over them shows
+    rows = [
+        {
+            "part": p,
+            "pieces": n,
+            "configuration": c,
+            "footprint": fp,
+            "cpu_ms_per_drop": base * n * k,
+            "same_basin_vs_reference": agree * k2,
+        }
+        for p, n in (("gear", 9), ("crescent", 36))
+        for c, k, k2 in (("a|b", 1.0, 1.0), ("c|d", 3.0, 0.5))
+        for fp, base, agree in (("pieces", 50.0, 0.8), ("pads16", 10.0, 0.9), ("pads32", 20.0, 1.0))
+    ]
+    pd.DataFrame(rows).to_csv(path, index=False)
+
+
+CASES["contact_model"] = ("contact.csv", _contact, [])
+
+
+def test_contact_model_plots_each_footprints_mean_cost_and_agreement_against_pieces(tmp_path):
+    from feeder.figures import contact_model
+
+    _contact(tmp_path / "c.csv")
+    cost, agree = contact_model.draw(pd.read_csv(tmp_path / "c.csv")).axes
+    lines = _lines_by_label(cost)
+    assert list(lines) == ["each convex piece", "16 pads", "32 pads"]  # pieces first, then by pad count
+    # mean over the two configurations: base * pieces * (1 + 3) / 2
+    _assert_line(lines["each convex piece"], [9, 36], [50 * 9 * 2, 50 * 36 * 2])
+    _assert_line(lines["16 pads"], [9, 36], [10 * 9 * 2, 10 * 36 * 2])
+    _assert_line(_lines_by_label(agree)["32 pads"], [9, 36], [0.75, 0.75])
+    _assert_line(_lines_by_label(agree)["each convex piece"], [9, 36], [0.6, 0.6])
+    assert cost.get_yscale() == "log"

@@ -56,7 +56,7 @@ rule datasets_build:
     conda:
         "../envs/feeder.yaml"
     params:
-        settings=settings_json("sim.min_ok_mass", "labels", "datasets"),
+        settings=settings_json("sim.min_ok_mass", "sim.preset", "sim.yaw_sampling", "sim.drops", "labels", "datasets"),
         features_dir=lambda w, input: os.path.dirname(input.features[0]),
         sim_dir=lambda w, input: os.path.dirname(os.path.dirname(input.sims[0])),  # <results>/sim
     shell:
