@@ -261,6 +261,24 @@ def _label_emulation(path):
     pd.DataFrame(rows).to_csv(path, index=False)
 
 
+def _contact(path):
+    # two configurations per part with different values, so a missing mean over them shows
+    rows = [
+        {
+            "part": p,
+            "pieces": n,
+            "configuration": c,
+            "footprint": fp,
+            "cpu_ms_per_drop": base * n * k,
+            "same_basin_vs_reference": agree * k2,
+        }
+        for p, n in (("gear", 9), ("crescent", 36))
+        for c, k, k2 in (("a|b", 1.0, 1.0), ("c|d", 3.0, 0.5))
+        for fp, base, agree in (("pieces", 50.0, 0.8), ("pads16", 10.0, 0.9), ("pads32", 20.0, 1.0))
+    ]
+    pd.DataFrame(rows).to_csv(path, index=False)
+
+
 CASES = {
     "label_designs": ("label_designs_summary.csv", _label_designs, []),
     "label_emulation": ("label_emulation.csv", _label_emulation, []),
@@ -279,6 +297,7 @@ CASES = {
     "jam_rates": ("jams.csv", _jams, []),
     "yaw_sampling": ("yaws.csv", _yaws, []),
     "sim_cost": ("sim_cost.csv", _sim_cost, []),
+    "contact_model": ("contact.csv", _contact, []),
 }
 
 
@@ -754,25 +773,6 @@ def test_label_designs_bands_span_each_designs_interval(tmp_path):
             _assert_band(band, sub.simulations, sub[f"{col}_lo"], sub[f"{col}_hi"])
 
 
-def _contact(path):
-    # two configurations per part with different values, so a missing mean over them shows
-    rows = [
-        {
-            "part": p,
-            "pieces": n,
-            "configuration": c,
-            "footprint": fp,
-            "cpu_ms_per_drop": base * n * k,
-            "same_basin_vs_reference": agree * k2,
-        }
-        for p, n in (("gear", 9), ("crescent", 36))
-        for c, k, k2 in (("a|b", 1.0, 1.0), ("c|d", 3.0, 0.5))
-        for fp, base, agree in (("pieces", 50.0, 0.8), ("pads16", 10.0, 0.9), ("pads32", 20.0, 1.0))
-    ]
-    pd.DataFrame(rows).to_csv(path, index=False)
-
-
-CASES["contact_model"] = ("contact.csv", _contact, [])
 
 
 def test_contact_model_plots_each_footprints_mean_cost_and_agreement_against_pieces(tmp_path):
