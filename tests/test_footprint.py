@@ -33,15 +33,30 @@ def padded(scene=SCENE, count=16, radius=0.001):
 # ------------------------------------------------------------------------------------------
 # footprint_pads (pure)
 # ------------------------------------------------------------------------------------------
+def _assert_same_points(points, expected, atol):
+    """The same set of points: each expected point has exactly one within ``atol``."""
+    points, expected = np.asarray(points), np.asarray(expected, float)
+    assert points.shape == expected.shape
+    dist = np.max(np.abs(points[:, None, :] - expected[None, :, :]), axis=2)
+    assert ((dist < atol).sum(axis=0) == 1).all() and ((dist < atol).sum(axis=1) == 1).all(), points
+
+
 def test_two_and_four_pads_of_a_2_by_1_rectangle_are_the_centres_of_its_halves_and_quarters():
     rect = [(-1.0, -0.5), (1.0, -0.5), (1.0, 0.5), (-1.0, 0.5)]
     # within a fraction of the sample spacing (about 400 samples a pad: 0.035 here)
-    two = simbody.footprint_pads(rect, 2)
+    two = simbody.footprint_pads(rect, 2)  # split across x
     np.testing.assert_allclose(sorted(two.tolist()), [[-0.5, 0.0], [0.5, 0.0]], atol=1e-2)
-    # each half is a unit square: split along x again (ties go to x): centres at +-0.25, +-0.75
+    # then each half across y: the centres of the four 1 x 0.5 quarters
     four = simbody.footprint_pads(rect, 4)
-    np.testing.assert_allclose(sorted(four[:, 0]), [-0.75, -0.25, 0.25, 0.75], atol=1e-2)
-    np.testing.assert_allclose(four[:, 1], 0.0, atol=1e-2)
+    _assert_same_points(four, [[-0.5, -0.25], [-0.5, 0.25], [0.5, -0.25], [0.5, 0.25]], 1e-2)
+
+
+def test_a_thin_bar_stands_on_pads_on_both_sides_of_its_long_axis():
+    bar = [(-0.04, -0.004), (0.04, -0.004), (0.04, 0.004), (-0.04, 0.004)]  # 80 x 8 mm
+    pads = simbody.footprint_pads(bar, 16)
+    # a 4 x 4 grid of 20 x 2 mm cells: rows at -3, -1, 1, 3 mm, columns at -30, -10, 10, 30 mm
+    grid = [[x, y] for x in (-0.03, -0.01, 0.01, 0.03) for y in (-0.003, -0.001, 0.001, 0.003)]
+    _assert_same_points(pads, grid, 8e-4)  # within about two sample spacings (0.32 mm)
 
 
 @pytest.mark.parametrize("count", [1, 3, 7, 16, 33])
@@ -94,9 +109,8 @@ def test_footprint_setting_defaults_to_the_pieces_and_checks_the_pads():
 def test_part_model_carries_pads_in_the_principal_frame_only_when_asked():
     assert simbody.part_model(RECT, SCENE).pads is None
     model = simbody.part_model(RECT, padded(count=4))
-    # 40 x 20 mm about its centroid: four pads on the long axis at +-5 and +-15 mm
-    np.testing.assert_allclose(sorted(model.pads[:, 0]), [-0.015, -0.005, 0.005, 0.015], atol=2e-4)
-    np.testing.assert_allclose(model.pads[:, 1], 0.0, atol=2e-4)
+    # 40 x 20 mm about its centroid: the centres of its four 20 x 10 mm quarters
+    np.testing.assert_allclose(np.abs(model.pads), [[0.01, 0.005]] * 4, atol=2e-4)
     assert model.pad_radius == 0.001
 
 

@@ -223,10 +223,29 @@ HARD = [
 ]
 
 
+PADS = dict(model="pads", pads=16, pad_radius=0.001)
+# the hard cases again on footprint pads (scene.belt.footprint), with the library's thinnest part
+HARD_PADS = [case for case in HARD if case[0] in ("rect-80x8", "rect-10x8", "c-40x30x8", "star-5x25x10", "tri-40x25")]
+
+
 @pytest.mark.parametrize("shape, loc1, loc2", HARD)
 def test_hard_case_is_stable(shape, loc1, loc2):
-    geom = shape_part(shape, 0.005)
-    res = _sim(geom, loc1, loc2, 10, check_fences=True)
+    _check_hard_case(shape_part(shape, 0.005), loc1, loc2, SCENE)
+
+
+@pytest.mark.parametrize("shape, loc1, loc2", HARD_PADS + [("crescent-thin", "straight:30", "curved:40")])
+def test_hard_case_is_stable_on_footprint_pads(shape, loc1, loc2):
+    from feeder.parts.geometry import load_part
+
+    scene = copy.deepcopy(SCENE)
+    scene["belt"]["footprint"] = PADS
+    geom = load_part(ROOT / "parts" / f"{shape}.stl") if shape == "crescent-thin" else shape_part(shape, 0.005)
+    res = _check_hard_case(geom, loc1, loc2, scene)
+    assert "flipped" not in set(res["status"])  # pads hold only the bottom: no part tips over
+
+
+def _check_hard_case(geom, loc1, loc2, scene):
+    res = _sim(geom, loc1, loc2, 10, scene=scene, check_fences=True)
     d = res["diag"]
     status = res["status"]
     assert "nan" not in set(status)
@@ -234,7 +253,7 @@ def test_hard_case_is_stable(shape, loc1, loc2):
     assert not d["inside_fence"].any()  # the centroid never entered a fence: no tunnelling
     # no energy gain: never faster than the belt by more than a quarter (world frame), and the
     # kinetic energy never beyond twice the energy of riding the belt
-    model = simbody.part_model(geom, SCENE)
+    model = simbody.part_model(geom, scene)
     assert d["max_speed"].max() <= 1.25 * V
     energy = 0.5 * model.mass * d["max_speed"] ** 2 + 0.5 * model.inertia[2] * d["max_omega"] ** 2
     assert energy.max() <= 2.0 * 0.5 * model.mass * V**2
@@ -244,7 +263,8 @@ def test_hard_case_is_stable(shape, loc1, loc2):
     assert sum(counts.values()) == 10 and counts["ok"] == ok.sum()
     # a part that went past a Location 1 straight fence ends on its inner side (not behind it)
     if loc1.startswith("straight") and loc2 == "none" and ok.any() and d["plan_fences"]:
-        (box,) = sim.make_plan(SCENE, parse_location(loc1), parse_location(loc2), model, False).fences[0].boxes
+        (box,) = sim.make_plan(scene, parse_location(loc1), parse_location(loc2), model, False).fences[0].boxes
         cx, cy, hl, ht, yaw = box
         tip_x = cx + hl * math.cos(yaw)
         assert (d["final_x"][ok] < tip_x + model.radius).all()
+    return res

@@ -129,11 +129,14 @@ def footprint_pads(outline, count: int, samples_per_pad: int = 400) -> np.ndarra
     centroid exactly (pure).
 
     The polygon is sampled on a square grid of about ``count * samples_per_pad`` points inside it;
-    the cells come from splitting the samples in two along the longer side of their bounding box,
-    at the sample quantile that gives each side its share of the cells (a ``k``-cell group splits
-    into ``k // 2`` and ``k - k // 2``), until every group is one cell. Equal-area cells carry
-    equal weight on a compliant belt when the points' mean lies under the centre of mass, which the
-    final shift makes exact.
+    the cells come from splitting the samples in two, across x at even depths and across y at odd
+    depths (in the principal frame: the long axis first), at the sample quantile that gives each
+    side its share of the cells (a ``k``-cell group splits into ``k // 2`` and ``k - k // 2``),
+    until every group is one cell. Alternating keeps pads on both sides of the long axis, so a
+    thin part stands on them (splitting the longer side only put all 16 pads of an 80 x 8 mm bar
+    on its centre line, and it tipped over at every drop). Equal-area cells carry equal weight on
+    a compliant belt when the points' mean lies under the centre of mass, which the final shift
+    makes exact.
     """
     from shapely import contains_xy
     from shapely.geometry import Polygon
@@ -153,15 +156,14 @@ def footprint_pads(outline, count: int, samples_per_pad: int = 400) -> np.ndarra
     if len(pts) < count:
         raise FeederError(f"footprint pads: {count} pads need a finer sample ({len(pts)} points inside)")
 
-    def cells(points: np.ndarray, k: int) -> list[np.ndarray]:
+    def cells(points: np.ndarray, k: int, depth: int) -> list[np.ndarray]:
         if k == 1:
             return [points.mean(axis=0)]
-        axis = int(np.argmax(np.ptp(points, axis=0)))
-        order = np.argsort(points[:, axis], kind="stable")
+        order = np.argsort(points[:, depth % 2], kind="stable")
         cut = int(round(len(points) * (k // 2) / k))
-        return cells(points[order[:cut]], k // 2) + cells(points[order[cut:]], k - k // 2)
+        return cells(points[order[:cut]], k // 2, depth + 1) + cells(points[order[cut:]], k - k // 2, depth + 1)
 
-    pads = np.array(cells(pts, count))
+    pads = np.array(cells(pts, count, 0))
     c = poly.centroid
     return pads - pads.mean(axis=0) + np.array([c.x, c.y])
 
