@@ -71,9 +71,12 @@ def test_bench_contact_refuses_a_library_without_many_piece_parts(tmp_path, caps
         "scene": {"belt": {"footprint": {"model": "pieces", "pads": 1, "pad_radius": 0.001}}},
         "sim": {"presets": CONFIG["sim"]["presets"], "base_seed": 0,
                 "contact_bench": {"min_pieces": 8, "configurations": ["straight:30|none"], "drops": 1, "pads": [4],
-                                  "preset": "fast", "workers": 1}},
+                                  "nudge_deg": 0.01, "preset": "fast", "workers": 1}},
         "parts": {"dir": str(tmp_path / "parts")},
     }
     out = tmp_path / "t.csv"
     code = main(["bench-contact", "--settings", json.dumps(settings), "--out-csv", str(out), "--out-raw", str(tmp_path / "r.csv")])
     assert code == 2 and "8 convex pieces or more" in capsys.readouterr().err and not out.exists()
+    del settings["sim"]["presets"]  # a missing section: one line, no traceback
+    code = main(["bench-contact", "--settings", json.dumps(settings), "--out-csv", str(out), "--out-raw", str(tmp_path / "r.csv")])
+    assert code == 2 and "presets" in capsys.readouterr().err and not out.exists()

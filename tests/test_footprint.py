@@ -99,7 +99,7 @@ def test_footprint_pads_refuse_bad_input():
 def test_footprint_setting_defaults_to_the_pieces_and_checks_the_pads():
     assert simbody.footprint_setting({"belt": {}}) == ("pieces", 0, 0.0)
     assert simbody.footprint_setting(padded(count=8, radius=0.002)) == ("pads", 8, 0.002)
-    for fp in ({"model": "pads", "pads": 0, "pad_radius": 0.001}, {"model": "pads", "pads": 4, "pad_radius": 0}):
+    for fp in ({"model": "pads", "pads": 2, "pad_radius": 0.001}, {"model": "pads", "pads": 4, "pad_radius": 0}):
         with pytest.raises(FeederError, match="footprint"):
             simbody.footprint_setting({"belt": {"footprint": fp}})
     with pytest.raises(FeederError, match="pieces or pads"):
@@ -140,10 +140,37 @@ def test_a_padded_part_rides_the_belt_on_its_pads_only():
         assert {c[3] for c in contacts} == {0, 1}  # only the two pad links touch anything ...
         assert {c[2] for c in contacts} == {w.belts[0]}  # ... and only the belt
         assert len(contacts) == 20
-        masses = [w.pb.getDynamicsInfo(body, link)[0] for link in (-1, 0, 1)]
-        assert sum(masses) == pytest.approx(model.mass)
+        infos = [w.pb.getDynamicsInfo(body, link) for link in (-1, 0, 1)]
+        assert sum(info[0] for info in infos) == pytest.approx(model.mass)
+        # the inertia as well, each link's share where it belongs (all about the one centre of mass)
+        np.testing.assert_allclose(np.sum([info[2] for info in infos], axis=0), model.inertia, rtol=1e-6)
+        np.testing.assert_allclose(infos[0][2], 0.5 * np.asarray(model.inertia), rtol=1e-6)
     finally:
         w.close()
+
+
+def test_a_padded_part_turns_with_its_own_inertia():
+    """A torque step on a part lifted off the belt: the yaw rate it gives is torque x time / Izz."""
+    w, model, plan = _world(padded(count=20))
+    try:
+        body = w.add_part(0, 0.0, plan.start_y - 0.3, 0.0)
+        w.pb.resetBasePositionAndOrientation(body, [0.0, plan.start_y - 0.3, 0.5], [0, 0, 0, 1], physicsClientId=w.cid)
+        w.pb.resetBaseVelocity(body, [0, 0, 0], [0, 0, 0], physicsClientId=w.cid)
+        w.pb.setGravity(0, 0, 0, physicsClientId=w.cid)
+        torque, steps = 1e-6, 10
+        for _ in range(steps):
+            w.pb.applyExternalTorque(body, -1, [0, 0, torque], w.pb.WORLD_FRAME, physicsClientId=w.cid)
+            w.pb.stepSimulation(physicsClientId=w.cid)
+        _, ang = w.pb.getBaseVelocity(body, physicsClientId=w.cid)
+        dt = float(FAST["time_step"])
+        assert ang[2] == pytest.approx(torque * steps * dt / model.inertia[2], rel=0.02)
+    finally:
+        w.close()
+
+
+def test_one_or_two_pads_are_refused_and_pads_must_surround_the_centre_of_mass():
+    with pytest.raises(FeederError, match="pads"):
+        simbody.part_model(RECT, padded(count=2))
 
 
 def test_padded_pieces_still_meet_the_fence():

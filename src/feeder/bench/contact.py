@@ -92,28 +92,33 @@ def main(argv: list[str]) -> int:
     from feeder.config import parse_settings
 
     cfg = parse_settings(args.settings, "scene", "sim", "parts")
+    from feeder.sim.drops import drop_seed, get_preset, initial_yaws
+
     try:
         scene, sim_cfg, parts_dir = cfg["scene"], cfg["sim"], cfg["parts"]["dir"]
         bench, base_seed = sim_cfg["contact_bench"], int(sim_cfg["base_seed"])
         pad_radius = float(scene["belt"]["footprint"]["pad_radius"])
-    except (KeyError, TypeError) as err:
-        raise FeederError(f"--settings lacks {err}") from None
+        preset = get_preset(sim_cfg["presets"], bench["preset"])
+        min_pieces, drops, nudge = int(bench["min_pieces"]), int(bench["drops"]), float(bench["nudge_deg"])
+        configurations, counts = list(bench["configurations"]), sorted({int(k) for k in bench["pads"]})
+    except (KeyError, TypeError, ValueError) as err:
+        raise FeederError(f"--settings lacks or mistypes {err}") from None
+    bad = [c for c in configurations if c.count("|") != 1]
+    if bad:
+        raise FeederError(f"sim.contact_bench.configurations: LOC1|LOC2 specs, got {bad}")
     from feeder.parts.geometry import load_part
     from feeder.parts.library import list_parts
-    from feeder.sim.drops import drop_seed, get_preset, initial_yaws
 
-    preset = get_preset(sim_cfg["presets"], bench["preset"])
     pieces = {p: len(load_part(f"{parts_dir}/{p}.stl").convex_pieces) for p in list_parts(parts_dir, "all")}
-    parts = sorted(p for p, n in pieces.items() if n >= int(bench["min_pieces"]))
+    parts = sorted(p for p, n in pieces.items() if n >= min_pieces)
     if not parts:
-        raise FeederError(f"no part in {parts_dir} has {bench['min_pieces']} convex pieces or more")
-    counts = sorted({int(k) for k in bench["pads"]})
+        raise FeederError(f"no part in {parts_dir} has {min_pieces} convex pieces or more")
     footprints = [PIECES] + [f"pads{k}" for k in counts]
-    shifts = [0.0, float(bench["nudge_deg"])]
+    shifts = [0.0, nudge]
     jobs = []
     for part in parts:
-        for config in bench["configurations"]:
-            yaws = initial_yaws(drop_seed(part, config, base_seed), int(bench["drops"]))
+        for config in configurations:
+            yaws = initial_yaws(drop_seed(part, config, base_seed), drops)
             jobs += [
                 (part, parts_dir, config, fp, shift, yaws, footprint_scene(scene, fp, pad_radius), preset)
                 for fp in footprints

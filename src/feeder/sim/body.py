@@ -44,6 +44,9 @@ _WALLS_GROUP, _BELT_GROUP, _PADS_GROUP = 2, 4, 8
 # mass so the totals stay exact. Measured: pad links carrying 1 % of the mass let the part slip on
 # the belt (2.4 mm/s at rest, turning); 50 % or 99 % ride exactly with it.
 _PAD_MASS_SHARE = 0.5
+# A part stands on its pads only when they surround its centre of mass: with 1 or 2 pads (on a line)
+# it tipped over and sank through the belt, which its pieces do not touch (measured).
+MIN_PADS = 3
 _MAX_COMPOUND = 16  # pybullet's createCollisionShapeArray silently drops shapes beyond 16
 # A part must be at least this many times as thick as the gap under the fences, or it slips
 # under them: measured (20 mm L-shape, fences 0.5 mm above the belt, 8 drops each), 0.6 mm
@@ -177,9 +180,9 @@ def footprint_setting(scene: dict) -> tuple[str, int, float]:
     if model != "pads":
         raise FeederError(f"scene.belt.footprint.model: pieces or pads (got {model!r})")
     count, radius = fp.get("pads"), fp.get("pad_radius")
-    if not isinstance(count, int) or count < 1 or radius is None or not float(radius) > 0:
+    if not isinstance(count, int) or count < MIN_PADS or radius is None or not float(radius) > 0:
         raise FeederError(
-            "scene.belt.footprint: pads (an integer >= 1) and pad_radius (m, > 0) go with model: pads "
+            f"scene.belt.footprint: pads (an integer >= {MIN_PADS}) and pad_radius (m, > 0) go with model: pads "
             f"(got {count!r} and {radius!r})"
         )
     return "pads", count, float(radius)
@@ -233,7 +236,7 @@ def check_fit(part_id: str, outline, centroid, thickness: float, scene: dict) ->
 
 def part_model(geom, scene: dict, merge_tolerance: float = 0.0) -> PartModel:
     """Pieces (merged within ``merge_tolerance``) in the centroidal principal frame, inset by the margin."""
-    from shapely.geometry import Polygon
+    from shapely.geometry import MultiPoint, Point, Polygon
 
     check_scene_fit(geom, scene)
     pc = scene["part"]
@@ -258,6 +261,11 @@ def part_model(geom, scene: dict, merge_tolerance: float = 0.0) -> PartModel:
     hull = np.asarray(Polygon(outline @ rot.T).convex_hull.exterior.coords)[:-1]
     footprint, count, pad_radius = footprint_setting(scene)
     pads = footprint_pads(outline @ rot.T, count) if footprint == "pads" else None
+    if pads is not None and not MultiPoint(pads).convex_hull.contains(Point(0.0, 0.0)):
+        raise FeederError(
+            f"part {geom.part_id}: its {count} footprint pads do not surround its centre of mass; "
+            "it would tip over (scene.belt.footprint.pads)"
+        )
     return PartModel(
         geom.part_id, float(geom.thickness), mass, inertia, alpha, radius, tuple(pieces), hull, pads, pad_radius
     )
@@ -515,19 +523,19 @@ class World:
         )
         friction = float(self.scene["part"]["friction"])
         for link, weight in [(-1, 1.0 - _PAD_MASS_SHARE)] + [(j, share) for j in range(links)]:
-            pb.changeDynamics(
-                body,
-                link,
-                localInertiaDiagonal=[weight * i for i in m.inertia],
-                linearDamping=0.0,
-                angularDamping=0.0,
-                physicsClientId=c,
-            )
+            # inertia alone: pybullet 3.2.7 writes a link's localInertiaDiagonal into the base when
+            # the same call also sets damping (measured: the part turned with 40-83 % of its inertia)
+            pb.changeDynamics(body, link, localInertiaDiagonal=[weight * i for i in m.inertia], physicsClientId=c)
             self._surface(body, friction, link)
             group, mask = (_PART_GROUP, _WALLS_GROUP) if link == -1 else (_PADS_GROUP, _BELT_GROUP)
             pb.setCollisionFilterGroupMask(body, link, group, mask, physicsClientId=c)
         pb.changeDynamics(
-            body, -1, collisionMargin=float(self.scene["part"]["collision_margin"]), physicsClientId=c
+            body,
+            -1,
+            collisionMargin=float(self.scene["part"]["collision_margin"]),
+            linearDamping=0.0,
+            angularDamping=0.0,
+            physicsClientId=c,
         )
         pb.resetBaseVelocity(body, self.belt_vel, [0.0, 0.0, 0.0], physicsClientId=c)
         return body
