@@ -24,8 +24,16 @@ def _raw():
         for fp, ys in runs.items():
             for i, y in enumerate(ys):
                 rows.append(
-                    {"part": "p", "configuration": "a|b", "footprint": fp, "yaw_shift_deg": shift, "drop": i,
-                     "final_yaw_deg": y, "status": "ok", "cpu_s": cpu[fp] * (1 + shift)}
+                    {
+                        "part": "p",
+                        "configuration": "a|b",
+                        "footprint": fp,
+                        "yaw_shift_deg": shift,
+                        "drop": i,
+                        "final_yaw_deg": y,
+                        "status": "ok",
+                        "cpu_s": cpu[fp] * (1 + shift),
+                    }
                 )
     return pd.DataFrame(rows)
 
@@ -52,7 +60,9 @@ def test_summary_pairs_each_footprint_with_the_pieces_and_the_reference():
 def test_footprint_scene_sets_the_model_and_the_pad_count():
     scene = {"belt": {"speed": 0.1}}
     assert contact.footprint_scene(scene, "pads24", 0.002)["belt"]["footprint"] == {
-        "model": "pads", "pads": 24, "pad_radius": 0.002
+        "model": "pads",
+        "pads": 24,
+        "pad_radius": 0.002,
     }
     assert contact.footprint_scene(scene, "pieces", 0.002)["belt"]["footprint"]["model"] == "pieces"
     assert "footprint" not in scene["belt"]  # the caller's scene is left alone
@@ -66,17 +76,49 @@ def test_bench_contact_refuses_a_library_without_many_piece_parts(tmp_path, caps
     (tmp_path / "parts").mkdir()
     from feeder.parts.geometry import stl_bytes
 
-    (tmp_path / "parts" / "sq.stl").write_bytes(stl_bytes(np.array([[0, 0], [0.02, 0], [0.02, 0.02], [0, 0.02]]), 0.005))
+    (tmp_path / "parts" / "sq.stl").write_bytes(
+        stl_bytes(np.array([[0, 0], [0.02, 0], [0.02, 0.02], [0, 0.02]]), 0.005)
+    )
     settings = {
         "scene": {"belt": {"footprint": {"model": "pieces", "pads": 1, "pad_radius": 0.001}}},
-        "sim": {"presets": CONFIG["sim"]["presets"], "base_seed": 0,
-                "contact_bench": {"min_pieces": 8, "configurations": ["straight:30|none"], "drops": 1, "pads": [4],
-                                  "nudge_deg": 0.01, "preset": "fast", "workers": 1}},
+        "sim": {
+            "presets": CONFIG["sim"]["presets"],
+            "base_seed": 0,
+            "contact_bench": {
+                "min_pieces": 8,
+                "configurations": ["straight:30|none"],
+                "drops": 1,
+                "pads": [4],
+                "nudge_deg": 0.01,
+                "preset": "fast",
+                "workers": 1,
+            },
+        },
         "parts": {"dir": str(tmp_path / "parts")},
     }
     out = tmp_path / "t.csv"
-    code = main(["bench-contact", "--settings", json.dumps(settings), "--out-csv", str(out), "--out-raw", str(tmp_path / "r.csv")])
+    code = main(
+        [
+            "bench-contact",
+            "--settings",
+            json.dumps(settings),
+            "--out-csv",
+            str(out),
+            "--out-raw",
+            str(tmp_path / "r.csv"),
+        ]
+    )
     assert code == 2 and "8 convex pieces or more" in capsys.readouterr().err and not out.exists()
     del settings["sim"]["presets"]  # a missing section: one line, no traceback
-    code = main(["bench-contact", "--settings", json.dumps(settings), "--out-csv", str(out), "--out-raw", str(tmp_path / "r.csv")])
+    code = main(
+        [
+            "bench-contact",
+            "--settings",
+            json.dumps(settings),
+            "--out-csv",
+            str(out),
+            "--out-raw",
+            str(tmp_path / "r.csv"),
+        ]
+    )
     assert code == 2 and "presets" in capsys.readouterr().err and not out.exists()

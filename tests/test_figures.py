@@ -773,8 +773,6 @@ def test_label_designs_bands_span_each_designs_interval(tmp_path):
             _assert_band(band, sub.simulations, sub[f"{col}_lo"], sub[f"{col}_hi"])
 
 
-
-
 def test_contact_model_plots_each_footprints_mean_cost_and_agreement_against_pieces(tmp_path):
     from feeder.figures import contact_model
 

@@ -193,8 +193,14 @@ def _split(model, cuts):
     (x0, y0), (x1, y1) = model.pieces[0].min(axis=0), model.pieces[0].max(axis=0)
     edges, gap = [x0, *cuts, x1], 1e-4  # neighbours inset by the margin, as real pieces are
     pieces = [
-        np.array([[a + gap * (k > 0), y0], [b - gap * (k < len(cuts)), y0], [b - gap * (k < len(cuts)), y1],
-                  [a + gap * (k > 0), y1]])
+        np.array(
+            [
+                [a + gap * (k > 0), y0],
+                [b - gap * (k < len(cuts)), y0],
+                [b - gap * (k < len(cuts)), y1],
+                [a + gap * (k > 0), y1],
+            ]
+        )
         for k, (a, b) in enumerate(zip(edges[:-1], edges[1:]))
     ]
     return dataclasses.replace(model, pieces=tuple(pieces))

@@ -102,7 +102,9 @@ rule bench_contact:
         code("bench-contact"),
         parts=expand("{dir}/{part}.stl", dir=config["parts"]["dir"], part=CONTACT_PARTS),
     output:
-        table=report(f"{RESULTS}/tables/contact_model.csv", caption="../report/contact_model.rst", category="Simulation"),
+        table=report(
+            f"{RESULTS}/tables/contact_model.csv", caption="../report/contact_model.rst", category="Simulation"
+        ),
         raw=f"{RESULTS}/bench/contact/contact_drops.csv",
     log:
         f"{LOGS}/bench_contact/bench_contact.log",

@@ -72,7 +72,11 @@ def summarize(raw: pd.DataFrame, pieces: dict[str, int], reference: str) -> pd.D
                 "cpu_ms_per_drop": 1000.0 * float(g["cpu_s"].iloc[0]) / len(g),
                 "ok_rate": float(np.mean(g["status"] == "ok")),
             }
-            for name, other in ((PIECES, runs.get(PIECES)), ("reference", runs.get(reference)), ("nudged", twins.get(fp))):
+            for name, other in (
+                (PIECES, runs.get(PIECES)),
+                ("reference", runs.get(reference)),
+                ("nudged", twins.get(fp)),
+            ):
                 if other is None:
                     row[f"same_basin_vs_{name}"] = row[f"median_dyaw_vs_{name}_deg"] = np.nan
                     continue
@@ -134,8 +138,16 @@ def main(argv: list[str]) -> int:
     with get_context("fork").Pool(max(1, int(bench["workers"]))) as pool:
         for part, config, fp, shift, final, status, cpu in pool.imap_unordered(_run, jobs):
             records += [
-                {"part": part, "configuration": config, "footprint": fp, "yaw_shift_deg": shift, "drop": i,
-                 "final_yaw_deg": y, "status": s, "cpu_s": cpu}
+                {
+                    "part": part,
+                    "configuration": config,
+                    "footprint": fp,
+                    "yaw_shift_deg": shift,
+                    "drop": i,
+                    "final_yaw_deg": y,
+                    "status": s,
+                    "cpu_s": cpu,
+                }
                 for i, (y, s) in enumerate(zip(final, status))
             ]
             if bar is not None:
@@ -153,7 +165,8 @@ def main(argv: list[str]) -> int:
         print(
             f"{fp:>8}: {g['cpu_ms_per_drop'].mean():6.0f} ms/drop, same basin as pieces "
             f"{g['same_basin_vs_pieces'].mean():.2f}, as {footprints[-1]} {g['same_basin_vs_reference'].mean():.2f}, "
-            f"as itself nudged {g['same_basin_vs_nudged'].mean():.2f} (median {g['median_dyaw_vs_nudged_deg'].median():.2f} deg)",
+            f"as itself nudged {g['same_basin_vs_nudged'].mean():.2f} "
+            f"(median {g['median_dyaw_vs_nudged_deg'].median():.2f} deg)",
             file=sys.stderr,
         )
     return 0
