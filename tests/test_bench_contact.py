@@ -68,14 +68,20 @@ def test_footprint_scene_sets_the_model_and_the_pad_count():
     assert "footprint" not in scene["belt"]  # the caller's scene is left alone
 
 
-def test_bench_contact_refuses_a_library_without_many_piece_parts(tmp_path, capsys):
+@pytest.mark.parametrize(
+    "missing, needle",
+    [
+        (None, "8 convex pieces or more"),  # a library of one square (one piece) against min_pieces 8
+        ("presets", "presets"),  # a missing section: one line, no traceback
+    ],
+)
+def test_bench_contact_refuses_a_bad_library_or_settings_in_one_line_writing_nothing(tmp_path, capsys, missing, needle):
     import json
 
     from feeder.cli import main
-
-    (tmp_path / "parts").mkdir()
     from feeder.parts.geometry import stl_bytes
 
+    (tmp_path / "parts").mkdir()
     (tmp_path / "parts" / "sq.stl").write_bytes(
         stl_bytes(np.array([[0, 0], [0.02, 0], [0.02, 0.02], [0, 0.02]]), 0.005)
     )
@@ -96,29 +102,9 @@ def test_bench_contact_refuses_a_library_without_many_piece_parts(tmp_path, caps
         },
         "parts": {"dir": str(tmp_path / "parts")},
     }
+    if missing is not None:
+        del settings["sim"][missing]
     out = tmp_path / "t.csv"
-    code = main(
-        [
-            "bench-contact",
-            "--settings",
-            json.dumps(settings),
-            "--out-csv",
-            str(out),
-            "--out-raw",
-            str(tmp_path / "r.csv"),
-        ]
-    )
-    assert code == 2 and "8 convex pieces or more" in capsys.readouterr().err and not out.exists()
-    del settings["sim"]["presets"]  # a missing section: one line, no traceback
-    code = main(
-        [
-            "bench-contact",
-            "--settings",
-            json.dumps(settings),
-            "--out-csv",
-            str(out),
-            "--out-raw",
-            str(tmp_path / "r.csv"),
-        ]
-    )
-    assert code == 2 and "presets" in capsys.readouterr().err and not out.exists()
+    argv = ["bench-contact", "--settings", json.dumps(settings), "--out-csv", str(out)]
+    code = main([*argv, "--out-raw", str(tmp_path / "r.csv")])
+    assert code == 2 and needle in capsys.readouterr().err and not out.exists()

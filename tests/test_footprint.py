@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 import yaml
 from shapely.geometry import Polygon
+from test_sim import _world  # the world of tests/test_sim.py, here with a padded scene
 
 from feeder.errors import FeederError
 from feeder.parts.geometry import PartGeometry
@@ -49,6 +50,55 @@ def test_two_and_four_pads_of_a_2_by_1_rectangle_are_the_centres_of_its_halves_a
     # then each half across y: the centres of the four 1 x 0.5 quarters
     four = simbody.footprint_pads(rect, 4)
     _assert_same_points(four, [[-0.5, -0.25], [-0.5, 0.25], [0.5, -0.25], [0.5, 0.25]], 1e-2)
+
+
+# An n x 1 rectangle [0, n] x [0, 1] in n cells of area 1, as (x0, x1, y0, y1). A k-cell group is
+# cut across x at even depths and across y at odd depths (the depth counts from the whole
+# outline), at the fraction (k // 2) / k of its area, the first k // 2 cells on the low side:
+# 3: across x at 1/3 of [0, 3] -> [0, 1] (1 cell) | [1, 3] (2 cells, across y at 1/2)
+#    pads (0.5, 0.5), (2, 0.25), (2, 0.75); mean (4.5/3, 1.5/3) = (1.5, 0.5), the centroid
+# 5: across x at 2/5 of [0, 5] -> [0, 2] (2 cells, across y at 1/2) | [2, 5] (3 cells, across y at
+#    1/3 -> [0, 1/3] (1 cell) | [1/3, 1] (2 cells, across x at 1/2: x = 3.5))
+#    pads (1, 0.25), (1, 0.75), (3.5, 1/6), (2.75, 2/3), (4.25, 2/3); mean (12.5/5, 2.5/5) = (2.5, 0.5)
+# 7: across x at 3/7 of [0, 7] -> [0, 3] (3 cells, across y at 1/3 -> [0, 1/3] (1 cell) | [1/3, 1]
+#    (2 cells, across x at 1/2: x = 1.5)) | [3, 7] (4 cells, across y at 1/2, each half across x at 1/2)
+#    pads (1.5, 1/6), (0.75, 2/3), (2.25, 2/3), (4, 0.25), (6, 0.25), (4, 0.75), (6, 0.75);
+#    mean (24.5/7, 3.5/7) = (3.5, 0.5)
+# Cutting each group at its middle instead (k // 2 cells on half the area) gives cells of unequal
+# area: for 5 pads (1.25, 0.25), (1.25, 0.75), (3.75, 0.25), (3.125, 0.75), (4.375, 0.75), moved by
+# the final shift (-0.25, -0.05) to x = 1, 3.5, 2.875, 4.125 (not 1, 3.5, 2.75, 4.25). For 3 pads the
+# shift hides it on any rectangle (0.75, 2.25 shifted by -0.25 are 0.5, 2): 5 and 7 pin the cut.
+ODD_PAD_CELLS = {
+    3: [(0, 1, 0, 1), (1, 3, 0, 0.5), (1, 3, 0.5, 1)],
+    5: [(0, 2, 0, 0.5), (0, 2, 0.5, 1), (2, 5, 0, 1 / 3), (2, 3.5, 1 / 3, 1), (3.5, 5, 1 / 3, 1)],
+    7: [
+        (0, 3, 0, 1 / 3),
+        (0, 1.5, 1 / 3, 1),
+        (1.5, 3, 1 / 3, 1),
+        (3, 5, 0, 0.5),
+        (5, 7, 0, 0.5),
+        (3, 5, 0.5, 1),
+        (5, 7, 0.5, 1),
+    ],
+}
+
+
+@pytest.mark.parametrize("count", sorted(ODD_PAD_CELLS))
+def test_an_odd_pad_count_cuts_each_group_at_its_share_of_the_area(count):
+    rect = [(0.0, 0.0), (float(count), 0.0), (float(count), 1.0), (0.0, 1.0)]
+    cells = np.array(ODD_PAD_CELLS[count], float)
+    areas = (cells[:, 1] - cells[:, 0]) * (cells[:, 3] - cells[:, 2])
+    # the hand cells: equal areas that tile the rectangle
+    np.testing.assert_allclose(areas, 1.0, rtol=1e-12)
+    assert areas.sum() == pytest.approx(Polygon(rect).area)
+    centres = np.column_stack([cells[:, :2].mean(axis=1), cells[:, 2:].mean(axis=1)])
+    np.testing.assert_allclose(centres.mean(axis=0), [0.5 * count, 0.5], atol=1e-12)
+    # 144 samples a pad: a grid 1/12 apart, 12 rows, so every cut above falls between two rows or
+    # columns of samples and each pad is its cell's centre to rounding
+    pads = simbody.footprint_pads(rect, count, samples_per_pad=144)
+    assert pads.shape == (count, 2)
+    _assert_same_points(pads, centres, 1e-9)
+    np.testing.assert_allclose(pads.mean(axis=0), [0.5 * count, 0.5], atol=1e-12)  # the centroid
 
 
 def test_a_thin_bar_stands_on_pads_on_both_sides_of_its_long_axis():
@@ -117,15 +167,9 @@ def test_part_model_carries_pads_in_the_principal_frame_only_when_asked():
 # ------------------------------------------------------------------------------------------
 # the padded part in the world
 # ------------------------------------------------------------------------------------------
-def _world(scene, geom=RECT, lanes=1):
-    model = simbody.part_model(geom, scene)
-    plan = sim.make_plan(scene, parse_location("straight:45"), parse_location("none"), model, False)
-    return simbody.World(scene, FAST, plan, lanes, model), model, plan
-
-
 def test_a_padded_part_rides_the_belt_on_its_pads_only():
     scene = padded(count=20)  # two pad links (16 + 4 spheres)
-    w, model, plan = _world(scene)
+    w, model, plan = _world(RECT, scene=scene)
     try:
         w.reset_belt(0)
         body = w.add_part(0, 0.0, plan.start_y - 0.3, 30.0)
@@ -149,9 +193,41 @@ def test_a_padded_part_rides_the_belt_on_its_pads_only():
         w.close()
 
 
+def test_pads_meet_only_the_belt_and_the_pieces_only_walls_and_fences():
+    """Two padded parts pushed into a wall and across the fence: each overlaps the belt, the wall or
+    the fence with its pieces and with pads (getClosestPoints ignores the collision filter), yet the
+    contacts (which follow it) pair the pad links with the belt only and the pieces with the rest."""
+    w, model, plan = _world(RECT, scene=padded(count=20))  # two pad links (16 + 4 spheres)
+    try:
+        pb, c = w.pb, w.cid
+        box = plan.fences[0].boxes[0]  # (x, y, half length, half thickness, yaw) in the lane
+        # the centroid 5 mm inside the wall's face (the pads with x > 5 mm in it); the fence across it
+        at_wall = w.add_part(0, float(SCENE["belt"]["half_width"]) - 0.005, plan.start_y - 0.3, 0.0)
+        at_fence = w.add_part(0, box[0], box[1], 0.0)
+        pad_links = set(range(pb.getNumJoints(at_wall, physicsClientId=c)))
+        assert pad_links == {0, 1}
+        # the static bodies in the order World builds them: the belt, the walls, the fences
+        belt, (walls, *fences) = w.belts[0], [b for b in range(at_wall) if b not in w.belts]
+        assert fences
+
+        def touching(part, link, body, reach=1e-6):
+            return bool(pb.getClosestPoints(part, body, reach, linkIndexA=link, physicsClientId=c))
+
+        for part, other in ((at_wall, walls), (at_fence, fences[0])):
+            assert all(touching(part, link, belt) for link in (-1, *pad_links))  # the pieces rest on it too
+            assert touching(part, -1, other) and any(touching(part, link, other, 0.0) for link in pad_links)
+        pb.performCollisionDetection(physicsClientId=c)  # the contacts as a step would see them
+        for part, other in ((at_wall, walls), (at_fence, fences[0])):
+            contacts = pb.getContactPoints(bodyA=part, physicsClientId=c)
+            assert {(p[2], p[3]) for p in contacts} == {(belt, k) for k in pad_links} | {(other, -1)}
+            assert all(p[4] == -1 for p in contacts)  # the belt, walls and fences are single bodies
+    finally:
+        w.close()
+
+
 def test_a_padded_part_turns_with_its_own_inertia():
     """A torque step on a part lifted off the belt: the yaw rate it gives is torque x time / Izz."""
-    w, model, plan = _world(padded(count=20))
+    w, model, plan = _world(RECT, scene=padded(count=20))
     try:
         body = w.add_part(0, 0.0, plan.start_y - 0.3, 0.0)
         w.pb.resetBasePositionAndOrientation(body, [0.0, plan.start_y - 0.3, 0.5], [0, 0, 0, 1], physicsClientId=w.cid)

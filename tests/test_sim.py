@@ -386,10 +386,12 @@ def test_cli_bad_input_one_line_error_no_output(tmp_path, args, needle):
 # ------------------------------------------------------------------------------------------
 # the body in pybullet
 # ------------------------------------------------------------------------------------------
-def _world(geom, loc1="straight:45", lanes=1, preset=FAST):
-    model = simbody.part_model(geom, SCENE)
-    plan = sim.make_plan(SCENE, parse_location(loc1), parse_location("none"), model, False)
-    return simbody.World(SCENE, preset, plan, lanes, model), model, plan
+def _world(geom, loc1="straight:45", lanes=1, preset=FAST, scene=SCENE):
+    """A world of ``lanes`` lanes for ``geom`` behind the fence ``loc1`` (tests/test_footprint.py
+    passes its padded scene): ``(world, part model, plan)``."""
+    model = simbody.part_model(geom, scene)
+    plan = sim.make_plan(scene, parse_location(loc1), parse_location("none"), model, False)
+    return simbody.World(scene, preset, plan, lanes, model), model, plan
 
 
 def test_part_rests_at_true_half_thickness_with_set_mass_and_inertia():

@@ -154,6 +154,10 @@ SHORT_BELT["belt"].update(start_y=0.3, end_y=0.0, end_margin=0.1)
 # (started 0.1 m earlier, or initial yaws moved by 0.01°): same basin 1.0, median 0.08–0.22°.
 SAME_BASIN_GOAL = 0.98
 MEDIAN_DYAW_GOAL_DEG = 0.3
+# ... and no systematic turn: |median signed Δ| at most 0.15°. Measured on every case below: at
+# most 0.115° (slide skipping on the rect), 0.06° or less on the others. A slide skip that lands
+# 1 cm past the tip instead of before it turns the L's drops by +0.21° (docs/testing.md).
+SIGNED_SHIFT_GOAL_DEG = 0.15
 # the settings compared: (name, overrides of PROOF, overrides of PROOF for its baseline)
 SHORTCUTS = [
     ("all shortcuts (fast)", {}, FULL),
@@ -180,7 +184,17 @@ def _paired(run, baseline, what):
     c = paired_basins(run["final_yaw_deg"], run["status"], baseline["final_yaw_deg"], baseline["status"])
     return c, (
         f"{what}: same basin {c['same_basin']:.3f} (goal >= {SAME_BASIN_GOAL}), median |dyaw| "
-        f"{c['median_dyaw_deg']:.3f} deg (goal <= {MEDIAN_DYAW_GOAL_DEG}), max {c['max_dyaw_deg']:.3f} deg, n {c['n']}"
+        f"{c['median_dyaw_deg']:.3f} deg (goal <= {MEDIAN_DYAW_GOAL_DEG}), median signed dyaw "
+        f"{c['median_signed_dyaw_deg']:+.3f} deg (goal within +-{SIGNED_SHIFT_GOAL_DEG}), "
+        f"max {c['max_dyaw_deg']:.3f} deg, n {c['n']}"
+    )
+
+
+def _meets_goals(c) -> bool:
+    return (
+        c["same_basin"] >= SAME_BASIN_GOAL
+        and c["median_dyaw_deg"] <= MEDIAN_DYAW_GOAL_DEG
+        and abs(c["median_signed_dyaw_deg"]) <= SIGNED_SHIFT_GOAL_DEG
     )
 
 
@@ -192,7 +206,7 @@ def test_shortcut_matches_full_simulation(scene_key, name, overrides, baseline):
     base = _run(scene_key, dict(PROOF, **baseline))
     c, msg = _paired(run, base, f"{name} on {scene_key}")
     assert c["n"] == SHORTCUT_DROPS, msg
-    assert c["same_basin"] >= SAME_BASIN_GOAL and c["median_dyaw_deg"] <= MEDIAN_DYAW_GOAL_DEG, msg
+    assert _meets_goals(c), msg
 
 
 @pytest.mark.slow
@@ -204,7 +218,7 @@ def test_two_lanes_give_the_drops_of_one_lane(scene_key):
     two = _run(scene_key, dict(PROOF, lanes=2))
     one = _run(scene_key, dict(PROOF, lanes=1))
     c, msg = _paired(two, one, f"2 lanes against 1 on {scene_key}")
-    assert c["same_basin"] >= SAME_BASIN_GOAL and c["median_dyaw_deg"] <= MEDIAN_DYAW_GOAL_DEG, msg
+    assert _meets_goals(c), msg
 
 
 # ------------------------------------------------------------------------------------------

@@ -132,9 +132,11 @@ def paired_basins(final_a, status_a, final_b, status_b, tolerance_deg: float = S
     below ``tolerance_deg``, or when both ended with the same non-ok status. Returns ``n`` (pairs),
     ``same_status`` and ``same_basin`` (fractions of the pairs; NaN without pairs), and the median
     and the largest circular |Δ final yaw| over the same-basin ok pairs (``median_dyaw_deg``,
-    ``max_dyaw_deg``; NaN when there is none). Pooled distributions hide a drop that flips basin
-    while another flips back; this counts it."""
-    from feeder.labels.pushforward import circular_distance
+    ``max_dyaw_deg``; NaN when there is none), and the median of the signed difference ``a - b``
+    over the same pairs, in [-180, 180) (``median_signed_dyaw_deg``): a small systematic turn of
+    every drop, which barely moves the median |Δ| above the floor, shows there. Pooled
+    distributions hide a drop that flips basin while another flips back; this counts it."""
+    from feeder.labels.pushforward import wrap180
 
     final_a, final_b = np.asarray(final_a, dtype=np.float64), np.asarray(final_b, dtype=np.float64)
     status_a, status_b = np.asarray(status_a).astype(str), np.asarray(status_b).astype(str)
@@ -146,7 +148,8 @@ def paired_basins(final_a, status_a, final_b, status_b, tolerance_deg: float = S
         )
     same_status = status_a == status_b
     both_ok = same_status & (status_a == "ok")
-    d = circular_distance(final_a[both_ok], final_b[both_ok])
+    signed = wrap180(final_a[both_ok] - final_b[both_ok])
+    d = np.abs(signed)
     close = d < float(tolerance_deg)  # NaN (an ok drop without a yaw) is never close
     same_basin = same_status.copy()
     same_basin[both_ok] = close
@@ -156,6 +159,7 @@ def paired_basins(final_a, status_a, final_b, status_b, tolerance_deg: float = S
         "same_basin": float(same_basin.mean()) if n else math.nan,
         "median_dyaw_deg": float(np.median(d[close])) if close.any() else math.nan,
         "max_dyaw_deg": float(np.max(d[close])) if close.any() else math.nan,
+        "median_signed_dyaw_deg": float(np.median(signed[close])) if close.any() else math.nan,
     }
 
 
