@@ -488,7 +488,11 @@ def load_footprint(path: str | os.PathLike, units: str = "m") -> tuple[np.ndarra
 
 
 def _read_in_metres(path: Path, units: str) -> tuple[np.ndarray, float, str]:
-    """(outline, thickness) of an STL scaled to metres, and the units it was read in."""
+    """(outline, thickness) of an STL scaled to metres, and the units it was read in. A face point
+    cloud (``.xyz``) is refused by name: it has no thickness, and read as an STL it would fail with
+    a message about STL bytes."""
+    if path.suffix.lower() == ".xyz":
+        raise FeederError(f"{path}: a face point cloud (.xyz) has no thickness or solid; give the part's .stl")
     outline, thickness = read_outline(path)
     size = float(np.max(np.ptp(outline, axis=0)))
     unit = file_units(size, units)
