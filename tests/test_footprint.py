@@ -304,3 +304,18 @@ def test_pads_make_the_outcome_independent_of_how_the_outline_is_cut(monkeypatch
     assert pads["same_basin"] == 1.0 and pads["max_dyaw_deg"] < 0.2
     pieces = paired_basins(*finals["pieces", "whole"], *finals["pieces", "strips"])
     assert pieces["same_basin"] < 1.0 or pieces["median_dyaw_deg"] > 0.5  # what the pads remove
+
+
+def test_pads_of_a_washer_stand_on_the_ring_around_its_centre():
+    """16 pads on a washer (outer radius 25 mm, hole 8 mm): no pad in the hole, their mean at the
+    centre, and, the ring being uniform, every pad between the two radii."""
+    from feeder.parts.shapes import holes_mm, outline_mm
+
+    outer, (hole,) = outline_mm("washer-25x8") / 1000.0, holes_mm("washer-25x8")
+    pads = simbody.footprint_pads(outer, 16, holes=[hole / 1000.0])
+    r = np.hypot(pads[:, 0], pads[:, 1])
+    assert pads.shape == (16, 2) and np.allclose(pads.mean(axis=0), 0.0, atol=1e-12)
+    assert (r > 0.008).all() and (r < 0.025).all()
+    # without the hole the same call puts pads where the hole is
+    solid = simbody.footprint_pads(outer, 16)
+    assert (np.hypot(solid[:, 0], solid[:, 1]) < 0.008).any()

@@ -284,3 +284,29 @@ def test_recommend_ranks_the_study_grid_by_default(model_dir, capsys):
     base = ["--model", str(model_dir / "m3"), "--features", str(model_dir / "p0.json")]
     assert R.main([*base, "--target", "0", "--tolerance", "10"]) == 0
     assert f"{len(grid)} configurations" in capsys.readouterr().out
+
+
+def test_predict_answers_a_part_with_a_hole_with_a_note(model_dir, tmp_path, capsys):
+    """A plate with a bolt hole: answered (the features are its outer contour, as in the paper), with
+    one note on stderr that the model does not see the hole; the same plate without it gets none."""
+    from feeder.parts.geometry import stl_bytes
+    from feeder.parts.shapes import holes_mm, outline_mm
+
+    spec = "plate-60x30x10"
+    for name, holes in (("holed", holes_mm(spec)), ("solid", [])):
+        part = tmp_path / f"{name}.stl"
+        part.write_bytes(stl_bytes(outline_mm(spec), 5.0, name, holes=holes))
+        argv = ["--model", str(model_dir / "m3"), "--part", str(part), "--loc1", "straight:30", "--loc2", "none"]
+        assert P.main([*argv, "--out", str(tmp_path / f"{name}.csv")]) == 0
+        notes = [line for line in capsys.readouterr().err.splitlines() if "through-hole" in line]
+        assert notes == (
+            [
+                "feeder predict: note: holed.stl has 1 through-hole(s); the model sees its outer "
+                "contour only, so check the answer with feeder simulate"
+            ]
+            if holes
+            else []
+        )
+    # the outer contour is the same, so is the answer
+    holed, solid = (pd.read_csv(tmp_path / f"{n}.csv") for n in ("holed", "solid"))
+    np.testing.assert_allclose(holed.pmf, solid.pmf, atol=1e-12)

@@ -234,12 +234,18 @@ HARD = [
     ("rect-40x20", "straight:89", "none"),
     ("rect-100x50", "curved:0", "curved:90"),
     ("tri-40x25", "curved:60", "curved:30"),  # curved + curved
+    ("washer-25x8", "straight:30", "curved:45"),  # through-holes: a ring
+    ("plate-60x30x10", "straight:40", "none"),  # a bolt hole off the middle: mass off the outline's centroid
 ]
 
 
 PADS = dict(model="pads", pads=16, pad_radius=0.001)
 # the hard cases again on footprint pads (scene.belt.footprint), with the library's thinnest part
-HARD_PADS = [case for case in HARD if case[0] in ("rect-80x8", "rect-10x8", "c-40x30x8", "star-5x25x10", "tri-40x25")]
+HARD_PADS = [
+    case
+    for case in HARD
+    if case[0] in ("rect-80x8", "rect-10x8", "c-40x30x8", "star-5x25x10", "tri-40x25", "washer-25x8", "plate-60x30x10")
+]
 
 
 @pytest.mark.parametrize("shape, loc1, loc2", HARD)

@@ -55,16 +55,24 @@ def check_part_fits(part: Path) -> None:
     """Refuse an STL part the simulator refuses (wider than the belt, or too thin for the fences:
     :func:`feeder.sim.body.check_fit`, units as ``--units auto``): the model has never seen such a
     part and would answer for a scene that cannot happen. A face point cloud (``.xyz``) has no
-    thickness and is not checked."""
+    thickness and is not checked. A part with through-holes is answered with a note on stderr: the
+    shape features describe its outer contour only (as in the paper), so the model does not see
+    how the holes move its centre of mass."""
     if part.suffix.lower() != ".stl":
         return
-    from feeder.parts.geometry import load_footprint, polygon_moments
+    from feeder.parts.geometry import load_profile, profile_moments
     from feeder.sim.body import check_fit
     from feeder.sim.scene import load_settings
 
-    outline, thickness = load_footprint(part, "auto")
-    _, centroid, _ = polygon_moments(outline)
+    outline, holes, thickness = load_profile(part, "auto")
+    _, centroid, _ = profile_moments(outline, holes)
     check_fit(part.stem, outline, centroid, thickness, load_settings()[0])
+    if holes:
+        print(
+            f"feeder predict: note: {part.name} has {len(holes)} through-hole(s); the model sees its outer "
+            "contour only, so check the answer with feeder simulate",
+            file=sys.stderr,
+        )
 
 
 def part_vector(part: Path | None, features: Path | None) -> tuple[np.ndarray, float | None]:

@@ -158,7 +158,8 @@ def symmetry_order(setting: str, part: Path | None) -> int:
     if part is None or part.suffix.lower() != ".stl" or not part.is_file():
         print("feeder recommend: no STL to read the symmetry from: order 1", file=sys.stderr)
         return 1
-    from feeder.parts.geometry import load_outline
+    from feeder.parts.geometry import load_profile
     from feeder.parts.symmetry import rotational_order
 
-    return rotational_order(load_outline(part, "auto"))
+    outline, holes, _ = load_profile(part, "auto")
+    return rotational_order(outline, holes=holes)

@@ -126,10 +126,10 @@ def _mergeable_pair(polys, tolerance: float):
     return None
 
 
-def footprint_pads(outline, count: int, samples_per_pad: int = 400) -> np.ndarray:
-    """``count`` points that stand for a uniform pressure over the polygon ``outline`` (N, 2): the
-    centroids of ``count`` cells of equal area, moved together so their mean is the polygon's
-    centroid exactly (pure).
+def footprint_pads(outline, count: int, samples_per_pad: int = 400, holes=()) -> np.ndarray:
+    """``count`` points that stand for a uniform pressure over the polygon ``outline`` (N, 2), less
+    its ``holes``: the centroids of ``count`` cells of equal area, moved together so their mean is
+    the footprint's centroid exactly (pure).
 
     The polygon is sampled on a square grid of about ``count * samples_per_pad`` points inside it;
     the cells come from splitting the samples in two, across x at even depths and across y at odd
@@ -147,9 +147,9 @@ def footprint_pads(outline, count: int, samples_per_pad: int = 400) -> np.ndarra
     count = int(count)
     if count < 1:
         raise FeederError(f"footprint pads: need at least one pad (got {count})")
-    poly = Polygon(np.asarray(outline, np.float64))
+    poly = Polygon(np.asarray(outline, np.float64), [np.asarray(h, np.float64) for h in holes])
     if not poly.is_valid or poly.area <= 0:
-        raise FeederError("footprint pads: the outline is not a simple polygon with an area")
+        raise FeederError("footprint pads: the outline is not a simple polygon with an area (and holes inside it)")
     x0, y0, x1, y1 = poly.bounds
     side = math.sqrt(poly.area / (count * samples_per_pad))
     xs, ys = np.arange(x0 + 0.5 * side, x1, side), np.arange(y0 + 0.5 * side, y1, side)
@@ -260,7 +260,8 @@ def part_model(geom, scene: dict, merge_tolerance: float = 0.0) -> PartModel:
     radius = float(np.max(np.hypot(outline[:, 0], outline[:, 1])))
     hull = np.asarray(Polygon(outline @ rot.T).convex_hull.exterior.coords)[:-1]
     footprint, count, pad_radius = footprint_setting(scene)
-    pads = footprint_pads(outline @ rot.T, count) if footprint == "pads" else None
+    holes = [(np.asarray(h, np.float64) - centroid) @ rot.T for h in geom.holes]
+    pads = footprint_pads(outline @ rot.T, count, holes=holes) if footprint == "pads" else None
     if pads is not None and not MultiPoint(pads).convex_hull.contains(Point(0.0, 0.0)):
         raise FeederError(
             f"part {geom.part_id}: its {count} footprint pads do not surround its centre of mass; "
