@@ -6,6 +6,7 @@ import pytest
 import shapely
 
 from feeder.errors import FeederError
+from feeder.parts import geometry as G
 from feeder.parts.geometry import (
     PartGeometry,
     clean_outline,
@@ -355,3 +356,49 @@ def test_a_part_without_holes_is_built_as_before():
     area, centroid, moments = polygon_moments(clean_outline(np.array(L_SHAPE, float)))
     assert g.holes == () and g.area == area and np.array_equal(g.centroid, centroid) and g.second_moment == moments
     assert [p.tolist() for p in g.convex_pieces] == [p.tolist() for p in convex_decomposition(g.outline)]
+
+
+def test_holes_that_touch_each_other_are_refused_by_name():
+    outline = np.array([(0, 0), (0.04, 0), (0.04, 0.02), (0, 0.02)], float)
+    left = np.array([(0.01, 0.01), (0.005, 0.015), (0.005, 0.005)])
+    right = np.array([(0.01, 0.01), (0.015, 0.005), (0.015, 0.015)])  # shares the vertex (0.01, 0.01)
+    with pytest.raises(FeederError, match="holes 1 and 2 touch or overlap"):
+        G.PartGeometry.from_polygon("x", outline, 0.003, [left, right])
+    with pytest.raises(FeederError, match="^hole 2 has fewer than 3 distinct"):
+        G.PartGeometry.from_polygon("x", outline, 0.003, [left, np.array([(0.02, 0.01), (0.02, 0.01), (0.03, 0.01)])])
+
+
+@pytest.mark.parametrize("radius", [1e-6, 3e-6, 1e-4])
+def test_a_tiny_hole_still_gives_convex_pieces_that_tile_the_region(radius):
+    """The convexity test judges the turn, not the cross product against the longest edge, so a
+    hole whose edges are a millionth of the part's size does not make a reflex piece look convex."""
+    import shapely
+
+    t = np.linspace(0.0, 2.0 * np.pi, 16, endpoint=False)
+    hole = np.column_stack([0.01 + radius * np.cos(t), 0.01 + radius * np.sin(t)])
+    outline = np.array([(0, 0), (0.04, 0), (0.04, 0.02), (0, 0.02)], float)
+    g = G.PartGeometry.from_polygon("x", outline, 0.003, [hole])
+    pieces = [shapely.Polygon(p) for p in g.convex_pieces]
+    assert all(p.is_valid and p.convex_hull.area - p.area <= 1e-9 * p.area for p in pieces)
+    region = shapely.Polygon(outline, [hole])
+    assert shapely.union_all(pieces).symmetric_difference(region).area <= 1e-12 * region.area
+    assert sum(p.area for p in pieces) == pytest.approx(region.area, rel=1e-12)
+
+
+def test_is_convex_judges_the_turn_whatever_the_edge_lengths():
+    # a dent of 1e-12 between two edges 1e-6 long in the top of the unit square: a reflex turn of
+    # 2e-6 rad, whose cross product (2e-18) an edge of 1 used to hide
+    dent = np.array([(0, 0), (1, 0), (1, 1), (0.5 + 1e-6, 1), (0.5, 1 - 1e-12), (0.5 - 1e-6, 1), (0, 1)], float)
+    assert G.signed_area(dent) > 0 and not G.is_convex(dent)
+    assert G.is_convex(np.array([(0.0, 0.0), (1.0, 0.0), (1.0, 1.0), (0.5, 1.0), (0.0, 1.0)]))  # collinear: allowed
+
+
+def test_thinnest_wall_is_the_least_material_around_a_hole_by_hand():
+    outline = np.array([(0, 0), (0.04, 0), (0.04, 0.02), (0, 0.02)], float)
+    square = lambda a, b, c, d: np.array([(a, b), (c, b), (c, d), (a, d)], float)  # noqa: E731
+    assert G.thinnest_wall(outline, []) == np.inf
+    assert G.thinnest_wall(outline, [square(0.005, 0.003, 0.01, 0.01)]) == pytest.approx(0.003)  # to y = 0
+    # two holes 2 mm apart, each at least 5 mm from the outline
+    assert G.thinnest_wall(outline, [square(0.005, 0.005, 0.01, 0.01), square(0.012, 0.005, 0.02, 0.01)]) == (
+        pytest.approx(0.002)
+    )

@@ -176,6 +176,16 @@ def test_plot_draws_the_part_at_its_most_likely_yaw(tmp_path):
     np.testing.assert_allclose(drawn, P.rotated_outline(square, 30.5))
     np.testing.assert_allclose(P.rotated_outline(square, 90.0)[0], [5.0, -10.0], atol=1e-9)  # by hand
     assert len(P.plot(frame, "t").axes) == 2  # without a part: the PMF and its CDF axis only
+    # a hole turns with its part, about the part's centre (0.01, 0.005): its corner (0.012, 0.002)
+    # lies at (2, -3) mm from it, so at 90 deg it is drawn at (3, 2)
+    hole = np.array([[0.012, 0.002], [0.014, 0.002], [0.014, 0.004]])
+    pmf90 = np.zeros(360)
+    pmf90[90] = 1.0
+    frame90 = pd.DataFrame({"angle_deg": np.arange(360.0), "pmf": pmf90, "cdf": np.cumsum(pmf90)})
+    lines = P.plot(frame90, "t", square, [hole]).axes[1].get_lines()
+    drawn_hole = np.column_stack(lines[1].get_data())[:-1]
+    np.testing.assert_allclose(drawn_hole, P.rotated_outline(hole, 90.5, centre=square.mean(axis=0)))
+    np.testing.assert_allclose(P.rotated_outline(hole, 90.0, centre=square.mean(axis=0))[0], [3.0, 2.0], atol=1e-9)
 
 
 def test_principal_frame_model_answers_in_the_part_frame(model_dir, tmp_path):

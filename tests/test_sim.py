@@ -612,3 +612,22 @@ def test_a_part_in_millimetres_with_its_origin_moved_drops_like_the_metre_part(t
         np.testing.assert_array_equal(outs[name][1], outs["m"][1])
         d = np.abs((outs[name][0] - outs["m"][0] + 180.0) % 360.0 - 180.0)
         assert np.nanmax(d) < 0.5
+
+
+@pytest.mark.parametrize("wall_mm, refused", [(0.1, True), (0.19, True), (0.25, False)])
+def test_a_wall_around_a_hole_thinner_than_two_margins_is_refused(wall_mm, refused):
+    """Each convex piece is inset by the collision margin (0.1 mm): a wall of 0.2 mm or less
+    between a hole and the outline would vanish from the collision shape (measured: 3 of 4
+    pieces kept at exactly 0.2 mm), leaving a notch a fence could push into."""
+    margin = float(SCENE["part"]["collision_margin"])
+    assert margin == pytest.approx(1e-4)  # the wall widths above are about this margin
+    w = 1e-3 * wall_mm
+    outline = np.array([(0, 0), (0.04, 0), (0.04, 0.02), (0, 0.02)], float)
+    hole = np.array([(w, 0.003), (0.015, 0.003), (0.015, 0.017), (w, 0.017)])
+    geom = PartGeometry.from_polygon("thin-wall", outline, 0.003, [hole])
+    if refused:
+        with pytest.raises(FeederError, match=r"part thin-wall: .* mm of material between a hole and the outline"):
+            simbody.part_model(geom, SCENE)
+    else:
+        model = simbody.part_model(geom, SCENE)
+        assert len(model.pieces) == len(geom.convex_pieces)  # every piece kept, the wall included

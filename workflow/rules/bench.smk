@@ -8,6 +8,7 @@
 #   results/tables/sim_cost.csv, sim_cost_sample.csv (+ figure)  the stage's projected cost
 #   results/tables/label_emulation*.csv       (+ figure)  emulated i.i.d. drops against real ones
 #   results/tables/contact_model.csv          (+ figure)  the belt footprint: pieces against pads
+#   results/tables/step_cost.csv              (+ figure)  CPU of one step against a bare one-box world
 
 from feeder.bench.emulation import entries as emulation_bench_entries, run_settings as emulation_run_settings
 from feeder.bench.predict import DEFAULT_PARTS as PREDICT_BENCH_DEFAULT_PARTS
@@ -29,6 +30,8 @@ BENCH_TARGETS = [
     f"{RESULTS}/figures/label_emulation.png",
     f"{RESULTS}/tables/contact_model.csv",
     f"{RESULTS}/figures/contact_model.png",
+    f"{RESULTS}/tables/step_cost.csv",
+    f"{RESULTS}/figures/step_cost.png",
 ]
 # the design bench's configurations: one simulation job each (resumable), raw data kept, in a
 # directory named by the preset and the reference's resolution, so a smaller run (smoke) never
@@ -117,6 +120,26 @@ rule bench_contact:
         settings=settings_json("scene", "sim.presets", "sim.contact_bench", "sim.base_seed", "parts.dir"),
     shell:
         "feeder bench-contact --settings '{params.settings}' --out-csv {output.table} --out-raw {output.raw} > {log} 2>&1"
+
+
+rule bench_step:
+    """CPU of one simulation step in the study's scene against a bare one-box world (feeder bench-step)."""
+    input:
+        code("bench-step"),
+        parts=expand("{dir}/{part}.stl", dir=config["parts"]["dir"], part=config["sim"]["step_bench"]["parts"]),
+    output:
+        table=report(f"{RESULTS}/tables/step_cost.csv", caption="../report/step_cost.rst", category="Simulation"),
+        raw=f"{RESULTS}/bench/step/step_calls.csv",
+    log:
+        f"{LOGS}/bench_step/bench_step.log",
+    benchmark:
+        f"{BENCHMARKS}/bench_step/bench_step.tsv"
+    conda:
+        "../envs/feeder.yaml"
+    params:
+        settings=settings_json("scene", "sim.presets", "sim.step_bench", "sim.base_seed", "parts.dir"),
+    shell:
+        "feeder bench-step --settings '{params.settings}' --out-csv {output.table} --out-raw {output.raw} > {log} 2>&1"
 
 
 rule bench_yaws:

@@ -132,7 +132,7 @@ def main(argv: list[str]) -> int:
         config_ids = grid_configurations(load_study_config()["fences"])
     order = symmetry_order(args.symmetry, args.part)
     model = load_model(resolve_model_dir(args.model, "feeder recommend"))
-    part_raw, frame_deg = part_vector(args.part, args.features)
+    part_raw, frame_deg = part_vector(args.part, args.features, "feeder recommend")
     ranked = rank(model, part_raw, frame_deg, config_ids, args.target, args.tolerance, order)
     if args.out is not None:
         from feeder.io import write_csv

@@ -77,16 +77,17 @@ def polygon_moments(poly: np.ndarray) -> tuple[float, np.ndarray, tuple[float, f
     return float(area), centroid, (float(ixx), float(iyy), float(ixy))
 
 
-def clean_outline(outline: np.ndarray, rel_tol: float = _REL_TOL) -> np.ndarray:
-    """Drop a closing duplicate, repeated vertices and collinear vertices; return CCW (N, 2)."""
+def clean_outline(outline: np.ndarray, rel_tol: float = _REL_TOL, what: str = "outline") -> np.ndarray:
+    """Drop a closing duplicate, repeated vertices and collinear vertices; return CCW (N, 2).
+    ``what`` names the polygon in errors (e.g. ``hole 2``)."""
     pts = np.asarray(outline, dtype=np.float64)
     if pts.ndim != 2 or pts.shape[1] != 2:
-        raise FeederError(f"outline must be an (N, 2) array, got shape {pts.shape}")
+        raise FeederError(f"{what} must be an (N, 2) array, got shape {pts.shape}")
     if not np.all(np.isfinite(pts)):
-        raise FeederError("outline has NaN or infinite coordinates")
+        raise FeederError(f"{what} has NaN or infinite coordinates")
     size = float(np.max(np.ptp(pts, axis=0))) if len(pts) else 0.0
     if size <= 0.0:
-        raise FeederError("outline has no extent")
+        raise FeederError(f"{what} has no extent")
     tol = rel_tol * size
     changed = True
     while changed and len(pts) >= 3:
@@ -110,20 +111,22 @@ def clean_outline(outline: np.ndarray, rel_tol: float = _REL_TOL) -> np.ndarray:
             pts = np.delete(pts, idx, axis=0)
             changed = True
     if len(pts) < 3:
-        raise FeederError("outline has fewer than 3 distinct non-collinear vertices")
+        raise FeederError(f"{what} has fewer than 3 distinct non-collinear vertices")
     if signed_area(pts) < 0:
         pts = pts[::-1].copy()
     return pts
 
 
 def is_convex(poly: np.ndarray, rel_tol: float = 1e-9) -> bool:
-    """True when a CCW polygon has no reflex vertex (collinear vertices allowed)."""
+    """True when a CCW polygon has no reflex vertex (collinear vertices allowed): no vertex turns
+    clockwise by more than ``rel_tol`` radians (the sine of the turn, so that the short edges of a
+    small hole are judged like long ones)."""
     p = np.asarray(poly, dtype=np.float64)
     d1 = p - np.roll(p, 1, axis=0)
     d2 = np.roll(p, -1, axis=0) - p
     cross = d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0]
-    scale = float(np.max(np.linalg.norm(d1, axis=1))) ** 2
-    return bool(np.all(cross >= -rel_tol * scale))
+    lengths = np.linalg.norm(d1, axis=1) * np.linalg.norm(d2, axis=1)
+    return bool(np.all(cross >= -rel_tol * lengths))
 
 
 def _check_simple(outline: np.ndarray, what: str) -> None:
@@ -135,17 +138,42 @@ def _check_simple(outline: np.ndarray, what: str) -> None:
         raise FeederError(f"{what} is not a simple polygon ({reason})")
 
 
+def clean_holes(holes) -> list[np.ndarray]:
+    """:func:`clean_outline` of each hole, errors naming the hole (``hole 1``, ...)."""
+    return [clean_outline(h, what=f"hole {k}") for k, h in enumerate(holes, start=1)]
+
+
 def _check_holes(outline: np.ndarray, holes, what: str) -> None:
-    """FeederError unless every hole lies strictly inside the outline, apart from the others."""
+    """FeederError unless every hole lies strictly inside the outline, apart from the others
+    (touching at a point counts as touching)."""
     import shapely
 
     poly = shapely.Polygon(outline, [np.asarray(h) for h in holes])
     if not poly.is_valid:
         raise FeederError(f"{what}: the holes are not inside the outline and apart ({shapely.is_valid_reason(poly)})")
     outer = shapely.Polygon(outline)
-    for h in holes:
-        if not outer.contains(shapely.Polygon(h)) or shapely.Polygon(h).exterior.intersects(outer.exterior):
-            raise FeederError(f"{what}: the holes must lie inside the outline; one touches or crosses it")
+    rings = [shapely.Polygon(h) for h in holes]
+    for k, ring in enumerate(rings, start=1):
+        if not outer.contains(ring) or ring.exterior.intersects(outer.exterior):
+            raise FeederError(f"{what}: the holes must lie inside the outline; hole {k} touches or crosses it")
+    for i in range(len(rings)):
+        for j in range(i + 1, len(rings)):
+            if rings[i].intersects(rings[j]):
+                raise FeederError(f"{what}: holes {i + 1} and {j + 1} touch or overlap")
+
+
+def thinnest_wall(outline: np.ndarray, holes) -> float:
+    """The narrowest material between a hole and the outline or between two holes (metres);
+    infinite without holes."""
+    import shapely
+
+    rings = [shapely.LinearRing(h) for h in holes]
+    if not rings:
+        return math.inf
+    boundary = shapely.LinearRing(outline)
+    gaps = [boundary.distance(r) for r in rings]
+    gaps += [rings[i].distance(rings[j]) for i in range(len(rings)) for j in range(i + 1, len(rings))]
+    return float(min(gaps))
 
 
 def triangulate(outline: np.ndarray, holes=()) -> list[tuple[int, int, int]]:
@@ -287,7 +315,7 @@ class PartGeometry:
             raise FeederError(f"part {part_id}: thickness must be positive, got {thickness!r}")
         pts = clean_outline(outline)
         _check_simple(pts, f"part {part_id}: outline")
-        cut = tuple(clean_outline(h) for h in holes)
+        cut = tuple(clean_holes(holes))
         if cut:
             _check_holes(pts, cut, f"part {part_id}")
         area, centroid, moments = profile_moments(pts, cut)
@@ -386,7 +414,7 @@ def stl_bytes(outline: np.ndarray, thickness: float, name: str = "part", holes=(
     deterministic.
     """
     outline = clean_outline(outline)
-    cut = [clean_outline(h) for h in holes]
+    cut = clean_holes(holes)
     if cut:
         _check_holes(outline, cut, f"part {name}")
     verts = profile_vertices(outline, cut)
@@ -570,7 +598,7 @@ def load_profile(path: str | os.PathLike, units: str = "m") -> tuple[np.ndarray,
     try:
         pts = clean_outline(outline)
         _check_simple(pts, "outline")
-        cut = [clean_outline(h) for h in holes]
+        cut = clean_holes(holes)
         if cut:
             _check_holes(pts, cut, "part")
     except FeederError as err:

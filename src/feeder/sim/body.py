@@ -209,8 +209,21 @@ def check_scene_fit(geom, scene: dict) -> None:
     """A one-line FeederError for a part the scene cannot hold: one that fits between the belt's
     walls at no yaw (its circumradius about the centroid reaches ``belt.half_width``; parts are
     placed centred), or one too thin for the fences to push (``MIN_THICKNESS_PER_CLEARANCE``
-    times ``fences.clearance``). Either would give a label of nothing but falls or untouched drops."""
+    times ``fences.clearance``). Either would give a label of nothing but falls or untouched drops.
+    Also one whose material between a hole and the outline (or two holes) is no thicker than twice
+    ``part.collision_margin``: each convex piece is inset by the margin, so such a wall would
+    vanish from the collision shape and leave a gap a fence could push into."""
+    from feeder.parts.geometry import thinnest_wall
+
     check_fit(geom.part_id, geom.outline, geom.centroid, geom.thickness, scene)
+    least = 2.0 * float(scene["part"]["collision_margin"])
+    wall = thinnest_wall(geom.outline, getattr(geom, "holes", ()))
+    if wall <= least:
+        raise FeederError(
+            f"part {geom.part_id}: {1e3 * wall:.3g} mm of material between a hole and the outline or another "
+            f"hole, no more than {1e3 * least:g} mm (2 x scene.part.collision_margin): the collision shape "
+            "would lose that wall"
+        )
 
 
 def check_fit(part_id: str, outline, centroid, thickness: float, scene: dict) -> None:
