@@ -93,6 +93,58 @@ def test_paired_check_counts_basin_flips_drop_by_drop(tmp_path):
     assert check["paired_median_dyaw_deg"] == pytest.approx(0.0)  # median of 0.2, 0, 0 among same-basin drops
 
 
+def test_paired_basins_compares_drop_by_drop_across_the_wrap_and_the_statuses():
+    nan = np.nan
+    fa = [359.0, 10.0, 100.0, nan, nan, 50.0, 200.0, nan]
+    sa = ["ok", "ok", "ok", "jammed", "fell_off", "ok", "ok", "jammed"]
+    fb = [1.0, 370.5, 110.0, nan, nan, nan, 195.1, nan]
+    sb = ["ok", "ok", "ok", "jammed", "jammed", "jammed", "ok", "jammed"]
+    # pairs: 2° across 0/360 (same), 0.5° across a full turn (same), 10° (flip), jammed/jammed
+    # (same), fell_off/jammed (flip), ok/jammed (flip), 4.9° (same), jammed/jammed (same)
+    c = B.paired_basins(fa, sa, fb, sb)
+    assert c["n"] == 8 and c["same_status"] == 6 / 8 and c["same_basin"] == 5 / 8
+    assert c["median_dyaw_deg"] == pytest.approx(2.0) and c["max_dyaw_deg"] == pytest.approx(4.9)
+    # signed a - b of the same-basin ok pairs: 359 - 1 -> -2, 10 - 370.5 -> -0.5, 200 - 195.1 = 4.9
+    assert c["median_signed_dyaw_deg"] == pytest.approx(-0.5)
+    # a tighter basin keeps only the 0.5° pair among the ok ones (plus the two jammed pairs)
+    tight = B.paired_basins(fa, sa, fb, sb, tolerance_deg=1.0)
+    assert tight["same_basin"] == 3 / 8 and tight["median_dyaw_deg"] == pytest.approx(0.5)
+    assert tight["max_dyaw_deg"] == pytest.approx(0.5) and tight["median_signed_dyaw_deg"] == pytest.approx(-0.5)
+    # symmetric in its two runs, except the sign of the signed difference
+    swapped = B.paired_basins(fb, sb, fa, sa)
+    assert swapped.pop("median_signed_dyaw_deg") == pytest.approx(0.5)
+    assert swapped == {k: v for k, v in c.items() if k != "median_signed_dyaw_deg"}
+
+
+def test_paired_basins_signed_median_sees_a_shift_the_absolute_median_hides():
+    # every drop turned +0.2 deg (across the wrap too) against +-0.2 deg in balance: the same |d|
+    # median, but only the shift has a signed median
+    base = np.array([359.9, 0.05, 90.0, 180.0, 270.0])
+    shifted = B.paired_basins(base + 0.2, ["ok"] * 5, base, ["ok"] * 5)
+    assert shifted["median_dyaw_deg"] == pytest.approx(0.2) and shifted["median_signed_dyaw_deg"] == pytest.approx(0.2)
+    balanced = B.paired_basins(base[:4] + np.array([0.2, -0.2, 0.2, -0.2]), ["ok"] * 4, base[:4], ["ok"] * 4)
+    assert balanced["median_signed_dyaw_deg"] == pytest.approx(0.0) and balanced["median_dyaw_deg"] == pytest.approx(
+        0.2
+    )
+
+
+def test_paired_basins_tolerance_is_strict_and_negative_yaws_wrap():
+    c = B.paired_basins([0.0, -1.0, 180.0], ["ok"] * 3, [355.0, 359.0, 0.0], ["ok"] * 3)
+    # 5° exactly is not below the 5° tolerance; -1° is 359°; half a turn apart is a flip
+    assert c["same_basin"] == 1 / 3 and c["median_dyaw_deg"] == 0.0 and c["max_dyaw_deg"] == 0.0
+    assert c["median_signed_dyaw_deg"] == 0.0
+
+
+def test_paired_basins_without_ok_pairs_or_without_pairs():
+    jam = B.paired_basins([np.nan, 5.0], ["jammed", "ok"], [np.nan, np.nan], ["jammed", "timed_out"])
+    assert jam["same_basin"] == 0.5 and np.isnan(jam["median_dyaw_deg"]) and np.isnan(jam["max_dyaw_deg"])
+    assert np.isnan(jam["median_signed_dyaw_deg"])
+    empty = B.paired_basins([], [], [], [])
+    assert empty["n"] == 0 and np.isnan(empty["same_basin"]) and np.isnan(empty["median_dyaw_deg"])
+    with pytest.raises(FeederError, match="differ in shape"):
+        B.paired_basins([1.0, 2.0], ["ok", "ok"], [1.0], ["ok"])
+
+
 def test_table_rows_measure_each_design_against_the_reference(tmp_path):
     cfg = settings()
     cfg["sim"]["design_bench"] |= {"drop_levels": [20, 400], "repeats": 4}

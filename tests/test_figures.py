@@ -261,7 +261,50 @@ def _label_emulation(path):
     pd.DataFrame(rows).to_csv(path, index=False)
 
 
+def _contact(path):
+    # two configurations per part with different values, so a missing mean over them shows
+    rows = [
+        {
+            "part": p,
+            "pieces": n,
+            "configuration": c,
+            "footprint": fp,
+            "cpu_ms_per_drop": base * n * k,
+            "same_basin_vs_reference": agree * k2,
+        }
+        for p, n in (("gear", 9), ("crescent", 36))
+        for c, k, k2 in (("a|b", 1.0, 1.0), ("c|d", 3.0, 0.5))
+        for fp, base, agree in (("pieces", 50.0, 0.8), ("pads16", 10.0, 0.9), ("pads32", 20.0, 1.0))
+    ]
+    pd.DataFrame(rows).to_csv(path, index=False)
+
+
+def _step(path):
+    # one part: the bare world (no configuration, no fit) and two configurations' drops
+    rows = [
+        {
+            "part": "rect",
+            "configuration": c,
+            "world": w,
+            "us_per_step": us,
+            "us_per_step_low": us - 1.0,
+            "us_per_step_high": us + 2.0,
+            "us_per_step_all": us * 1.1 if w == "drop" else np.nan,
+            "mean_contact_points": n,
+            "us_at_no_contact": a,
+            "us_per_contact_point": b,
+        }
+        for c, w, us, n, a, b in (
+            ("straight:30|none", "drop", 16.0, 6.0, 4.0, 2.0),
+            (np.nan, "bare", 7.0, 4.0, np.nan, np.nan),
+            ("curved:40|curved:60", "drop", 30.0, 12.0, 6.0, 2.0),
+        )
+    ]
+    pd.DataFrame(rows).to_csv(path, index=False)
+
+
 CASES = {
+    "step_cost": ("step.csv", _step, []),
     "label_designs": ("label_designs_summary.csv", _label_designs, []),
     "label_emulation": ("label_emulation.csv", _label_emulation, []),
     "fig6_dft_reconstruction": ("fig6.npz", _fig6, []),
@@ -279,6 +322,7 @@ CASES = {
     "jam_rates": ("jams.csv", _jams, []),
     "yaw_sampling": ("yaws.csv", _yaws, []),
     "sim_cost": ("sim_cost.csv", _sim_cost, []),
+    "contact_model": ("contact.csv", _contact, []),
 }
 
 
@@ -752,3 +796,39 @@ def test_label_designs_bands_span_each_designs_interval(tmp_path):
         for band, design in zip(bands, ("adaptive", "grid", "random"), strict=True):  # sorted by design
             sub = df[df.design == design].sort_values("simulations")
             _assert_band(band, sub.simulations, sub[f"{col}_lo"], sub[f"{col}_hi"])
+
+
+def test_contact_model_plots_each_footprints_mean_cost_and_agreement_against_pieces(tmp_path):
+    from feeder.figures import contact_model
+
+    _contact(tmp_path / "c.csv")
+    cost, agree = contact_model.draw(pd.read_csv(tmp_path / "c.csv")).axes
+    lines = _lines_by_label(cost)
+    assert list(lines) == ["each convex piece", "16 pads", "32 pads"]  # pieces first, then by pad count
+    # mean over the two configurations: base * pieces * (1 + 3) / 2
+    _assert_line(lines["each convex piece"], [9, 36], [50 * 9 * 2, 50 * 36 * 2])
+    _assert_line(lines["16 pads"], [9, 36], [10 * 9 * 2, 10 * 36 * 2])
+    _assert_line(_lines_by_label(agree)["32 pads"], [9, 36], [0.75, 0.75])
+    _assert_line(_lines_by_label(agree)["each convex piece"], [9, 36], [0.6, 0.6])
+    assert cost.get_yscale() == "log"
+
+
+def test_step_cost_plots_each_worlds_cost_with_its_interval_and_the_fitted_contact_lines(tmp_path):
+    from feeder.figures import step_cost
+
+    _step(tmp_path / "s.csv")
+    bars, fit = step_cost.draw(pd.read_csv(tmp_path / "s.csv")).axes
+    heights = [p.get_height() for p in bars.patches]
+    assert heights == pytest.approx([7.0, 30.0, 16.0])  # bare first, then the configurations sorted
+    labels = [t.get_text() for t in bars.get_xticklabels()]
+    assert labels == ["rect\nbare box", "rect\ncurved:40|curved:60", "rect\nstraight:30|none"]
+    (caps,) = [c for c in bars.collections]  # the error bars: low and high of each bar
+    segs = [np.asarray(s) for s in caps.get_segments()]
+    assert [(s[0][1], s[1][1]) for s in segs] == [(6.0, 9.0), (29.0, 32.0), (15.0, 18.0)]
+    (python,) = [ln for ln in bars.lines if ln.get_label() == "with the Python loop"]
+    assert list(python.get_ydata()) == pytest.approx([33.0, 17.6])
+    lines = _lines_by_label(fit)
+    # the fitted line of each configuration: a + b * points from 0 to twice its mean points
+    _assert_line(lines["rect curved:40|curved:60"], [0.0, 24.0], [6.0, 54.0])
+    _assert_line(lines["rect straight:30|none"], [0.0, 12.0], [4.0, 28.0])
+    _assert_line(lines["bare box"], [4.0], [7.0])

@@ -187,12 +187,31 @@ class PartCase:
     refused_by: tuple[str, ...] = (FEATURES, SIMULATE, PREDICT)
     units: str = "auto"  # feeder simulate --units
     xfail: dict[str, str] = field(default_factory=dict)  # command -> the bug it still shows
+    cause: str | None = None  # what the error line must say (regex), when not its family's
+
+    @property
+    def cause_pattern(self) -> str:
+        return self.cause or PART_CAUSES[self.family]
 
     @property
     def id(self) -> str:
         return f"{self.family}:{self.name}"
 
 
+# what the one error line says for each family (a regex, searched): a later check that still
+# refuses the input, but for another reason, fails the case (random bytes may fail any check)
+PART_CAUSES = {
+    "random": r"STL|empty",
+    "truncated": r"truncated|not an STL file",
+    "watertight": r"watertight|closed surface|boundary loop",
+    "extrusion": r"not an extrusion",
+    "self-intersecting": r"overlaps itself|not a simple polygon|closed surface",
+    "zero-thickness": r"thick|flat|distinct points|collinear|degenerate|closed surface",
+    "scale": r"across|thick",
+    "nonfinite": r"NaN or infinite",
+    "xyz": r"point cloud|line \d+|not planar|distinct points|collinear",
+    "suffix": r"unknown file type",
+}
 SCENE_REFUSERS = (SIMULATE, PREDICT)  # what must refuse a part file the scene cannot hold (its face is fine)
 
 
@@ -408,6 +427,7 @@ def _nonfinite() -> list[PartCase]:
             f"huge-x{HUGE_SCALE:g}",
             binary_stl(huge),
             refused_by=SCENE_REFUSERS,
+            cause="across",  # finite, and far too large for the belt
         )
     )
     return cases
@@ -437,8 +457,9 @@ def _xyz() -> list[PartCase]:
     cloud = pts.copy()
     cloud[:, 2] = rng.uniform(0.0, PART_RADIUS_M * MM_PER_M, len(cloud))  # a 3D cloud, not a face
     cases.append(PartCase("xyz", "not-planar", xyz_text(cloud), ".xyz"))
-    stl = binary_stl(prism(star_outline(rng), PART_THICKNESS_M))  # simulate reads any file as an STL
-    cases.append(PartCase("xyz", "stl-bytes-named-xyz", stl, ".xyz", refused_by=(FEATURES, PREDICT)))
+    # STL bytes under .xyz: features and predict read a cloud, simulate refuses a cloud by name
+    stl = binary_stl(prism(star_outline(rng), PART_THICKNESS_M))
+    cases.append(PartCase("xyz", "stl-bytes-named-xyz", stl, ".xyz"))
     # a sound STL under a suffix no command reads as a part (simulate reads any file as an STL)
     obj = binary_stl(prism(star_outline(rng), PART_THICKNESS_M))
     cases.append(PartCase("suffix", "stl-named-obj", obj, ".obj", refused_by=(FEATURES, PREDICT)))
@@ -944,10 +965,14 @@ def refusal_problems(outcome: Outcome, before: dict, out: Path) -> list[str]:
     return problems
 
 
-def assert_refused(outcome: Outcome, before: dict, out: Path, named: str | None = None) -> None:
+def assert_refused(
+    outcome: Outcome, before: dict, out: Path, named: str | None = None, cause: str | None = None
+) -> None:
     problems = refusal_problems(outcome, before, out)
     if named is not None and named not in outcome.err:
         problems.append(f"the error does not name {named!r}")
+    if cause is not None and not re.search(cause, outcome.err):
+        problems.append(f"the error does not give the cause /{cause}/")
     assert not problems, f"{'; '.join(problems)}\n--- stderr ---\n{outcome.err[-3000:]}"
 
 
@@ -1018,7 +1043,8 @@ def test_broken_part_file_is_refused(case, command, inputs, tmp_path):
     part.write_bytes(case.data)
     out = out_dir(tmp_path)
     before = snapshot(out)
-    assert_refused(run_cli(_part_argv(case, command, part, out, inputs["model"])), before, out)
+    outcome = run_cli(_part_argv(case, command, part, out, inputs["model"]))
+    assert_refused(outcome, before, out, cause=case.cause_pattern)
 
 
 @pytest.fixture

@@ -6,6 +6,7 @@ import pytest
 import shapely
 
 from feeder.errors import FeederError
+from feeder.parts import geometry as G
 from feeder.parts.geometry import (
     PartGeometry,
     clean_outline,
@@ -185,7 +186,12 @@ def _write_bad(tmp_path, kind):
         top = t[:, :, 2] > 0.005
         t[top, 0] += 0.003  # shear: top face shifted in x
         path.write_text(_ascii_stl(t))
-    elif kind == "ring":  # square with a square hole: not simply connected
+    elif kind == "two-bodies":  # two separate squares in one file
+        a = stl_bytes(np.array([(0, 0), (0.01, 0), (0.01, 0.01), (0, 0.01)], float), 0.005)
+        b = stl_bytes(np.array([(0.02, 0), (0.03, 0), (0.03, 0.01), (0.02, 0.01)], float), 0.005)
+        count = struct.unpack("<I", a[80:84])[0] + struct.unpack("<I", b[80:84])[0]
+        path.write_bytes(a[:80] + struct.pack("<I", count) + a[84:] + b[84:])
+    elif kind == "ring":  # square with a square hole, its STL built by hand
         outer = shapely.Polygon(
             [(0, 0), (0.04, 0), (0.04, 0.04), (0, 0.04)], [[(0.01, 0.01), (0.01, 0.03), (0.03, 0.03), (0.03, 0.01)]]
         )
@@ -223,7 +229,7 @@ def _write_bad(tmp_path, kind):
         ("open", "not watertight"),
         ("midplane", "not an extrusion along z"),
         ("slanted", "not an extrusion along z"),
-        ("ring", "more than one boundary loop"),
+        ("two-bodies", "more than one outer boundary loop"),
         ("garbage", "not an STL"),
         ("millimetres", "is the file in millimetres"),
     ],
@@ -279,3 +285,120 @@ def test_load_outline_is_load_parts_outline(tmp_path):
     broken.write_bytes(b"solid x\nendsolid x\n")
     with pytest.raises(FeederError, match="broken.stl"):
         load_outline(broken)
+
+
+# ------------------------------------------------------------------------------------------
+# through-holes
+# ------------------------------------------------------------------------------------------
+def test_a_hand_built_ring_loads_with_the_hole_taken_out(tmp_path):
+    """A 40 mm square with a 20 mm square hole in the middle, its STL written by hand (not by
+    stl_bytes): area 40² - 20², centroid at the middle, Ixx = Iyy = (40⁴ - 20⁴) / 12 (mm⁴)."""
+    g = load_part(_write_bad(tmp_path, "ring"))
+    assert len(g.holes) == 1 and g.outline.shape == (4, 2)
+    assert g.area == pytest.approx(0.04**2 - 0.02**2, rel=1e-6)
+    np.testing.assert_allclose(g.centroid, [0.02, 0.02], atol=1e-9)
+    ixx, iyy, ixy = g.second_moment
+    assert ixx == pytest.approx((0.04**4 - 0.02**4) / 12, rel=1e-5) and iyy == pytest.approx(ixx, rel=1e-9)
+    assert abs(ixy) < 1e-15
+    _assert_pieces_tile(g)
+
+
+def test_an_off_centre_hole_moves_the_centroid_by_hand(tmp_path):
+    """40 x 20 mm with a 10 x 10 mm hole centred at (15, 10): x̄ = (800·20 − 100·15) / 700 mm, and
+    Iyy by the parallel-axis theorem."""
+    hole = np.array([(0.01, 0.005), (0.02, 0.005), (0.02, 0.015), (0.01, 0.015)])
+    g = PartGeometry.from_polygon("plate", [(0, 0), (0.04, 0), (0.04, 0.02), (0, 0.02)], 0.005, [hole])
+    xbar = (800 * 20 - 100 * 15) / 700 / 1000
+    assert g.area == pytest.approx(0.0007) and g.centroid == pytest.approx([xbar, 0.01])
+    iyy = (0.02 * 0.04**3 / 12 + 0.0008 * (0.02 - xbar) ** 2) - (0.01**4 / 12 + 0.0001 * (0.015 - xbar) ** 2)
+    assert g.second_moment[1] == pytest.approx(iyy, rel=1e-9)
+    assert g.second_moment[0] == pytest.approx(0.04 * 0.02**3 / 12 - 0.01**4 / 12, rel=1e-9)
+    _assert_pieces_tile(g)
+    # the same through an STL: read back, the outline is the outer contour and the hole is kept
+    path = tmp_path / "plate.stl"
+    path.write_bytes(stl_bytes(g.outline, 0.005, "plate", holes=g.holes))
+    back = load_part(path)
+    assert back.area == pytest.approx(g.area, rel=1e-6) and back.centroid == pytest.approx(g.centroid, abs=1e-8)
+    assert len(back.holes) == 1 and len(back.outline) == 4
+    from feeder.parts.geometry import read_outline
+
+    outer, thickness = read_outline(path)  # the contour the shape features use (as in the paper)
+    assert shapely.Polygon(outer).area == pytest.approx(0.0008, rel=1e-6) and thickness == pytest.approx(0.005)
+
+
+def _assert_pieces_tile(g):
+    """The convex pieces are convex, cover the part's area exactly and none reaches into a hole."""
+    pieces = [shapely.Polygon(p) for p in g.convex_pieces]
+    assert all(is_convex(p) for p in g.convex_pieces)
+    assert sum(p.area for p in pieces) == pytest.approx(g.area, rel=1e-9)
+    region = shapely.Polygon(g.outline, [np.asarray(h) for h in g.holes])
+    assert shapely.union_all(pieces).symmetric_difference(region).area < 1e-9 * g.area
+
+
+@pytest.mark.parametrize(
+    "outline, holes, msg",
+    [
+        ([(0, 0), (4, 0), (4, 4), (0, 4)], [[(1, 1), (5, 1), (5, 3), (1, 3)]], "holes"),  # sticks out
+        ([(0, 0), (4, 0), (4, 4), (0, 4)], [[(1, 1), (2, 1), (2, 2), (1, 2)], [(1.5, 1.5), (3, 1.5), (3, 3)]], "holes"),
+        ([(0, 0), (4, 0), (4, 4), (0, 4)], [[(0, 2), (2, 1), (3, 2), (2, 3)]], "holes"),  # a corner on the edge
+    ],
+    ids=["hole-outside", "holes-overlap", "hole-touches-outline"],
+)
+def test_bad_holes_are_refused_when_building_or_writing(outline, holes, msg):
+    with pytest.raises(FeederError, match=msg):
+        PartGeometry.from_polygon("bad", outline, 0.01, holes)
+    with pytest.raises(FeederError, match=msg):
+        stl_bytes(np.array(outline, float), 0.01, holes=[np.array(h, float) for h in holes])
+
+
+def test_a_part_without_holes_is_built_as_before():
+    g = PartGeometry.from_polygon("l", L_SHAPE, 0.01)
+    area, centroid, moments = polygon_moments(clean_outline(np.array(L_SHAPE, float)))
+    assert g.holes == () and g.area == area and np.array_equal(g.centroid, centroid) and g.second_moment == moments
+    assert [p.tolist() for p in g.convex_pieces] == [p.tolist() for p in convex_decomposition(g.outline)]
+
+
+def test_holes_that_touch_each_other_are_refused_by_name():
+    outline = np.array([(0, 0), (0.04, 0), (0.04, 0.02), (0, 0.02)], float)
+    left = np.array([(0.01, 0.01), (0.005, 0.015), (0.005, 0.005)])
+    right = np.array([(0.01, 0.01), (0.015, 0.005), (0.015, 0.015)])  # shares the vertex (0.01, 0.01)
+    with pytest.raises(FeederError, match="holes 1 and 2 touch or overlap"):
+        G.PartGeometry.from_polygon("x", outline, 0.003, [left, right])
+    with pytest.raises(FeederError, match="^hole 2 has fewer than 3 distinct"):
+        G.PartGeometry.from_polygon("x", outline, 0.003, [left, np.array([(0.02, 0.01), (0.02, 0.01), (0.03, 0.01)])])
+
+
+@pytest.mark.parametrize("radius", [1e-6, 3e-6, 1e-4])
+def test_a_tiny_hole_still_gives_convex_pieces_that_tile_the_region(radius):
+    """The convexity test judges the turn, not the cross product against the longest edge, so a
+    hole whose edges are a millionth of the part's size does not make a reflex piece look convex."""
+    import shapely
+
+    t = np.linspace(0.0, 2.0 * np.pi, 16, endpoint=False)
+    hole = np.column_stack([0.01 + radius * np.cos(t), 0.01 + radius * np.sin(t)])
+    outline = np.array([(0, 0), (0.04, 0), (0.04, 0.02), (0, 0.02)], float)
+    g = G.PartGeometry.from_polygon("x", outline, 0.003, [hole])
+    pieces = [shapely.Polygon(p) for p in g.convex_pieces]
+    assert all(p.is_valid and p.convex_hull.area - p.area <= 1e-9 * p.area for p in pieces)
+    region = shapely.Polygon(outline, [hole])
+    assert shapely.union_all(pieces).symmetric_difference(region).area <= 1e-12 * region.area
+    assert sum(p.area for p in pieces) == pytest.approx(region.area, rel=1e-12)
+
+
+def test_is_convex_judges_the_turn_whatever_the_edge_lengths():
+    # a dent of 1e-12 between two edges 1e-6 long in the top of the unit square: a reflex turn of
+    # 2e-6 rad, whose cross product (2e-18) an edge of 1 used to hide
+    dent = np.array([(0, 0), (1, 0), (1, 1), (0.5 + 1e-6, 1), (0.5, 1 - 1e-12), (0.5 - 1e-6, 1), (0, 1)], float)
+    assert G.signed_area(dent) > 0 and not G.is_convex(dent)
+    assert G.is_convex(np.array([(0.0, 0.0), (1.0, 0.0), (1.0, 1.0), (0.5, 1.0), (0.0, 1.0)]))  # collinear: allowed
+
+
+def test_thinnest_wall_is_the_least_material_around_a_hole_by_hand():
+    outline = np.array([(0, 0), (0.04, 0), (0.04, 0.02), (0, 0.02)], float)
+    square = lambda a, b, c, d: np.array([(a, b), (c, b), (c, d), (a, d)], float)  # noqa: E731
+    assert G.thinnest_wall(outline, []) == np.inf
+    assert G.thinnest_wall(outline, [square(0.005, 0.003, 0.01, 0.01)]) == pytest.approx(0.003)  # to y = 0
+    # two holes 2 mm apart, each at least 5 mm from the outline
+    assert G.thinnest_wall(outline, [square(0.005, 0.005, 0.01, 0.01), square(0.012, 0.005, 0.02, 0.01)]) == (
+        pytest.approx(0.002)
+    )

@@ -176,6 +176,16 @@ def test_plot_draws_the_part_at_its_most_likely_yaw(tmp_path):
     np.testing.assert_allclose(drawn, P.rotated_outline(square, 30.5))
     np.testing.assert_allclose(P.rotated_outline(square, 90.0)[0], [5.0, -10.0], atol=1e-9)  # by hand
     assert len(P.plot(frame, "t").axes) == 2  # without a part: the PMF and its CDF axis only
+    # a hole turns with its part, about the part's centre (0.01, 0.005): its corner (0.012, 0.002)
+    # lies at (2, -3) mm from it, so at 90 deg it is drawn at (3, 2)
+    hole = np.array([[0.012, 0.002], [0.014, 0.002], [0.014, 0.004]])
+    pmf90 = np.zeros(360)
+    pmf90[90] = 1.0
+    frame90 = pd.DataFrame({"angle_deg": np.arange(360.0), "pmf": pmf90, "cdf": np.cumsum(pmf90)})
+    lines = P.plot(frame90, "t", square, [hole]).axes[1].get_lines()
+    drawn_hole = np.column_stack(lines[1].get_data())[:-1]
+    np.testing.assert_allclose(drawn_hole, P.rotated_outline(hole, 90.5, centre=square.mean(axis=0)))
+    np.testing.assert_allclose(P.rotated_outline(hole, 90.0, centre=square.mean(axis=0))[0], [3.0, 2.0], atol=1e-9)
 
 
 def test_principal_frame_model_answers_in_the_part_frame(model_dir, tmp_path):
@@ -284,3 +294,29 @@ def test_recommend_ranks_the_study_grid_by_default(model_dir, capsys):
     base = ["--model", str(model_dir / "m3"), "--features", str(model_dir / "p0.json")]
     assert R.main([*base, "--target", "0", "--tolerance", "10"]) == 0
     assert f"{len(grid)} configurations" in capsys.readouterr().out
+
+
+def test_predict_answers_a_part_with_a_hole_with_a_note(model_dir, tmp_path, capsys):
+    """A plate with a bolt hole: answered (the features are its outer contour, as in the paper), with
+    one note on stderr that the model does not see the hole; the same plate without it gets none."""
+    from feeder.parts.geometry import stl_bytes
+    from feeder.parts.shapes import holes_mm, outline_mm
+
+    spec = "plate-60x30x10"
+    for name, holes in (("holed", holes_mm(spec)), ("solid", [])):
+        part = tmp_path / f"{name}.stl"
+        part.write_bytes(stl_bytes(outline_mm(spec), 5.0, name, holes=holes))
+        argv = ["--model", str(model_dir / "m3"), "--part", str(part), "--loc1", "straight:30", "--loc2", "none"]
+        assert P.main([*argv, "--out", str(tmp_path / f"{name}.csv")]) == 0
+        notes = [line for line in capsys.readouterr().err.splitlines() if "through-hole" in line]
+        assert notes == (
+            [
+                "feeder predict: note: holed.stl has 1 through-hole(s); the model sees its outer "
+                "contour only, so check the answer with feeder simulate"
+            ]
+            if holes
+            else []
+        )
+    # the outer contour is the same, so is the answer
+    holed, solid = (pd.read_csv(tmp_path / f"{n}.csv") for n in ("holed", "solid"))
+    np.testing.assert_allclose(holed.pmf, solid.pmf, atol=1e-12)

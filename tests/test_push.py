@@ -307,3 +307,11 @@ def test_feature_block_layout():
     empty = dict(zip(names, P.push_features(L_SHAPE, "none", "none", SCENE)))
     assert empty["loc1_present"] == 0.0 and empty["ok_mass"] == 1.0
     assert abs(complex(empty["re_c1"], empty["im_c1"])) < 1e-12
+
+
+def test_a_part_with_holes_is_refused_by_the_push_analysis():
+    from feeder.parts.shapes import shape_part
+
+    with pytest.raises(FeederError, match="part washer-25x8: the push analysis takes parts without holes"):
+        P.as_geometry(shape_part("washer-25x8", 0.005))
+    P.as_geometry(shape_part("rect-40x20", 0.005))  # no holes: fine

@@ -475,3 +475,24 @@ def test_recommend_with_a_push_model_ranks_with_each_configurations_push_block(p
         push = PU.push_features(outline, loc1, loc2, SCENE)
         pmf, _ = tm.predict(as_vector(features_of_file(STL)), D.feeder_vector(loc1, loc2), push)
         assert ranked.loc[cid, "probability"] == pytest.approx(R.window_probability(pmf[0], 90.0, 10.0)[()])
+
+
+def test_the_card_check_compares_the_version_of_the_models_own_inputs(tmp_path):
+    """A paper+push model's card records the push version; the paper version is not enough for
+    it, and a paper model's card (no inputs in its spec) is checked against the paper version."""
+    from feeder.learn import export as E
+
+    def card(inputs, version):
+        spec = {"name": "m3"} if inputs is None else {"name": "m3", "inputs": inputs}
+        (tmp_path / E.CARD_FILE).write_text(json.dumps({"spec": spec, "features_version": version}))
+
+    card("paper+push", D.features_version("paper+push"))
+    E.check_card(tmp_path)
+    card("paper+push", D.features_version("paper"))
+    with pytest.raises(FeederError, match="features version"):
+        E.check_card(tmp_path)
+    card(None, D.features_version("paper"))
+    E.check_card(tmp_path)
+    card("paper+cake", D.features_version("paper"))
+    with pytest.raises(FeederError, match="unknown model inputs 'paper\\+cake'"):
+        E.check_card(tmp_path)

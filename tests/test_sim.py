@@ -386,10 +386,12 @@ def test_cli_bad_input_one_line_error_no_output(tmp_path, args, needle):
 # ------------------------------------------------------------------------------------------
 # the body in pybullet
 # ------------------------------------------------------------------------------------------
-def _world(geom, loc1="straight:45", lanes=1, preset=FAST):
-    model = simbody.part_model(geom, SCENE)
-    plan = sim.make_plan(SCENE, parse_location(loc1), parse_location("none"), model, False)
-    return simbody.World(SCENE, preset, plan, lanes, model), model, plan
+def _world(geom, loc1="straight:45", lanes=1, preset=FAST, scene=SCENE):
+    """A world of ``lanes`` lanes for ``geom`` behind the fence ``loc1`` (tests/test_footprint.py
+    passes its padded scene): ``(world, part model, plan)``."""
+    model = simbody.part_model(geom, scene)
+    plan = sim.make_plan(scene, parse_location(loc1), parse_location("none"), model, False)
+    return simbody.World(scene, preset, plan, lanes, model), model, plan
 
 
 def test_part_rests_at_true_half_thickness_with_set_mass_and_inertia():
@@ -610,3 +612,22 @@ def test_a_part_in_millimetres_with_its_origin_moved_drops_like_the_metre_part(t
         np.testing.assert_array_equal(outs[name][1], outs["m"][1])
         d = np.abs((outs[name][0] - outs["m"][0] + 180.0) % 360.0 - 180.0)
         assert np.nanmax(d) < 0.5
+
+
+@pytest.mark.parametrize("wall_mm, refused", [(0.1, True), (0.19, True), (0.25, False)])
+def test_a_wall_around_a_hole_thinner_than_two_margins_is_refused(wall_mm, refused):
+    """Each convex piece is inset by the collision margin (0.1 mm): a wall of 0.2 mm or less
+    between a hole and the outline would vanish from the collision shape (measured: 3 of 4
+    pieces kept at exactly 0.2 mm), leaving a notch a fence could push into."""
+    margin = float(SCENE["part"]["collision_margin"])
+    assert margin == pytest.approx(1e-4)  # the wall widths above are about this margin
+    w = 1e-3 * wall_mm
+    outline = np.array([(0, 0), (0.04, 0), (0.04, 0.02), (0, 0.02)], float)
+    hole = np.array([(w, 0.003), (0.015, 0.003), (0.015, 0.017), (w, 0.017)])
+    geom = PartGeometry.from_polygon("thin-wall", outline, 0.003, [hole])
+    if refused:
+        with pytest.raises(FeederError, match=r"part thin-wall: .* mm of material between a hole and the outline"):
+            simbody.part_model(geom, SCENE)
+    else:
+        model = simbody.part_model(geom, SCENE)
+        assert len(model.pieces) == len(geom.convex_pieces)  # every piece kept, the wall included

@@ -3,11 +3,10 @@
 Theory (quasi-static pushing; Goldberg's radius function; Mason / Peshkin & Sanderson): a part
 pushed by a long fence turns until an edge lies flush; with a uniform initial yaw the long edge of
 a 2:1 rectangle ends flush with probability 2·atan(2)/π; a fence whose normal makes β with the
-belt velocity holds parts unless tan β > μ_fence. Every shortcut of the fast preset is compared
-with the full simulation on the same seeds: its JS divergence must stay below the noise floor of
-the full simulation (the two-seed JS, or 95 % of bootstrap JS values from the two seeds pooled if
-larger: near-discrete outcomes have a tiny two-seed JS while any numerical change reshuffles drops
-within their sub-degree peaks).
+belt velocity holds parts unless tan β > μ_fence. Every shortcut of the fast preset, and lanes,
+is compared drop by drop with the simulation without it, on the same initial yaws
+(:func:`feeder.bench.designs.paired_basins`): pooled distributions hide a drop that flips basin
+while another flips back.
 """
 
 import copy
@@ -20,6 +19,7 @@ import pytest
 import yaml
 
 from feeder.bench.accuracy import bootstrap_js_floor
+from feeder.bench.designs import paired_basins
 from feeder.labels import metrics as labels
 from feeder.parts.shapes import mirror_part, mod180_dist, shape_part
 from feeder.sim import body as simbody
@@ -136,7 +136,7 @@ def test_halving_the_time_step_moves_the_pmf_less_than_the_noise_floor(shape, lo
 
 
 # ------------------------------------------------------------------------------------------
-# shortcuts against the full simulation (same seeds), three scenes each
+# shortcuts and lanes against the simulation without them, drop by drop (same initial yaws)
 # ------------------------------------------------------------------------------------------
 SCENES = [
     ("rect-40x20", "straight:45", "none"),
@@ -147,34 +147,78 @@ SHORTCUT_DROPS = 50
 # a shorter belt for the full path (start 0.2 m before Location 2, record just past the fences)
 SHORT_BELT = copy.deepcopy(SCENE)
 SHORT_BELT["belt"].update(start_y=0.3, end_y=0.0, end_margin=0.1)
-_FULL_CACHE = {}
+# Goals of issues #19/#23 for a pair of runs of the same 50 drops: at most 1 of 50 drops in another
+# basin, median |Δ final yaw| of the rest at most 0.3°. Measured (docs/testing.md, "Paired shortcut
+# checks (measured)"): every case below meets them; the closest are 25 lanes on the L (0.98: one
+# drop 85° away) and a median of 0.24° (all shortcuts on the L). The full simulation's own floor
+# (started 0.1 m earlier, or initial yaws moved by 0.01°): same basin 1.0, median 0.08–0.22°.
+SAME_BASIN_GOAL = 0.98
+MEDIAN_DYAW_GOAL_DEG = 0.3
+# ... and no systematic turn: |median signed Δ| at most 0.15°. Measured on every case below: at
+# most 0.115° (slide skipping on the rect), 0.06° or less on the others. A slide skip that lands
+# 1 cm past the tip instead of before it turns the L's drops by +0.21° (docs/testing.md).
+SIGNED_SHIFT_GOAL_DEG = 0.15
+# the settings compared: (name, overrides of PROOF, overrides of PROOF for its baseline)
+SHORTCUTS = [
+    ("all shortcuts (fast)", {}, FULL),
+    ("lanes only", {"lanes": 25, "full_path": True, "skip_slides": False}, FULL),
+    ("start/teleport/stop only", {"lanes": 1, "skip_slides": False}, FULL),
+    # the slide skip acts only without the full path (drops.Limits), so it is isolated against the
+    # same start/teleport/stop shortcuts without it (against FULL it would repeat the fast case)
+    ("slide skipping only", {"lanes": 1, "full_path": False, "skip_slides": True}, {"skip_slides": False}),
+]
+_RUNS = {}
 
 
-def _full(scene_key, seed):
-    """The full simulation (no shortcut at all) of one scene, cached per test module."""
-    if (scene_key, seed) not in _FULL_CACHE:
-        _FULL_CACHE[(scene_key, seed)] = _sim(*scene_key, SHORTCUT_DROPS, seed=seed, preset=FULL, scene=SHORT_BELT)
-    return _FULL_CACHE[(scene_key, seed)]
+def _run(scene_key, preset):
+    """One run of SHORTCUT_DROPS drops (seed 0) on the short belt, cached per test module."""
+    key = (scene_key, json.dumps(preset, sort_keys=True))
+    if key not in _RUNS:
+        _RUNS[key] = _sim(*scene_key, SHORTCUT_DROPS, seed=0, preset=preset, scene=SHORT_BELT)
+    return _RUNS[key]
+
+
+def _paired(run, baseline, what):
+    """``paired_basins`` of two runs of the same drops, and a message with its numbers."""
+    assert np.array_equal(run["initial_yaw_deg"], baseline["initial_yaw_deg"])  # the same drops
+    c = paired_basins(run["final_yaw_deg"], run["status"], baseline["final_yaw_deg"], baseline["status"])
+    return c, (
+        f"{what}: same basin {c['same_basin']:.3f} (goal >= {SAME_BASIN_GOAL}), median |dyaw| "
+        f"{c['median_dyaw_deg']:.3f} deg (goal <= {MEDIAN_DYAW_GOAL_DEG}), median signed dyaw "
+        f"{c['median_signed_dyaw_deg']:+.3f} deg (goal within +-{SIGNED_SHIFT_GOAL_DEG}), "
+        f"max {c['max_dyaw_deg']:.3f} deg, n {c['n']}"
+    )
+
+
+def _meets_goals(c) -> bool:
+    return (
+        c["same_basin"] >= SAME_BASIN_GOAL
+        and c["median_dyaw_deg"] <= MEDIAN_DYAW_GOAL_DEG
+        and abs(c["median_signed_dyaw_deg"]) <= SIGNED_SHIFT_GOAL_DEG
+    )
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize("scene_key", SCENES, ids=lambda s: "_".join(s))
-@pytest.mark.parametrize(
-    "name, overrides",
-    [
-        ("all shortcuts (fast)", {}),
-        ("lanes only", {"lanes": 25, "full_path": True, "skip_slides": False}),
-        ("start/teleport/stop only", {"lanes": 1, "skip_slides": False}),
-        ("slide skipping only", {"lanes": 1, "full_path": False, "skip_slides": True}),
-    ],
-)
-def test_shortcut_matches_full_simulation(scene_key, name, overrides):
-    r0, r1 = _full(scene_key, 0), _full(scene_key, 1)
-    short = _sim(*scene_key, SHORTCUT_DROPS, seed=0, preset=dict(PROOF, **overrides), scene=SHORT_BELT)
-    assert np.array_equal(short["initial_yaw_deg"], r0["initial_yaw_deg"])  # the same drops
-    f0, f1 = r0["final_yaw_deg"], r1["final_yaw_deg"]
-    js, floor = _js(short["final_yaw_deg"], f0), _floor(f1, f0)
-    assert js < floor, f"{name} on {scene_key}: JS {js:.4f} >= floor {floor:.4f}"
+@pytest.mark.parametrize("name, overrides, baseline", SHORTCUTS, ids=[s[0] for s in SHORTCUTS])
+def test_shortcut_matches_full_simulation(scene_key, name, overrides, baseline):
+    run = _run(scene_key, dict(PROOF, **overrides))
+    base = _run(scene_key, dict(PROOF, **baseline))
+    c, msg = _paired(run, base, f"{name} on {scene_key}")
+    assert c["n"] == SHORTCUT_DROPS, msg
+    assert _meets_goals(c), msg
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("scene_key", SCENES, ids=lambda s: "_".join(s))
+def test_two_lanes_give_the_drops_of_one_lane(scene_key):
+    """Lanes > 1 must leave each drop where one lane puts it (issue #23): the fast shortcuts with
+    2 lanes against 1, the same drops. Measured: same basin 1.0, median 0.13–0.23° (lanes 4:
+    1.0, 0.12–0.29°), within the full simulation's own floor."""
+    two = _run(scene_key, dict(PROOF, lanes=2))
+    one = _run(scene_key, dict(PROOF, lanes=1))
+    c, msg = _paired(two, one, f"2 lanes against 1 on {scene_key}")
+    assert _meets_goals(c), msg
 
 
 # ------------------------------------------------------------------------------------------
@@ -190,13 +234,38 @@ HARD = [
     ("rect-40x20", "straight:89", "none"),
     ("rect-100x50", "curved:0", "curved:90"),
     ("tri-40x25", "curved:60", "curved:30"),  # curved + curved
+    ("washer-25x8", "straight:30", "curved:45"),  # through-holes: a ring
+    ("plate-60x30x10", "straight:40", "none"),  # a bolt hole off the middle: mass off the outline's centroid
+]
+
+
+PADS = dict(model="pads", pads=16, pad_radius=0.001)
+# the hard cases again on footprint pads (scene.belt.footprint), with the library's thinnest part
+HARD_PADS = [
+    case
+    for case in HARD
+    if case[0] in ("rect-80x8", "rect-10x8", "c-40x30x8", "star-5x25x10", "tri-40x25", "washer-25x8", "plate-60x30x10")
 ]
 
 
 @pytest.mark.parametrize("shape, loc1, loc2", HARD)
 def test_hard_case_is_stable(shape, loc1, loc2):
-    geom = shape_part(shape, 0.005)
-    res = _sim(geom, loc1, loc2, 10, check_fences=True)
+    _check_hard_case(shape_part(shape, 0.005), loc1, loc2, SCENE)
+
+
+@pytest.mark.parametrize("shape, loc1, loc2", HARD_PADS + [("crescent-thin", "straight:30", "curved:40")])
+def test_hard_case_is_stable_on_footprint_pads(shape, loc1, loc2):
+    from feeder.parts.geometry import load_part
+
+    scene = copy.deepcopy(SCENE)
+    scene["belt"]["footprint"] = PADS
+    geom = load_part(ROOT / "parts" / f"{shape}.stl") if shape == "crescent-thin" else shape_part(shape, 0.005)
+    res = _check_hard_case(geom, loc1, loc2, scene)
+    assert "flipped" not in set(res["status"])  # pads hold only the bottom: no part tips over
+
+
+def _check_hard_case(geom, loc1, loc2, scene):
+    res = _sim(geom, loc1, loc2, 10, scene=scene, check_fences=True)
     d = res["diag"]
     status = res["status"]
     assert "nan" not in set(status)
@@ -204,7 +273,7 @@ def test_hard_case_is_stable(shape, loc1, loc2):
     assert not d["inside_fence"].any()  # the centroid never entered a fence: no tunnelling
     # no energy gain: never faster than the belt by more than a quarter (world frame), and the
     # kinetic energy never beyond twice the energy of riding the belt
-    model = simbody.part_model(geom, SCENE)
+    model = simbody.part_model(geom, scene)
     assert d["max_speed"].max() <= 1.25 * V
     energy = 0.5 * model.mass * d["max_speed"] ** 2 + 0.5 * model.inertia[2] * d["max_omega"] ** 2
     assert energy.max() <= 2.0 * 0.5 * model.mass * V**2
@@ -214,7 +283,8 @@ def test_hard_case_is_stable(shape, loc1, loc2):
     assert sum(counts.values()) == 10 and counts["ok"] == ok.sum()
     # a part that went past a Location 1 straight fence ends on its inner side (not behind it)
     if loc1.startswith("straight") and loc2 == "none" and ok.any() and d["plan_fences"]:
-        (box,) = sim.make_plan(SCENE, parse_location(loc1), parse_location(loc2), model, False).fences[0].boxes
+        (box,) = sim.make_plan(scene, parse_location(loc1), parse_location(loc2), model, False).fences[0].boxes
         cx, cy, hl, ht, yaw = box
         tip_x = cx + hl * math.cos(yaw)
         assert (d["final_x"][ok] < tip_x + model.radius).all()
+    return res

@@ -118,3 +118,28 @@ def test_rotational_order_equals_measuring_every_order_in_full():
         for tol in (S.DEFAULT_SYMMETRY_TOLERANCE, 0.05, 1e-6):
             full = next((n for n in range(S.DEFAULT_MAX_ORDER, 1, -1) if S.symmetry_error(outline, n) <= tol), 1)
             assert S.rotational_order(outline, tol) == full
+
+
+# ------------------------------------------------------------------------------------------
+# through-holes count
+# ------------------------------------------------------------------------------------------
+def _ring(radius, vertices, centre=(0.0, 0.0)):
+    a = 2 * np.pi * np.arange(vertices) / vertices
+    return np.column_stack([centre[0] + radius * np.cos(a), centre[1] + radius * np.sin(a)])
+
+
+def test_holes_take_part_in_the_symmetry():
+    square = np.array([(0, 0), (4, 0), (4, 4), (0, 4)], float)
+    middle = np.array([(1.5, 1.5), (2.5, 1.5), (2.5, 2.5), (1.5, 2.5)])
+    assert S.rotational_order(square, holes=[middle]) == 4  # a square hole in the middle keeps 4-fold
+    # two holes opposite each other: a half turn maps them onto each other, a quarter turn does not
+    small = np.array([(-0.25, -0.25), (0.25, -0.25), (0.25, 0.25), (-0.25, 0.25)])
+    assert S.rotational_order(square, holes=[small + (1.5, 2), small + (2.5, 2)]) == 2
+    # one hole off the middle: the centroid moves and no turn maps the part onto itself
+    assert S.rotational_order(square, holes=[middle + (1, 0)]) == 1
+    assert S.symmetry_error(square, 4, holes=[middle + (1, 0)]) > 0.01
+    with pytest.raises(FeederError, match="no 4-fold symmetry"):
+        S.check_order(square, 4, holes=[middle + (1, 0)])
+    # a 32-gon with a centred 16-gon hole: 8-fold, the largest order up to 12 that both have
+    assert S.rotational_order(_ring(1.0, 32), holes=[_ring(0.4, 16)]) == 8
+    assert S.rotational_order(_ring(1.0, 32), holes=[_ring(0.2, 16, (0.5, 0.0))]) == 1

@@ -29,6 +29,14 @@ COMMANDS: dict[str, tuple[str, str]] = {
         "feeder.bench.emulation",
         "JS(P_N, P_all) of drops emulated through the adaptive design against real independent drops",
     ),
+    "bench-contact": (
+        "feeder.bench.contact",
+        "the belt footprint: each convex piece against footprint pads, the same drops paired",
+    ),
+    "bench-step": (
+        "feeder.bench.step",
+        "what one simulation step costs against a bare one-box world, and what it is spent on",
+    ),
     "bench-cost": ("feeder.bench.cost", "project the simulation stage's CPU and wall time from a sample of its jobs"),
     "bench-scheduler": ("feeder.bench.scheduler", "CPU the snakemake process spends scheduling simulation jobs"),
     "bench-predict": (

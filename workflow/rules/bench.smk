@@ -7,6 +7,8 @@
 #   results/tables/jam_rates.csv              (+ figure)  ok and jam rates of each fence angle
 #   results/tables/sim_cost.csv, sim_cost_sample.csv (+ figure)  the stage's projected cost
 #   results/tables/label_emulation*.csv       (+ figure)  emulated i.i.d. drops against real ones
+#   results/tables/contact_model.csv          (+ figure)  the belt footprint: pieces against pads
+#   results/tables/step_cost.csv              (+ figure)  CPU of one step against a bare one-box world
 
 from feeder.bench.emulation import entries as emulation_bench_entries, run_settings as emulation_run_settings
 from feeder.bench.predict import DEFAULT_PARTS as PREDICT_BENCH_DEFAULT_PARTS
@@ -26,6 +28,10 @@ BENCH_TARGETS = [
     f"{RESULTS}/tables/label_emulation.csv",
     f"{RESULTS}/tables/label_emulation_summary.csv",
     f"{RESULTS}/figures/label_emulation.png",
+    f"{RESULTS}/tables/contact_model.csv",
+    f"{RESULTS}/figures/contact_model.png",
+    f"{RESULTS}/tables/step_cost.csv",
+    f"{RESULTS}/figures/step_cost.png",
 ]
 # the design bench's configurations: one simulation job each (resumable), raw data kept, in a
 # directory named by the preset and the reference's resolution, so a smaller run (smoke) never
@@ -39,6 +45,8 @@ DESIGN_DIR = "{results}/bench/designs/{preset}-{reference_yaws}".format(
 EMULATION_KEYS = [e["key"] for e in emulation_bench_entries(config)]
 # the parts bench_predict times: its default panel, those in use (else the first part in use)
 PREDICT_BENCH_PARTS = [p for p in PREDICT_BENCH_DEFAULT_PARTS if p in PARTS] or PARTS[:1]
+# the contact bench picks its parts from the whole library (those with many convex pieces)
+CONTACT_PARTS = list_parts(config["parts"]["dir"], "all")
 EMULATION_DIR = "{results}/bench/emulation/{preset}".format(results=RESULTS, **config["sim"]["emulation_bench"])
 
 
@@ -89,6 +97,49 @@ rule bench_jams:
         settings=settings_json("scene", "sim.presets", "sim.jam_survey", "sim.base_seed", "parts.dir"),
     shell:
         "feeder bench-jams --settings '{params.settings}' --out-csv {output} > {log} 2>&1"
+
+
+rule bench_contact:
+    """The belt footprint, each convex piece against pads, the same drops paired (feeder bench-contact)."""
+    input:
+        code("bench-contact"),
+        parts=expand("{dir}/{part}.stl", dir=config["parts"]["dir"], part=CONTACT_PARTS),
+    output:
+        table=report(
+            f"{RESULTS}/tables/contact_model.csv", caption="../report/contact_model.rst", category="Simulation"
+        ),
+        raw=f"{RESULTS}/bench/contact/contact_drops.csv",
+    log:
+        f"{LOGS}/bench_contact/bench_contact.log",
+    benchmark:
+        f"{BENCHMARKS}/bench_contact/bench_contact.tsv"
+    conda:
+        "../envs/feeder.yaml"
+    threads: config["sim"]["contact_bench"]["workers"]
+    params:
+        settings=settings_json("scene", "sim.presets", "sim.contact_bench", "sim.base_seed", "parts.dir"),
+    shell:
+        "feeder bench-contact --settings '{params.settings}' --out-csv {output.table} --out-raw {output.raw} > {log} 2>&1"
+
+
+rule bench_step:
+    """CPU of one simulation step in the study's scene against a bare one-box world (feeder bench-step)."""
+    input:
+        code("bench-step"),
+        parts=expand("{dir}/{part}.stl", dir=config["parts"]["dir"], part=config["sim"]["step_bench"]["parts"]),
+    output:
+        table=report(f"{RESULTS}/tables/step_cost.csv", caption="../report/step_cost.rst", category="Simulation"),
+        raw=f"{RESULTS}/bench/step/step_calls.csv",
+    log:
+        f"{LOGS}/bench_step/bench_step.log",
+    benchmark:
+        f"{BENCHMARKS}/bench_step/bench_step.tsv"
+    conda:
+        "../envs/feeder.yaml"
+    params:
+        settings=settings_json("scene", "sim.presets", "sim.step_bench", "sim.base_seed", "parts.dir"),
+    shell:
+        "feeder bench-step --settings '{params.settings}' --out-csv {output.table} --out-raw {output.raw} > {log} 2>&1"
 
 
 rule bench_yaws:

@@ -47,6 +47,7 @@ rule datasets_build:
         configurations=f"{RESULTS}/datasets/configurations.csv",
         sims=[sim_path(p, c) for p, c in zip(CONFIGS["part"], CONFIGS["config_id"])],
         features=expand(f"{RESULTS}/features/{{part}}.json", part=sorted(set(CONFIGS["part"]))),
+        parts=expand("{dir}/{part}.stl", dir=config["parts"]["dir"], part=sorted(set(CONFIGS["part"]))),
     output:
         DATASET,
     log:
@@ -56,12 +57,23 @@ rule datasets_build:
     conda:
         "../envs/feeder.yaml"
     params:
-        settings=settings_json("sim.min_ok_mass", "labels", "datasets"),
+        settings=settings_json(
+            "sim.min_ok_mass",
+            "sim.preset",
+            "sim.yaw_sampling",
+            "sim.drops",
+            "labels",
+            "datasets",
+            "scene",
+            "parts.units",
+        ),
+        parts_dir=lambda w, input: os.path.dirname(input.parts[0]),
         features_dir=lambda w, input: os.path.dirname(input.features[0]),
         sim_dir=lambda w, input: os.path.dirname(os.path.dirname(input.sims[0])),  # <results>/sim
     shell:
         "feeder datasets build --configurations {input.configurations} --features-dir {params.features_dir}"
-        " --sim-dir {params.sim_dir} --settings '{params.settings}' --out {output} > {log} 2>&1"
+        " --sim-dir {params.sim_dir} --parts-dir {params.parts_dir} --settings '{params.settings}' --out {output}"
+        " > {log} 2>&1"
 
 
 rule datasets_table4:

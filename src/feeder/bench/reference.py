@@ -152,7 +152,7 @@ def run_reference(entry: dict, settings: dict, checkpoint: Path | None = None) -
     preset = get_preset(settings["sim"]["presets"], db["preset"])
     geom = entry_geometry(entry, settings)
     loc1, loc2 = parse_location(entry["loc1"]), parse_location(entry["loc2"])
-    order = rotational_order(geom.outline)
+    order = rotational_order(geom.outline, holes=geom.holes)
     yaws, period, offset = reference_grid(order, int(db["reference_yaws"]), seed_of(entry["key"], "reference"))
 
     def run_chunk(chunk):  # a world each: the map of the yaw alone

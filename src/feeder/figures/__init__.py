@@ -30,6 +30,8 @@ module (= PNG name)            figure                                    data fi
                                                                          (``feeder bench-sim``)
 ``yaw_sampling``               sampling error vs drops per yaw design    ``results/tables/yaw_sampling.csv``
                                                                          (``feeder bench-yaws``)
+``step_cost``                  CPU per internal step against a bare      ``results/tables/step_cost.csv``
+                               one-box world                             (``feeder bench-step``)
 ``sim_cost``                   CPU ms per drop of sampled simulation     ``results/tables/sim_cost_sample.csv``
                                jobs, by part                             (``feeder bench-cost``)
 ``cost_by_stage``              wall/CPU seconds per workflow stage       ``results/tables/cost_by_stage.csv``

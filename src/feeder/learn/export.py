@@ -131,7 +131,13 @@ def check_card(model_dir: Path) -> None:
     card = read_card(model_dir)
     if card is None:
         return
-    theirs, ours = card.get("features_version"), features_version()
+    spec = card.get("spec") if isinstance(card.get("spec"), dict) else {}
+    inputs = str(spec.get("inputs") or "paper")  # a paper model's spec leaves it out
+    try:
+        ours = features_version(inputs)
+    except FeederError:
+        raise FeederError(f"the model card in {model_dir} names unknown model inputs {inputs!r}") from None
+    theirs = card.get("features_version")
     if theirs != ours:
         raise FeederError(
             f"the model in {model_dir} was exported for features version {theirs}, this code computes "
@@ -295,7 +301,7 @@ def _sha256(path: Path) -> str:
 
 def build_card(model_dir: Path, tables: Path, dataset: Path, provenance_path: Path | None = None) -> dict:
     """The contents of ``card.json`` for the trained model in ``model_dir`` (see the module doc)."""
-    from feeder.labels.dataset import INPUT_NAMES, features_version
+    from feeder.labels.dataset import features_version, input_names
     from feeder.learn.models import SCALER_FILE, WEIGHTS_FILE, TrainedModel
 
     model_dir = Path(model_dir)
@@ -316,8 +322,8 @@ def build_card(model_dir: Path, tables: Path, dataset: Path, provenance_path: Pa
         "seed": metrics.get("seed"),
         "spec": model.spec.to_dict(),
         "label_frame": model.label_frame,
-        "features_version": features_version(),
-        "inputs": list(INPUT_NAMES),
+        "features_version": features_version(model.inputs),
+        "inputs": list(input_names(model.inputs)),
         "training": {k: _plain(metrics[k]) for k in TRAINING_KEYS if k in metrics},
         "training_data": data,
         "metrics": table_metrics(tables, name, data["rows_per_split"]),

@@ -56,24 +56,35 @@ def load_model(path: Path):
     return TrainedModel.load(path)
 
 
-def check_part_fits(part: Path) -> None:
+def check_part_fits(part: Path, prog: str = "feeder predict") -> None:
     """Refuse an STL part the simulator refuses (wider than the belt, or too thin for the fences:
     :func:`feeder.sim.body.check_fit`, units as ``--units auto``): the model has never seen such a
     part and would answer for a scene that cannot happen. A face point cloud (``.xyz``) has no
-    thickness and is not checked."""
+    thickness and is not checked. A part with through-holes is answered with a note on stderr: the
+    shape features describe its outer contour only (as in the paper), so the model does not see
+    how the holes move its centre of mass."""
     if part.suffix.lower() != ".stl":
         return
-    from feeder.parts.geometry import load_footprint, polygon_moments
+    from feeder.parts.geometry import load_profile, profile_moments
     from feeder.sim.body import check_fit
     from feeder.sim.scene import load_settings
 
-    outline, thickness = load_footprint(part, "auto")
-    _, centroid, _ = polygon_moments(outline)
+    outline, holes, thickness = load_profile(part, "auto")
+    _, centroid, _ = profile_moments(outline, holes)
     check_fit(part.stem, outline, centroid, thickness, load_settings()[0])
+    if holes:
+        print(
+            f"{prog}: note: {part.name} has {len(holes)} through-hole(s); the model sees its outer "
+            "contour only, so check the answer with feeder simulate",
+            file=sys.stderr,
+        )
 
 
-def part_vector(part: Path | None, features: Path | None) -> tuple[np.ndarray, float | None]:
-    """(the 45 raw DFT values, ``frame_deg`` or None) of a part, from its geometry file or a features JSON."""
+def part_vector(
+    part: Path | None, features: Path | None, prog: str = "feeder predict"
+) -> tuple[np.ndarray, float | None]:
+    """(the 45 raw DFT values, ``frame_deg`` or None) of a part, from its geometry file or a features
+    JSON; ``prog`` names the command in a note on stderr."""
     if (part is None) == (features is None):
         raise FeederError("give exactly one of --part or --features")
     if features is not None:
@@ -86,7 +97,7 @@ def part_vector(part: Path | None, features: Path | None) -> tuple[np.ndarray, f
         return load_features(features), frame
     if not part.is_file():
         raise FeederError(f"part file {part} is missing")
-    check_part_fits(part)
+    check_part_fits(part, prog)
     from feeder.parts.features import as_vector, features_of_file
 
     feats = features_of_file(part)
@@ -166,18 +177,19 @@ def predict_frame(
     return pd.DataFrame({"angle_deg": np.arange(bins) * (360.0 / bins), "pmf": pmf[0], "cdf": cdf[0]})
 
 
-def rotated_outline(outline, yaw_deg: float) -> np.ndarray:
-    """The outline (N, 2, metres, the part file's frame) turned by ``yaw_deg`` about the mean of
-    its vertices, in millimetres: how the part lies on the belt at that final yaw."""
+def rotated_outline(outline, yaw_deg: float, centre=None) -> np.ndarray:
+    """The outline (N, 2, metres, the part file's frame) turned by ``yaw_deg`` about ``centre``
+    (default: the mean of its vertices), in millimetres: how the part lies on the belt at that
+    final yaw. A hole is turned about its part's centre."""
     pts = np.asarray(outline, dtype=np.float64)
-    pts = pts - pts.mean(axis=0)
+    pts = pts - (pts.mean(axis=0) if centre is None else np.asarray(centre, dtype=np.float64))
     a = np.radians(yaw_deg)
     rot = np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]])
     return 1e3 * pts @ rot.T
 
 
-def draw_part(ax, outline, frame: pd.DataFrame) -> None:
-    """The part at its most likely final yaw, the belt running up the page (+y)."""
+def draw_part(ax, outline, frame: pd.DataFrame, holes=()) -> None:
+    """The part (and its through-holes) at its most likely final yaw, the belt running up the page (+y)."""
     from feeder.labels.metrics import resting_orientations
 
     yaw, mass = resting_orientations(frame["pmf"].to_numpy(), 1)[0]
@@ -185,6 +197,12 @@ def draw_part(ax, outline, frame: pd.DataFrame) -> None:
     closed = np.vstack([pts, pts[:1]])
     ax.fill(closed[:, 0], closed[:, 1], color="tab:blue", alpha=0.3)
     ax.plot(closed[:, 0], closed[:, 1], color="tab:blue", lw=1)
+    centre = np.asarray(outline, dtype=np.float64).mean(axis=0)
+    for hole in holes:
+        cut = rotated_outline(hole, yaw, centre)
+        cut = np.vstack([cut, cut[:1]])
+        ax.fill(cut[:, 0], cut[:, 1], color="white")
+        ax.plot(cut[:, 0], cut[:, 1], color="tab:blue", lw=1)
     r = float(np.max(np.abs(pts)))
     ax.annotate("", xy=(1.15 * r, 0.8 * r), xytext=(1.15 * r, -0.8 * r), arrowprops={"arrowstyle": "->"})
     ax.text(1.2 * r, 0, "belt", rotation=90, va="center", fontsize=8)
@@ -195,7 +213,7 @@ def draw_part(ax, outline, frame: pd.DataFrame) -> None:
     ax.set_title(f"most likely: {yaw:.1f} deg (p={mass:.2f})", fontsize=9)
 
 
-def plot(frame: pd.DataFrame, title: str, outline=None):
+def plot(frame: pd.DataFrame, title: str, outline=None, holes=()):
     import matplotlib
 
     matplotlib.use("Agg")
@@ -205,7 +223,7 @@ def plot(frame: pd.DataFrame, title: str, outline=None):
         fig, ax = plt.subplots(figsize=(6, 3))
     else:
         fig, (ax, part_ax) = plt.subplots(1, 2, figsize=(9, 3), gridspec_kw={"width_ratios": [2, 1]})
-        draw_part(part_ax, outline, frame)
+        draw_part(part_ax, outline, frame, holes)
     ax.bar(frame.angle_deg, frame.pmf, width=360.0 / len(frame), align="edge", color="tab:blue")
     ax.set_xlim(0, 360)
     ax.set_xlabel("final yaw [deg]")
@@ -269,13 +287,13 @@ def main(argv: list[str]) -> int:
         from feeder.io import save_figure
 
         name = (args.part or args.features).stem
-        outline = None
+        outline, holes = None, ()
         if args.part is not None and args.part.suffix.lower() == ".stl":
-            from feeder.parts.geometry import load_outline
+            from feeder.parts.geometry import load_profile
 
-            outline = load_outline(args.part, "auto")
+            outline, holes, _ = load_profile(args.part, "auto")
         title = f"{model.spec.name}: {name}, loc1 {args.loc1}, loc2 {args.loc2}"
-        save_figure(args.plot, plot(frame, title, outline))
+        save_figure(args.plot, plot(frame, title, outline, holes))
     push_ms = "" if push_raw is None else f", push features {1e3 * (t1 - t_dft):.1f} ms"
     print(
         f"feeder predict: features {1e3 * (t_dft - t0):.1f} ms{push_ms}, network {1e3 * (t2 - t1):.1f} ms",

@@ -135,7 +135,7 @@ def main(argv: list[str]) -> int:
     order = symmetry_order(args.symmetry, args.part)
     model = load_model(resolve_model_dir(args.model, "feeder recommend"))
     check_push_source(model, args.part)
-    part_raw, frame_deg = part_vector(args.part, args.features)
+    part_raw, frame_deg = part_vector(args.part, args.features, "feeder recommend")
     push_raw = None
     if model.needs_push:
         from feeder.sim.fences import parse_config_id
@@ -166,7 +166,8 @@ def symmetry_order(setting: str, part: Path | None) -> int:
     if part is None or part.suffix.lower() != ".stl" or not part.is_file():
         print("feeder recommend: no STL to read the symmetry from: order 1", file=sys.stderr)
         return 1
-    from feeder.parts.geometry import load_outline
+    from feeder.parts.geometry import load_profile
     from feeder.parts.symmetry import rotational_order
 
-    return rotational_order(load_outline(part, "auto"))
+    outline, holes, _ = load_profile(part, "auto")
+    return rotational_order(outline, holes=holes)

@@ -77,16 +77,17 @@ def polygon_moments(poly: np.ndarray) -> tuple[float, np.ndarray, tuple[float, f
     return float(area), centroid, (float(ixx), float(iyy), float(ixy))
 
 
-def clean_outline(outline: np.ndarray, rel_tol: float = _REL_TOL) -> np.ndarray:
-    """Drop a closing duplicate, repeated vertices and collinear vertices; return CCW (N, 2)."""
+def clean_outline(outline: np.ndarray, rel_tol: float = _REL_TOL, what: str = "outline") -> np.ndarray:
+    """Drop a closing duplicate, repeated vertices and collinear vertices; return CCW (N, 2).
+    ``what`` names the polygon in errors (e.g. ``hole 2``)."""
     pts = np.asarray(outline, dtype=np.float64)
     if pts.ndim != 2 or pts.shape[1] != 2:
-        raise FeederError(f"outline must be an (N, 2) array, got shape {pts.shape}")
+        raise FeederError(f"{what} must be an (N, 2) array, got shape {pts.shape}")
     if not np.all(np.isfinite(pts)):
-        raise FeederError("outline has NaN or infinite coordinates")
+        raise FeederError(f"{what} has NaN or infinite coordinates")
     size = float(np.max(np.ptp(pts, axis=0))) if len(pts) else 0.0
     if size <= 0.0:
-        raise FeederError("outline has no extent")
+        raise FeederError(f"{what} has no extent")
     tol = rel_tol * size
     changed = True
     while changed and len(pts) >= 3:
@@ -110,20 +111,22 @@ def clean_outline(outline: np.ndarray, rel_tol: float = _REL_TOL) -> np.ndarray:
             pts = np.delete(pts, idx, axis=0)
             changed = True
     if len(pts) < 3:
-        raise FeederError("outline has fewer than 3 distinct non-collinear vertices")
+        raise FeederError(f"{what} has fewer than 3 distinct non-collinear vertices")
     if signed_area(pts) < 0:
         pts = pts[::-1].copy()
     return pts
 
 
 def is_convex(poly: np.ndarray, rel_tol: float = 1e-9) -> bool:
-    """True when a CCW polygon has no reflex vertex (collinear vertices allowed)."""
+    """True when a CCW polygon has no reflex vertex (collinear vertices allowed): no vertex turns
+    clockwise by more than ``rel_tol`` radians (the sine of the turn, so that the short edges of a
+    small hole are judged like long ones)."""
     p = np.asarray(poly, dtype=np.float64)
     d1 = p - np.roll(p, 1, axis=0)
     d2 = np.roll(p, -1, axis=0) - p
     cross = d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0]
-    scale = float(np.max(np.linalg.norm(d1, axis=1))) ** 2
-    return bool(np.all(cross >= -rel_tol * scale))
+    lengths = np.linalg.norm(d1, axis=1) * np.linalg.norm(d2, axis=1)
+    return bool(np.all(cross >= -rel_tol * lengths))
 
 
 def _check_simple(outline: np.ndarray, what: str) -> None:
@@ -135,13 +138,56 @@ def _check_simple(outline: np.ndarray, what: str) -> None:
         raise FeederError(f"{what} is not a simple polygon ({reason})")
 
 
-def triangulate(outline: np.ndarray) -> list[tuple[int, int, int]]:
-    """Constrained Delaunay triangulation of a simple polygon as CCW index triples (no new vertices)."""
+def clean_holes(holes) -> list[np.ndarray]:
+    """:func:`clean_outline` of each hole, errors naming the hole (``hole 1``, ...)."""
+    return [clean_outline(h, what=f"hole {k}") for k, h in enumerate(holes, start=1)]
+
+
+def _check_holes(outline: np.ndarray, holes, what: str) -> None:
+    """FeederError unless every hole lies strictly inside the outline, apart from the others
+    (touching at a point counts as touching)."""
+    import shapely
+
+    poly = shapely.Polygon(outline, [np.asarray(h) for h in holes])
+    if not poly.is_valid:
+        raise FeederError(f"{what}: the holes are not inside the outline and apart ({shapely.is_valid_reason(poly)})")
+    outer = shapely.Polygon(outline)
+    rings = [shapely.Polygon(h) for h in holes]
+    for k, ring in enumerate(rings, start=1):
+        if not outer.contains(ring) or ring.exterior.intersects(outer.exterior):
+            raise FeederError(f"{what}: the holes must lie inside the outline; hole {k} touches or crosses it")
+    for i in range(len(rings)):
+        for j in range(i + 1, len(rings)):
+            if rings[i].intersects(rings[j]):
+                raise FeederError(f"{what}: holes {i + 1} and {j + 1} touch or overlap")
+
+
+def thinnest_wall(outline: np.ndarray, holes) -> float:
+    """The narrowest material between a hole and the outline or between two holes (metres);
+    infinite without holes."""
+    import shapely
+
+    rings = [shapely.LinearRing(h) for h in holes]
+    if not rings:
+        return math.inf
+    boundary = shapely.LinearRing(outline)
+    gaps = [boundary.distance(r) for r in rings]
+    gaps += [rings[i].distance(rings[j]) for i in range(len(rings)) for j in range(i + 1, len(rings))]
+    return float(min(gaps))
+
+
+def triangulate(outline: np.ndarray, holes=()) -> list[tuple[int, int, int]]:
+    """Constrained Delaunay triangulation of a simple polygon as CCW index triples (no new vertices).
+
+    With ``holes`` (simple polygons inside it), the indices run over ``outline`` and then each hole
+    in turn (:func:`profile_vertices`), and the holes are left out."""
     import shapely
 
     outline = np.asarray(outline, dtype=np.float64)
-    index = {(float(x), float(y)): i for i, (x, y) in enumerate(outline)}
-    tris = shapely.constrained_delaunay_triangles(shapely.Polygon(outline))
+    holes = [np.asarray(h, dtype=np.float64) for h in holes]
+    verts = profile_vertices(outline, holes)
+    index = {(float(x), float(y)): i for i, (x, y) in enumerate(verts)}
+    tris = shapely.constrained_delaunay_triangles(shapely.Polygon(outline, holes))
     out = []
     for tri in shapely.get_parts(tris):
         coords = np.asarray(tri.exterior.coords)[:3]
@@ -149,26 +195,59 @@ def triangulate(outline: np.ndarray) -> list[tuple[int, int, int]]:
             ids = [index[(float(x), float(y))] for x, y in coords]
         except KeyError as err:  # pragma: no cover - CDT adds no Steiner points
             raise FeederError("triangulation introduced a vertex not on the outline") from err
-        if signed_area(outline[ids]) < 0:
+        if signed_area(verts[ids]) < 0:
             ids = ids[::-1]
         out.append(tuple(ids))
-    if len(out) != len(outline) - 2:
-        raise FeederError(f"triangulation gave {len(out)} triangles for {len(outline)} vertices")
+    expected = len(verts) - 2 + 2 * len(holes)  # Euler: each hole adds two triangles
+    if len(out) != expected:
+        raise FeederError(f"triangulation gave {len(out)} triangles for {len(verts)} vertices and {len(holes)} holes")
     return out
 
 
-def convex_decomposition(outline: np.ndarray) -> list[np.ndarray]:
+def profile_vertices(outline: np.ndarray, holes=()) -> np.ndarray:
+    """The vertices of an outline and then of each hole, one (N, 2) array: what the indices of
+    :func:`triangulate` and :func:`convex_decomposition` run over."""
+    return np.concatenate([np.asarray(outline, dtype=np.float64), *[np.asarray(h, dtype=np.float64) for h in holes]])
+
+
+def profile_moments(outline: np.ndarray, holes=()) -> tuple[float, np.ndarray, tuple[float, float, float]]:
+    """:func:`polygon_moments` of an outline with holes: area, centroid and central second moments
+    of the outline's region less each hole's (the parallel-axis theorem moves every part to the
+    common centroid)."""
+    if not len(holes):
+        return polygon_moments(outline)
+    parts = [polygon_moments(outline), *[polygon_moments(h) for h in holes]]
+    signs = [1.0] + [-1.0] * len(holes)
+    area = sum(sg * a for sg, (a, _, _) in zip(signs, parts, strict=True))
+    if not area > 0:
+        raise FeederError("the holes leave no area")
+    centroid = sum(sg * a * c for sg, (a, c, _) in zip(signs, parts, strict=True)) / area
+    ixx = iyy = ixy = 0.0
+    for sg, (a, c, (jxx, jyy, jxy)) in zip(signs, parts, strict=True):
+        dx, dy = c - centroid
+        ixx += sg * (jxx + a * dy * dy)
+        iyy += sg * (jyy + a * dx * dx)
+        ixy += sg * (jxy + a * dx * dy)
+    return float(area), np.asarray(centroid, dtype=np.float64), (float(ixx), float(iyy), float(ixy))
+
+
+def convex_decomposition(outline: np.ndarray, holes=()) -> list[np.ndarray]:
     """Exact convex pieces of a simple CCW polygon (Hertel–Mehlhorn on a constrained triangulation).
 
     Pieces use only the outline's own vertices, so their union is exactly the outline. Diagonals
     are removed greedily, longest first (ties by vertex index), whenever the merged piece stays
-    convex; the result has at most 4x the minimum number of pieces.
+    convex; the result has at most 4x the minimum number of pieces. With ``holes`` (simple
+    polygons inside the outline), the pieces cover the outline less the holes, from the vertices of
+    both.
     """
     outline = np.asarray(outline, dtype=np.float64)
-    n = len(outline)
-    if is_convex(outline):
+    holes = [np.asarray(h, dtype=np.float64) for h in holes]
+    if not holes and is_convex(outline):
         return [outline.copy()]
-    pieces = [list(t) for t in triangulate(outline)]
+    tris = triangulate(outline, holes)
+    n_tris = len(tris)
+    outline = profile_vertices(outline, holes)  # the indices run over every vertex
+    pieces = [list(t) for t in tris]
 
     def edges(piece: list[int]) -> list[tuple[int, int]]:
         return [(piece[i], piece[(i + 1) % len(piece)]) for i in range(len(piece))]
@@ -202,7 +281,7 @@ def convex_decomposition(outline: np.ndarray) -> list[np.ndarray]:
             owner[e] = k1
         owner.pop((a, b), None)
         owner.pop((b, a), None)
-    assert sum(len(p) - 2 for p in alive.values()) == n - 2  # triangles conserved
+    assert sum(len(p) - 2 for p in alive.values()) == n_tris  # triangles conserved
     return [clean_outline(outline[p], rel_tol=1e-12) for _, p in sorted(alive.items())]
 
 
@@ -211,7 +290,12 @@ def convex_decomposition(outline: np.ndarray) -> list[np.ndarray]:
 # --------------------------------------------------------------------------------------------
 @dataclass(frozen=True, eq=False)
 class PartGeometry:
-    """Outline (N, 2) CCW in metres without closing duplicate, thickness (m) and derived values."""
+    """Outline (N, 2) CCW in metres without closing duplicate, thickness (m) and derived values.
+
+    ``holes``: through-holes, each a CCW (M, 2) polygon inside the outline (none for a simply
+    connected part). The area, centroid, second moments and convex pieces are those of the
+    outline less its holes; ``outline`` stays the outer contour (what the fences meet and what the
+    shape features describe)."""
 
     part_id: str
     outline: np.ndarray
@@ -220,20 +304,25 @@ class PartGeometry:
     centroid: np.ndarray
     second_moment: tuple[float, float, float]
     convex_pieces: list[np.ndarray] = field(repr=False)
+    holes: tuple[np.ndarray, ...] = field(default=(), repr=False)
 
     @classmethod
-    def from_polygon(cls, part_id: str, outline, thickness: float) -> PartGeometry:
-        """Build from a vertex list (CW or CCW, closing duplicate optional), metres."""
+    def from_polygon(cls, part_id: str, outline, thickness: float, holes=()) -> PartGeometry:
+        """Build from a vertex list (CW or CCW, closing duplicate optional), metres, and optional
+        hole vertex lists (the same conventions)."""
         thickness = float(thickness)
         if not np.isfinite(thickness) or thickness <= 0:
             raise FeederError(f"part {part_id}: thickness must be positive, got {thickness!r}")
         pts = clean_outline(outline)
         _check_simple(pts, f"part {part_id}: outline")
-        area, centroid, moments = polygon_moments(pts)
-        pieces = convex_decomposition(pts)
-        for arr in [pts, centroid, *pieces]:
+        cut = tuple(clean_holes(holes))
+        if cut:
+            _check_holes(pts, cut, f"part {part_id}")
+        area, centroid, moments = profile_moments(pts, cut)
+        pieces = convex_decomposition(pts, cut)
+        for arr in [pts, centroid, *pieces, *cut]:
             arr.setflags(write=False)
-        return cls(part_id, pts, thickness, area, centroid, moments, pieces)
+        return cls(part_id, pts, thickness, area, centroid, moments, pieces, cut)
 
     @property
     def perimeter(self) -> float:
@@ -316,24 +405,31 @@ def _read_ascii(data: bytes, path: Path) -> np.ndarray:
     return _finite(np.asarray(verts, dtype=np.float64).reshape(-1, 3, 3), path)
 
 
-def stl_bytes(outline: np.ndarray, thickness: float, name: str = "part") -> bytes:
-    """Binary STL of the prism ``outline x [0, thickness]`` (outline CCW, metres).
+def stl_bytes(outline: np.ndarray, thickness: float, name: str = "part", holes=()) -> bytes:
+    """Binary STL of the prism ``outline x [0, thickness]`` (outline CCW, metres), less the
+    through-holes ``holes`` (polygons inside the outline).
 
-    Caps are the outline's constrained Delaunay triangulation (no new vertices); side
-    walls are two triangles per edge. Normals point outwards; output is deterministic.
+    Caps are the constrained Delaunay triangulation (no new vertices); side walls are two
+    triangles per edge, the holes' walls facing into the hole. Normals point outwards; output is
+    deterministic.
     """
     outline = clean_outline(outline)
+    cut = clean_holes(holes)
+    if cut:
+        _check_holes(outline, cut, f"part {name}")
+    verts = profile_vertices(outline, cut)
     tris: list[np.ndarray] = []
     z0, z1 = 0.0, float(thickness)
-    for ia, ib, ic in triangulate(outline):
-        a, b, c = outline[ia], outline[ib], outline[ic]
+    for ia, ib, ic in triangulate(outline, cut):
+        a, b, c = verts[ia], verts[ib], verts[ic]
         tris.append(np.array([[*a, z1], [*b, z1], [*c, z1]]))  # top, CCW from above: +z
         tris.append(np.array([[*a, z0], [*c, z0], [*b, z0]]))  # bottom: -z
-    n = len(outline)
-    for i in range(n):
-        p, q = outline[i], outline[(i + 1) % n]
-        tris.append(np.array([[*p, z0], [*q, z0], [*q, z1]]))
-        tris.append(np.array([[*p, z0], [*q, z1], [*p, z1]]))
+    for loop in [outline, *[h[::-1] for h in cut]]:  # a hole's boundary runs CW
+        n = len(loop)
+        for i in range(n):
+            p, q = loop[i], loop[(i + 1) % n]
+            tris.append(np.array([[*p, z0], [*q, z0], [*q, z1]]))
+            tris.append(np.array([[*p, z0], [*q, z1], [*p, z1]]))
     arr = np.asarray(tris, dtype=np.float64)
     normals = np.cross(arr[:, 1] - arr[:, 0], arr[:, 2] - arr[:, 0])
     normals /= np.linalg.norm(normals, axis=1, keepdims=True)
@@ -344,8 +440,8 @@ def stl_bytes(outline: np.ndarray, thickness: float, name: str = "part") -> byte
     return header + struct.pack("<I", len(arr)) + rec.tobytes()
 
 
-def _outline_from_mesh(tris: np.ndarray, path: Path) -> tuple[np.ndarray, float]:
-    """Check the mesh is a closed z-extrusion; return (outline CCW in x-y, thickness)."""
+def _profile_from_mesh(tris: np.ndarray, path: Path) -> tuple[np.ndarray, list[np.ndarray], float]:
+    """Check the mesh is a closed z-extrusion; return (outer outline in x-y, its holes, thickness)."""
     verts, inv = np.unique(tris.reshape(-1, 3), axis=0, return_inverse=True)
     faces = inv.reshape(-1, 3)
     # watertight and consistently oriented: each directed edge once, its reverse exactly once
@@ -404,36 +500,56 @@ def _outline_from_mesh(tris: np.ndarray, path: Path) -> tuple[np.ndarray, float]
         if int(a) in nxt:
             raise FeederError(f"{path}: top face boundary is not a simple loop")
         nxt[int(a)] = int(b)
-    start = min(nxt)
-    loop = [start]
-    cur = nxt[start]
-    while cur != start:
-        loop.append(cur)
-        cur = nxt.get(cur, -1)
-        if cur == -1 or len(loop) > len(nxt):
-            raise FeederError(f"{path}: top face boundary is not a closed loop")
-    if len(loop) != len(nxt):
+    loops: list[list[int]] = []
+    remaining = dict(nxt)
+    while remaining:
+        start = min(remaining)
+        loop = [start]
+        cur = remaining.pop(start)
+        while cur != start:
+            if cur not in remaining:
+                raise FeederError(f"{path}: top face boundary is not a closed loop")
+            loop.append(cur)
+            cur = remaining.pop(cur)
+        loops.append(loop)
+    # one outer loop (the largest) and holes, which a consistently oriented face runs the other way
+    areas = [signed_area(xy[loop]) for loop in loops]
+    k_outer = int(np.argmax(np.abs(areas)))
+    if any(np.sign(a) == np.sign(areas[k_outer]) for k, a in enumerate(areas) if k != k_outer):
         raise FeederError(
-            f"{path}: top face has more than one boundary loop (holes or several bodies); parts "
-            f"must be simply connected"
+            f"{path}: top face has more than one outer boundary loop (several bodies); a part must be one piece"
         )
-    outline = xy[loop]
+    outline = xy[loops[k_outer]]
+    holes = [xy[loop] for k, loop in enumerate(loops) if k != k_outer]
     bot_edges = boundary(fbot)
-    top_set = {tuple(np.round(xy[i], 12)) for i in loop}
+    top_set = {tuple(np.round(xy[i], 12)) for loop in loops for i in loop}
     bot_set = {tuple(np.round(xy[i], 12)) for i in np.unique(bot_edges)}
     if top_set != bot_set:
         raise FeederError(f"{path}: not an extrusion along z (top and bottom outlines differ)")
     top_area = 0.5 * float(np.sum(np.abs(cross[ftop])))
-    if abs(top_area - abs(signed_area(outline))) > 1e-6 * top_area:
+    face_area = abs(signed_area(outline)) - sum(abs(signed_area(h)) for h in holes)
+    if abs(top_area - face_area) > 1e-6 * top_area:
         raise FeederError(f"{path}: top face overlaps itself")
     _check_simple(outline, f"{path}: top face outline")  # a loop can cross itself with no overlap left
-    return outline, thickness
+    for h in holes:
+        _check_simple(h, f"{path}: a hole of the top face")
+    if holes:
+        _check_holes(outline, holes, f"{path}: top face")
+    return outline, holes, thickness
+
+
+def read_profile(path: str | os.PathLike) -> tuple[np.ndarray, list[np.ndarray], float]:
+    """Outer outline (N, 2), through-holes (each (M, 2)) and thickness of an extruded STL in the
+    file's own units (no unit check)."""
+    path = Path(path)
+    return _profile_from_mesh(read_stl(path), path)
 
 
 def read_outline(path: str | os.PathLike) -> tuple[np.ndarray, float]:
-    """Outline (N, 2) and thickness of an extruded STL in the file's own units (no unit check)."""
-    path = Path(path)
-    return _outline_from_mesh(read_stl(path), path)
+    """Outer outline (N, 2) and thickness of an extruded STL in the file's own units (no unit
+    check): the contour the shape features describe, holes or not (as in the paper)."""
+    outline, _, thickness = read_profile(path)
+    return outline, thickness
 
 
 def file_units(size: float, units: str) -> str:
@@ -460,9 +576,9 @@ def load_part(path: str | os.PathLike, units: str = "m") -> PartGeometry:
 def load_part_units(path: str | os.PathLike, units: str = "m") -> tuple[PartGeometry, str]:
     """:func:`load_part` and the units the file was read in (what ``auto`` chose)."""
     path = Path(path)
-    outline, thickness, unit = _read_in_metres(path, units)
+    outline, holes, thickness, unit = _read_in_metres(path, units)
     try:
-        return PartGeometry.from_polygon(path.stem, outline, thickness), unit
+        return PartGeometry.from_polygon(path.stem, outline, thickness, holes), unit
     except FeederError as err:
         raise FeederError(f"{path}: {err}") from err
 
@@ -474,11 +590,27 @@ def load_outline(path: str | os.PathLike, units: str = "m") -> np.ndarray:
     return load_footprint(path, units)[0]
 
 
+def load_profile(path: str | os.PathLike, units: str = "m") -> tuple[np.ndarray, list[np.ndarray], float]:
+    """(outline, holes, thickness) of :func:`load_part` in metres, cleaned and checked, without the
+    convex decomposition: what the symmetry of a part needs."""
+    path = Path(path)
+    outline, holes, thickness, _ = _read_in_metres(path, units)
+    try:
+        pts = clean_outline(outline)
+        _check_simple(pts, "outline")
+        cut = clean_holes(holes)
+        if cut:
+            _check_holes(pts, cut, "part")
+    except FeederError as err:
+        raise FeederError(f"{path}: {err}") from err
+    return pts, cut, thickness
+
+
 def load_footprint(path: str | os.PathLike, units: str = "m") -> tuple[np.ndarray, float]:
     """(outline, thickness) of :func:`load_part` in metres, the outline cleaned and checked to be
     simple, without the convex decomposition: what a check of the part against the scene needs."""
     path = Path(path)
-    outline, thickness, _ = _read_in_metres(path, units)
+    outline, _, thickness, _ = _read_in_metres(path, units)
     try:
         pts = clean_outline(outline)
         _check_simple(pts, "outline")
@@ -487,9 +619,13 @@ def load_footprint(path: str | os.PathLike, units: str = "m") -> tuple[np.ndarra
     return pts, thickness
 
 
-def _read_in_metres(path: Path, units: str) -> tuple[np.ndarray, float, str]:
-    """(outline, thickness) of an STL scaled to metres, and the units it was read in."""
-    outline, thickness = read_outline(path)
+def _read_in_metres(path: Path, units: str) -> tuple[np.ndarray, list[np.ndarray], float, str]:
+    """(outline, holes, thickness) of an STL scaled to metres, and the units it was read in. A face point
+    cloud (``.xyz``) is refused by name: it has no thickness, and read as an STL it would fail with
+    a message about STL bytes."""
+    if path.suffix.lower() == ".xyz":
+        raise FeederError(f"{path}: a face point cloud (.xyz) has no thickness or solid; give the part's .stl")
+    outline, holes, thickness = read_profile(path)
     size = float(np.max(np.ptp(outline, axis=0)))
     unit = file_units(size, units)
     scale = UNITS_M[unit]
@@ -498,7 +634,7 @@ def _read_in_metres(path: Path, units: str) -> tuple[np.ndarray, float, str]:
             f"{path}: part is {size * scale:g} m across read as {unit}; "
             f"is the file in millimetres? (--units mm, or auto)"
         )
-    return outline * scale, thickness * scale, unit
+    return outline * scale, [h * scale for h in holes], thickness * scale, unit
 
 
 # --------------------------------------------------------------------------------------------

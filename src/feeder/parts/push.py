@@ -294,9 +294,16 @@ def push_geometry(outline) -> PushGeometry:
 
 
 def as_geometry(part) -> PushGeometry:
-    """A :class:`PushGeometry` from itself, a PartGeometry (its ``outline``) or an outline array."""
+    """A :class:`PushGeometry` from itself, a PartGeometry (its ``outline``) or an outline array.
+    A PartGeometry with through-holes is refused: the centroid and the limit surface here are the
+    outline's, so they would ignore the holes."""
     if isinstance(part, PushGeometry):
         return part
+    if len(getattr(part, "holes", ())):
+        raise FeederError(
+            f"part {getattr(part, 'part_id', '')}: the push analysis takes parts without holes "
+            "(its centroid and limit surface are the outline's)"
+        )
     return push_geometry(getattr(part, "outline", part))
 
 

@@ -7,7 +7,8 @@ does not give this relation. See :func:`feeder.labels.pushforward.refine` (``per
 :func:`feeder.labels.pushforward.unfold`.
 
 Conventions: an outline is a closed simple polygon, (k, 2) vertices in any frame and unit, CW or
-CCW, with or without the closing duplicate. The *symmetry error* of a turn by 360/n is the
+CCW, with or without the closing duplicate; through-holes (``holes``) are polygons inside it, and
+their rings are part of the boundary. The *symmetry error* of a turn by 360/n is the
 symmetric Hausdorff distance between the outline's boundary and the boundary turned about the
 area centroid (segments densified, so it is not only vertex-to-vertex), divided by the part's
 size: the largest distance from the centroid to a vertex. It is 0 for an exact symmetry.
@@ -19,7 +20,7 @@ import math
 
 import numpy as np
 import shapely
-from shapely.geometry import LinearRing, Polygon
+from shapely.geometry import LinearRing, MultiLineString, Polygon
 
 from feeder.errors import FeederError
 
@@ -39,13 +40,16 @@ _DENSIFY = 0.05
 _BOUND_SLACK = 1e-9
 
 
-def _polygon(outline) -> Polygon:
-    pts = np.asarray(outline, dtype=np.float64)
-    if pts.ndim != 2 or pts.shape[1] != 2 or pts.shape[0] < 3:
-        raise FeederError(f"outline must be a (k, 2) array with k >= 3, got shape {pts.shape}")
-    if not np.isfinite(pts).all():
-        raise FeederError("outline has non-finite coordinates")
-    poly = Polygon(pts)
+def _polygon(outline, holes=()) -> Polygon:
+    rings = []
+    for what, ring in [("outline", outline), *(("hole", h) for h in holes)]:
+        pts = np.asarray(ring, dtype=np.float64)
+        if pts.ndim != 2 or pts.shape[1] != 2 or pts.shape[0] < 3:
+            raise FeederError(f"{what} must be a (k, 2) array with k >= 3, got shape {pts.shape}")
+        if not np.isfinite(pts).all():
+            raise FeederError(f"{what} has non-finite coordinates")
+        rings.append(pts)
+    poly = Polygon(rings[0], rings[1:])
     if not poly.is_valid or poly.area <= 0:
         raise FeederError(f"outline is not a simple polygon with positive area ({shapely.is_valid_reason(poly)})")
     return poly
@@ -57,50 +61,60 @@ def _check_tolerance(tolerance: float) -> float:
     return float(tolerance)
 
 
-def _turned(poly: Polygon, n: int) -> tuple[np.ndarray, np.ndarray, float]:
-    """(the outline's ring, the ring turned by 360/n about the centroid, the size: the largest
-    distance of a vertex from the centroid)."""
-    ring = np.asarray(poly.exterior.coords)
+def _turned(poly: Polygon, n: int) -> tuple[list[np.ndarray], list[np.ndarray], float]:
+    """(the boundary's rings: the outline's, then the holes', the same turned by 360/n about the
+    centroid of the region, the size: the largest distance of an outline vertex from that
+    centroid)."""
+    rings = [np.asarray(poly.exterior.coords), *(np.asarray(h.coords) for h in poly.interiors)]
     c = np.asarray(poly.centroid.coords[0])
-    size = float(np.linalg.norm(ring - c, axis=1).max())
+    size = float(np.linalg.norm(rings[0] - c, axis=1).max())
     a = math.radians(FULL_TURN_DEG / n)
     rot = np.array([[math.cos(a), -math.sin(a)], [math.sin(a), math.cos(a)]])
-    return ring, (ring - c) @ rot.T + c, size
+    return rings, [(ring - c) @ rot.T + c for ring in rings], size
+
+
+def _boundary(rings: list[np.ndarray]):
+    """One ring as a LinearRing (a simply connected part, as before holes were supported), several
+    as a MultiLineString."""
+    return LinearRing(rings[0]) if len(rings) == 1 else MultiLineString(rings)
 
 
 def _error(poly: Polygon, n: int) -> float:
-    ring, turned, size = _turned(poly, n)
-    dist = shapely.hausdorff_distance(LinearRing(ring), LinearRing(turned), densify=_DENSIFY)
+    rings, turned, size = _turned(poly, n)
+    dist = shapely.hausdorff_distance(_boundary(rings), _boundary(turned), densify=_DENSIFY)
     return float(dist) / size
 
 
 def _vertex_error(poly: Polygon, n: int) -> float:
     """A lower bound of :func:`_error`, cheap: the largest distance from a turned vertex to the
-    outline's boundary (the Hausdorff distance measures every turned vertex, and more), over the
-    same size (same centroid, size and turn as :func:`_error`)."""
-    ring, turned, size = _turned(poly, n)
-    return float(shapely.distance(LinearRing(ring), shapely.points(turned)).max()) / size
+    boundary (the Hausdorff distance measures every turned vertex, and more), over the same size
+    (same centroid, size and turn as :func:`_error`)."""
+    rings, turned, size = _turned(poly, n)
+    return float(shapely.distance(_boundary(rings), shapely.points(np.concatenate(turned))).max()) / size
 
 
-def symmetry_error(outline, n: int) -> float:
+def symmetry_error(outline, n: int, holes=()) -> float:
     """Relative symmetry error (see the module docstring) of a turn by 360/n; 0.0 for n = 1."""
     if int(n) != n or n < 1:
         raise FeederError(f"symmetry order must be a positive integer, got {n!r}")
-    poly = _polygon(outline)
+    poly = _polygon(outline, holes)
     return 0.0 if n == 1 else _error(poly, int(n))
 
 
-def rotational_order(outline, tolerance: float = DEFAULT_SYMMETRY_TOLERANCE, max_order: int = DEFAULT_MAX_ORDER) -> int:
+def rotational_order(
+    outline, tolerance: float = DEFAULT_SYMMETRY_TOLERANCE, max_order: int = DEFAULT_MAX_ORDER, holes=()
+) -> int:
     """The largest n ≤ ``max_order`` whose turn by 360/n about the area centroid maps the outline
     onto itself within ``tolerance`` (relative symmetry error); 1 when there is none.
 
     Square → 4, equilateral triangle → 3, 2:1 rectangle → 2, regular hexagon → 6, L-shape → 1,
-    a finely polygonised circle → ``max_order``.
+    a finely polygonised circle → ``max_order``. Through-holes (``holes``) count: they move the
+    centroid and must map onto holes too.
     """
     tol = _check_tolerance(tolerance)
     if int(max_order) != max_order or max_order < 1:
         raise FeederError(f"max_order must be a positive integer, got {max_order!r}")
-    poly = _polygon(outline)
+    poly = _polygon(outline, holes)
     for n in range(int(max_order), 1, -1):
         if _vertex_error(poly, n) > tol + _BOUND_SLACK:
             continue  # the full error is at least this: no need to measure it
@@ -109,10 +123,10 @@ def rotational_order(outline, tolerance: float = DEFAULT_SYMMETRY_TOLERANCE, max
     return 1
 
 
-def check_order(outline, n: int, tolerance: float = DEFAULT_SYMMETRY_TOLERANCE) -> None:
-    """FeederError unless a turn by 360/n maps the outline onto itself within ``tolerance``."""
+def check_order(outline, n: int, tolerance: float = DEFAULT_SYMMETRY_TOLERANCE, holes=()) -> None:
+    """FeederError unless a turn by 360/n maps the outline (and holes) onto itself within ``tolerance``."""
     tol = _check_tolerance(tolerance)
-    err = symmetry_error(outline, n)
+    err = symmetry_error(outline, n, holes)
     if err > tol:
         raise FeederError(
             f"part has no {int(n)}-fold symmetry: turning it by {FULL_TURN_DEG / n:g}° about its "

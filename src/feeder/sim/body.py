@@ -6,6 +6,16 @@ centroidal principal frame; mass, centre of mass and the inertia diagonal are se
 polygon (:func:`part_model`, pure). :class:`World` is one pybullet client holding one or more
 copies of the belt lane (belt, containment walls, fences) and the part's collision shape.
 
+How the part rests on the belt is a setting (``scene.belt.footprint``). ``pieces`` (the paper's
+way): every convex piece touches the belt, and Bullet keeps up to four contact points per piece, so
+the weight splits over the pieces' corners and the outcome depends on how the outline was cut
+(measured: the same 60 x 30 mm rectangle as one piece, two halves, two triangles or six strips ends
+up to 4 degrees apart after a curved fence, or in another basin), and the cost grows with the
+number of pieces. ``pads``: a fixed number of small spheres at the centroids of equal-area cells
+of the footprint (:func:`footprint_pads`) carry the weight, a uniform pressure whatever the
+decomposition, on fixed links of the part that collide only with the belt; the exact pieces
+collide only with the walls and fences.
+
 Bullet combines friction coefficients by multiplication: part-belt 0.8 x 1.0, part-fence
 0.8 x 0.5 = 0.4 (a straight fence holds parts for θ > atan(1/0.4) = 68.2°).
 """
@@ -26,6 +36,17 @@ from feeder.sim.scene import FenceGeom, belt_contact
 
 # Part collision filter: group bit 1 (dynamic) colliding only with static bodies (group bit 2).
 _PART_GROUP, _PART_MASK = 1, 2
+# With footprint pads (pybullet filters pairs by OR: a pair collides when either body's group is
+# in the other's mask, so every body involved gets an explicit group and mask): the part's pieces
+# meet walls and fences, its pads meet the belt, nothing else meets anything.
+_WALLS_GROUP, _BELT_GROUP, _PADS_GROUP = 2, 4, 8
+# Share of the part's mass (and inertia) carried by the pad links, all placed at the centre of
+# mass so the totals stay exact. Measured: pad links carrying 1 % of the mass let the part slip on
+# the belt (2.4 mm/s at rest, turning); 50 % or 99 % ride exactly with it.
+_PAD_MASS_SHARE = 0.5
+# A part stands on its pads only when they surround its centre of mass: with 1 or 2 pads (on a line)
+# it tipped over and sank through the belt, which its pieces do not touch (measured).
+MIN_PADS = 3
 _MAX_COMPOUND = 16  # pybullet's createCollisionShapeArray silently drops shapes beyond 16
 # A part must be at least this many times as thick as the gap under the fences, or it slips
 # under them: measured (20 mm L-shape, fences 0.5 mm above the belt, 8 drops each), 0.6 mm
@@ -48,6 +69,8 @@ class PartModel:
     radius: float  # m: circumradius about the centroid
     pieces: tuple[np.ndarray, ...] = field(repr=False)  # (M, 2) inset convex pieces, principal frame
     hull: np.ndarray = field(repr=False, default=None)  # (H, 2) convex hull of the outline, principal frame
+    pads: np.ndarray | None = field(repr=False, default=None)  # (K, 2) belt footprint pads (None: the pieces)
+    pad_radius: float = 0.0  # m: radius of each pad sphere
 
 
 def principal_inertia(area, second_moment, thickness, density):
@@ -103,6 +126,68 @@ def _mergeable_pair(polys, tolerance: float):
     return None
 
 
+def footprint_pads(outline, count: int, samples_per_pad: int = 400, holes=()) -> np.ndarray:
+    """``count`` points that stand for a uniform pressure over the polygon ``outline`` (N, 2), less
+    its ``holes``: the centroids of ``count`` cells of equal area, moved together so their mean is
+    the footprint's centroid exactly (pure).
+
+    The polygon is sampled on a square grid of about ``count * samples_per_pad`` points inside it;
+    the cells come from splitting the samples in two, across x at even depths and across y at odd
+    depths (in the principal frame: the long axis first), at the sample quantile that gives each
+    side its share of the cells (a ``k``-cell group splits into ``k // 2`` and ``k - k // 2``),
+    until every group is one cell. Alternating keeps pads on both sides of the long axis, so a
+    thin part stands on them (splitting the longer side only put all 16 pads of an 80 x 8 mm bar
+    on its centre line, and it tipped over at every drop). Equal-area cells carry equal weight on
+    a compliant belt when the points' mean lies under the centre of mass, which the final shift
+    makes exact.
+    """
+    from shapely import contains_xy
+    from shapely.geometry import Polygon
+
+    count = int(count)
+    if count < 1:
+        raise FeederError(f"footprint pads: need at least one pad (got {count})")
+    poly = Polygon(np.asarray(outline, np.float64), [np.asarray(h, np.float64) for h in holes])
+    if not poly.is_valid or poly.area <= 0:
+        raise FeederError("footprint pads: the outline is not a simple polygon with an area (and holes inside it)")
+    x0, y0, x1, y1 = poly.bounds
+    side = math.sqrt(poly.area / (count * samples_per_pad))
+    xs, ys = np.arange(x0 + 0.5 * side, x1, side), np.arange(y0 + 0.5 * side, y1, side)
+    gx, gy = np.meshgrid(xs, ys)
+    pts = np.column_stack([gx.ravel(), gy.ravel()])
+    pts = pts[contains_xy(poly, pts[:, 0], pts[:, 1])]
+    if len(pts) < count:
+        raise FeederError(f"footprint pads: {count} pads need a finer sample ({len(pts)} points inside)")
+
+    def cells(points: np.ndarray, k: int, depth: int) -> list[np.ndarray]:
+        if k == 1:
+            return [points.mean(axis=0)]
+        order = np.argsort(points[:, depth % 2], kind="stable")
+        cut = int(round(len(points) * (k // 2) / k))
+        return cells(points[order[:cut]], k // 2, depth + 1) + cells(points[order[cut:]], k - k // 2, depth + 1)
+
+    pads = np.array(cells(pts, count, 0))
+    c = poly.centroid
+    return pads - pads.mean(axis=0) + np.array([c.x, c.y])
+
+
+def footprint_setting(scene: dict) -> tuple[str, int, float]:
+    """(model, pads, pad radius m) of ``scene.belt.footprint``; missing: the pieces (the paper's way)."""
+    fp = scene["belt"].get("footprint") or {}
+    model = fp.get("model", "pieces")
+    if model == "pieces":
+        return "pieces", 0, 0.0
+    if model != "pads":
+        raise FeederError(f"scene.belt.footprint.model: pieces or pads (got {model!r})")
+    count, radius = fp.get("pads"), fp.get("pad_radius")
+    if not isinstance(count, int) or count < MIN_PADS or radius is None or not float(radius) > 0:
+        raise FeederError(
+            f"scene.belt.footprint: pads (an integer >= {MIN_PADS}) and pad_radius (m, > 0) go with model: pads "
+            f"(got {count!r} and {radius!r})"
+        )
+    return "pads", count, float(radius)
+
+
 def quiet_pybullet():
     """The pybullet module, imported without the build-time line its C extension writes to the
     process's stderr on import (so a command that fails after simulating prints one error line)."""
@@ -124,8 +209,21 @@ def check_scene_fit(geom, scene: dict) -> None:
     """A one-line FeederError for a part the scene cannot hold: one that fits between the belt's
     walls at no yaw (its circumradius about the centroid reaches ``belt.half_width``; parts are
     placed centred), or one too thin for the fences to push (``MIN_THICKNESS_PER_CLEARANCE``
-    times ``fences.clearance``). Either would give a label of nothing but falls or untouched drops."""
+    times ``fences.clearance``). Either would give a label of nothing but falls or untouched drops.
+    Also one whose material between a hole and the outline (or two holes) is no thicker than twice
+    ``part.collision_margin``: each convex piece is inset by the margin, so such a wall would
+    vanish from the collision shape and leave a gap a fence could push into."""
+    from feeder.parts.geometry import thinnest_wall
+
     check_fit(geom.part_id, geom.outline, geom.centroid, geom.thickness, scene)
+    least = 2.0 * float(scene["part"]["collision_margin"])
+    wall = thinnest_wall(geom.outline, getattr(geom, "holes", ()))
+    if wall <= least:
+        raise FeederError(
+            f"part {geom.part_id}: {1e3 * wall:.3g} mm of material between a hole and the outline or another "
+            f"hole, no more than {1e3 * least:g} mm (2 x scene.part.collision_margin): the collision shape "
+            "would lose that wall"
+        )
 
 
 def check_fit(part_id: str, outline, centroid, thickness: float, scene: dict) -> None:
@@ -151,7 +249,7 @@ def check_fit(part_id: str, outline, centroid, thickness: float, scene: dict) ->
 
 def part_model(geom, scene: dict, merge_tolerance: float = 0.0) -> PartModel:
     """Pieces (merged within ``merge_tolerance``) in the centroidal principal frame, inset by the margin."""
-    from shapely.geometry import Polygon
+    from shapely.geometry import MultiPoint, Point, Polygon
 
     check_scene_fit(geom, scene)
     pc = scene["part"]
@@ -174,7 +272,17 @@ def part_model(geom, scene: dict, merge_tolerance: float = 0.0) -> PartModel:
     outline = np.asarray(geom.outline, np.float64) - centroid
     radius = float(np.max(np.hypot(outline[:, 0], outline[:, 1])))
     hull = np.asarray(Polygon(outline @ rot.T).convex_hull.exterior.coords)[:-1]
-    return PartModel(geom.part_id, float(geom.thickness), mass, inertia, alpha, radius, tuple(pieces), hull)
+    footprint, count, pad_radius = footprint_setting(scene)
+    holes = [(np.asarray(h, np.float64) - centroid) @ rot.T for h in geom.holes]
+    pads = footprint_pads(outline @ rot.T, count, holes=holes) if footprint == "pads" else None
+    if pads is not None and not MultiPoint(pads).convex_hull.contains(Point(0.0, 0.0)):
+        raise FeederError(
+            f"part {geom.part_id}: its {count} footprint pads do not surround its centre of mass; "
+            "it would tip over (scene.belt.footprint.pads)"
+        )
+    return PartModel(
+        geom.part_id, float(geom.thickness), mass, inertia, alpha, radius, tuple(pieces), hull, pads, pad_radius
+    )
 
 
 def obj_text(pieces, half_height: float) -> str:
@@ -261,6 +369,11 @@ class World:
             self._add_walls(x0, *walls_y)
             self._add_fences(x0)
         self.part_shape = self._add_part_shape()
+        self.pad_shapes = self._add_pad_shapes()
+        if model.pads is not None:  # explicit groups for every static body (pybullet's OR filter)
+            for body in range(pb.getNumBodies(physicsClientId=self.cid)):
+                group, mask = (_BELT_GROUP, _PADS_GROUP) if body in self.belts else (_WALLS_GROUP, _PART_GROUP)
+                pb.setCollisionFilterGroupMask(body, -1, group, mask, physicsClientId=self.cid)
 
     def _connect(self) -> int:
         """A fresh DIRECT client with gravity and the preset's solver settings."""
@@ -335,10 +448,30 @@ class World:
             raise FeederError(f"part {model.part_id}: pybullet rejected its collision shape")
         return shape
 
-    def _surface(self, body: int, friction: float) -> None:
+    def _add_pad_shapes(self) -> list[int]:
+        """The footprint pads as sphere compounds of at most 16 (one per pad link); none without pads."""
+        m, pb = self.model, self.pb
+        if m.pads is None:
+            return []
+        z = -0.5 * m.thickness + m.pad_radius  # each sphere touches the belt where the part's bottom does
+        shapes = []
+        for k in range(0, len(m.pads), _MAX_COMPOUND):
+            chunk = m.pads[k : k + _MAX_COMPOUND]
+            shape = pb.createCollisionShapeArray(
+                shapeTypes=[pb.GEOM_SPHERE] * len(chunk),
+                radii=[m.pad_radius] * len(chunk),
+                collisionFramePositions=[[float(x), float(y), z] for x, y in chunk],
+                physicsClientId=self.cid,
+            )
+            if shape < 0:
+                raise FeederError(f"part {m.part_id}: pybullet rejected its footprint pads")
+            shapes.append(shape)
+        return shapes
+
+    def _surface(self, body: int, friction: float, link: int = -1) -> None:
         self.pb.changeDynamics(
             body,
-            -1,
+            link,
             lateralFriction=friction,
             restitution=float(self.scene["restitution"]),
             rollingFriction=0.0,
@@ -358,13 +491,13 @@ class World:
         """A part flat on the lane's belt at (x, y), moving with the belt."""
         pb, c, m = self.pb, self.cid, self.model
         yb = math.radians(yaw_deg) + m.alpha
-        body = pb.createMultiBody(
-            m.mass,
-            self.part_shape,
+        pose = dict(
             basePosition=[self.lane_x[lane] + x, y, 0.5 * m.thickness],
             baseOrientation=[0.0, 0.0, math.sin(0.5 * yb), math.cos(0.5 * yb)],
-            physicsClientId=c,
         )
+        if self.pad_shapes:
+            return self._add_padded_part(pose)
+        body = pb.createMultiBody(m.mass, self.part_shape, **pose, physicsClientId=c)
         pb.changeDynamics(
             body,
             -1,
@@ -376,6 +509,48 @@ class World:
         )
         self._surface(body, float(self.scene["part"]["friction"]))
         pb.setCollisionFilterGroupMask(body, -1, _PART_GROUP, _PART_MASK, physicsClientId=c)
+        pb.resetBaseVelocity(body, self.belt_vel, [0.0, 0.0, 0.0], physicsClientId=c)
+        return body
+
+    def _add_padded_part(self, pose: dict) -> int:
+        """The part as its pieces (base: walls and fences) and fixed pad links (the belt only), the
+        mass and inertia shared between them about the one centre of mass."""
+        pb, c, m = self.pb, self.cid, self.model
+        links = len(self.pad_shapes)
+        share = _PAD_MASS_SHARE / links
+        origin, identity = [0.0, 0.0, 0.0], [0.0, 0.0, 0.0, 1.0]
+        body = pb.createMultiBody(
+            (1.0 - _PAD_MASS_SHARE) * m.mass,
+            self.part_shape,
+            **pose,
+            linkMasses=[share * m.mass] * links,
+            linkCollisionShapeIndices=self.pad_shapes,
+            linkVisualShapeIndices=[-1] * links,
+            linkPositions=[origin] * links,
+            linkOrientations=[identity] * links,
+            linkInertialFramePositions=[origin] * links,
+            linkInertialFrameOrientations=[identity] * links,
+            linkParentIndices=[0] * links,
+            linkJointTypes=[pb.JOINT_FIXED] * links,
+            linkJointAxis=[[0.0, 0.0, 1.0]] * links,
+            physicsClientId=c,
+        )
+        friction = float(self.scene["part"]["friction"])
+        for link, weight in [(-1, 1.0 - _PAD_MASS_SHARE)] + [(j, share) for j in range(links)]:
+            # inertia alone: pybullet 3.2.7 writes a link's localInertiaDiagonal into the base when
+            # the same call also sets damping (measured: the part turned with 40-83 % of its inertia)
+            pb.changeDynamics(body, link, localInertiaDiagonal=[weight * i for i in m.inertia], physicsClientId=c)
+            self._surface(body, friction, link)
+            group, mask = (_PART_GROUP, _WALLS_GROUP) if link == -1 else (_PADS_GROUP, _BELT_GROUP)
+            pb.setCollisionFilterGroupMask(body, link, group, mask, physicsClientId=c)
+        pb.changeDynamics(
+            body,
+            -1,
+            collisionMargin=float(self.scene["part"]["collision_margin"]),
+            linearDamping=0.0,
+            angularDamping=0.0,
+            physicsClientId=c,
+        )
         pb.resetBaseVelocity(body, self.belt_vel, [0.0, 0.0, 0.0], physicsClientId=c)
         return body
 

@@ -285,6 +285,25 @@ def belt_contact_row(belt: dict) -> tuple[str, str, str]:
     )
 
 
+def belt_footprint_row(scene: dict) -> tuple[str, str, str]:
+    """Table 1 row of how the part's weight rests on the belt (``scene.belt.footprint``)."""
+    from feeder.sim.body import footprint_setting
+
+    model, count, radius = footprint_setting(scene)
+    if model == "pieces":
+        return (
+            "Belt footprint",
+            "convex pieces",
+            "each convex piece of the part touches the belt (up to 4 contact points a piece)",
+        )
+    return (
+        "Belt footprint",
+        f"{count} pads, {radius:g} m",
+        "spheres at the centroids of equal-area cells of the footprint carry the weight (uniform pressure); "
+        "the exact pieces meet only walls and fences",
+    )
+
+
 def table1_rows(scene: dict, presets: dict) -> list[tuple[str, str, str]]:
     """(parameter, value, units / notes) for every physical parameter of the scene and presets."""
     b, w, pt, fc = scene["belt"], scene["walls"], scene["part"], scene["fences"]
@@ -313,6 +332,7 @@ def table1_rows(scene: dict, presets: dict) -> list[tuple[str, str, str]]:
         ("Belt width", f"{2 * b['half_width']:g}", "m between the containment walls' inner faces"),
         ("Belt slab thickness", f"{b['thickness']:g}", "m; belt surface at z = 0"),
         belt_contact_row(b),
+        belt_footprint_row(scene),
         ("Containment walls", f"{w['height']:g} x {w['thickness']:g}", "m, height x thickness"),
         ("Part density", f"{pt['density']:g}", "kg/m^3; mass, centre of mass and inertia from the exact polygon"),
         (

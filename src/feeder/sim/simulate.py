@@ -31,7 +31,7 @@ def symmetry_order(geom, setting) -> int:
     part's outline (:func:`feeder.parts.symmetry.rotational_order`); a number is checked
     against the geometry (a part without that symmetry is refused)."""
     if setting == "auto":
-        return rotational_order(geom.outline)
+        return rotational_order(geom.outline, holes=geom.holes)
     try:
         order = int(setting)
     except (TypeError, ValueError):
@@ -39,7 +39,7 @@ def symmetry_order(geom, setting) -> int:
     if order < 1 or order != float(setting):
         raise FeederError(f"symmetry must be auto or a positive integer, got {setting!r}")
     if order > 1:
-        check_order(geom.outline, order)
+        check_order(geom.outline, order, holes=geom.holes)
     return order
 
 
