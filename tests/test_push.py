@@ -309,9 +309,25 @@ def test_feature_block_layout():
     assert abs(complex(empty["re_c1"], empty["im_c1"])) < 1e-12
 
 
-def test_a_part_with_holes_is_refused_by_the_push_analysis():
-    from feeder.parts.shapes import shape_part
+def test_a_part_with_holes_pushes_about_the_regions_centroid_with_the_outlines_hull():
+    """The holes move the centroid and thin the limit surface; the hull, which meets the fences,
+    is the outline's. ∫|x| dA is additive: the region's is the square's less the hole's."""
+    from feeder.parts.geometry import PartGeometry
 
-    with pytest.raises(FeederError, match="part washer-25x8: the push analysis takes parts without holes"):
-        P.as_geometry(shape_part("washer-25x8", 0.005))
-    P.as_geometry(shape_part("rect-40x20", 0.005))  # no holes: fine
+    square = np.array([(-0.01, -0.01), (0.01, -0.01), (0.01, 0.01), (-0.01, 0.01)])
+    hole = 0.5 * square  # centred: the centroid stays at the origin
+    solid, ring = P.push_geometry(square), P.push_geometry(square, [hole])
+    inner = P.push_geometry(hole)
+    assert ring.area == pytest.approx(0.0004 - 0.0001)
+    np.testing.assert_allclose(ring.centroid, [0.0, 0.0], atol=1e-15)
+    want = (solid.limit_radius * solid.area - inner.limit_radius * inner.area) / ring.area
+    assert ring.limit_radius == pytest.approx(want, rel=1e-12)
+    assert ring.limit_radius > solid.limit_radius  # the material left is farther out
+    np.testing.assert_array_equal(ring.hull, solid.hull)
+    # off-centre: a 10 x 10 mm hole centred at x = +4 mm moves the centroid to -4/3 mm
+    off = P.push_geometry(square, [hole + [0.004, 0.0]])
+    np.testing.assert_allclose(off.centroid, [-0.004 / 3.0, 0.0], atol=1e-15)
+    geom = PartGeometry.from_polygon("ring", square, 0.003, [hole + [0.004, 0.0]])
+    np.testing.assert_allclose(P.as_geometry(geom).centroid, off.centroid)  # a PartGeometry's holes count
+    with pytest.raises(FeederError, match="holes are not inside the outline"):
+        P.push_geometry(square, [hole + [0.01, 0.0]])  # reaches the outline

@@ -496,3 +496,32 @@ def test_the_card_check_compares_the_version_of_the_models_own_inputs(tmp_path):
     card("paper+cake", D.features_version("paper"))
     with pytest.raises(FeederError, match="unknown model inputs 'paper\\+cake'"):
         E.check_card(tmp_path)
+
+
+def test_the_dataset_push_block_sees_a_parts_holes(tmp_path):
+    """The plate's hole sits off-centre, so its centre of mass is not the outline's: the push block
+    from its STL is that of the outline less the hole, not of the solid outline."""
+    from feeder.parts.geometry import stl_bytes
+    from feeder.parts.push import default_scene
+    from feeder.parts.shapes import shape_part
+    from feeder.sim.fences import config_id, parse_location
+
+    plate = shape_part("plate-60x30x10", 0.005)
+    (tmp_path / "plate.stl").write_bytes(stl_bytes(plate.outline, 0.005, "plate", holes=plate.holes))
+    profiles = D._part_outlines(["plate"], tmp_path, "m")
+    outline, holes = profiles["plate"]
+    assert len(holes) == 1
+    cid = np.array([config_id(parse_location("straight:30"), parse_location("none"))])
+    args = (np.array(["plate"]), cid)
+    rest = ({"plate": 0.0}, default_scene(), 360, 2.0)
+    holed, _, _ = D.push_arrays(*args, profiles, *rest)
+    solid, _, _ = D.push_arrays(*args, {"plate": outline}, *rest)
+    direct = PU.push_features(
+        PU.push_geometry(outline, holes),
+        *(parse_location(s) for s in ("straight:30", "none")),
+        default_scene(),
+        frame_deg=0.0,
+        bins=360,
+    )
+    np.testing.assert_allclose(holed[0], direct)
+    assert not np.allclose(holed, solid)

@@ -377,7 +377,7 @@ def label_smooth_deg(bins: int, sigma_bins: float) -> float:
 def push_arrays(
     parts: np.ndarray,
     config_ids: np.ndarray,
-    outlines: dict[str, np.ndarray],
+    outlines: dict,
     frames: dict[str, float],
     scene: dict,
     bins: int,
@@ -402,7 +402,8 @@ def push_arrays(
         key = (str(part), str(cid))
         if key not in done:
             if part not in geoms:
-                geoms[part] = push_geometry(outlines[part])
+                profile = outlines[part]  # an outline, or (outline, holes)
+                geoms[part] = push_geometry(*profile) if isinstance(profile, tuple) else push_geometry(profile)
                 memos[part] = {}
             loc1, loc2 = parse_config_id(cid)
             done[key] = push_block(
@@ -419,17 +420,18 @@ def push_arrays(
     return push_raw, pmf, time.perf_counter() - t0
 
 
-def _part_outlines(parts, parts_dir: Path, units: str) -> dict[str, np.ndarray]:
-    """The outline of every part (``<parts_dir>/<part>.stl``, metres, the part file's frame, as
-    the simulator reads it); a missing or bad file is a one-line FeederError naming it."""
-    from feeder.parts.geometry import load_outline
+def _part_outlines(parts, parts_dir: Path, units: str) -> dict[str, tuple[np.ndarray, list[np.ndarray]]]:
+    """``(outline, holes)`` of every part (``<parts_dir>/<part>.stl``, metres, the part file's
+    frame, as the simulator reads it); a missing or bad file is a one-line FeederError naming it."""
+    from feeder.parts.geometry import load_profile
 
     out = {}
     for part in sorted(set(parts)):
         path = parts_dir / f"{part}.stl"
         if not path.is_file():
             raise FeederError(f"part file {path} is missing (the push features need every part's outline)")
-        out[part] = load_outline(path, units)
+        outline, holes, _ = load_profile(path, units)
+        out[part] = (outline, holes)
     return out
 
 

@@ -124,7 +124,7 @@ def push_rows(model, part: Path | None, pairs, frame_deg: float | None) -> np.nd
     if not model.needs_push:
         return None
     check_push_source(model, part)
-    from feeder.parts.geometry import load_outline
+    from feeder.parts.geometry import load_profile
     from feeder.parts.push import default_scene, push_features, push_geometry
 
     frame = 0.0
@@ -135,7 +135,8 @@ def push_rows(model, part: Path | None, pairs, frame_deg: float | None) -> np.nd
                 f"which {part} does not give"
             )
         frame = float(frame_deg)
-    geom = push_geometry(load_outline(part, "auto"))
+    outline, holes, _ = load_profile(part, "auto")
+    geom = push_geometry(outline, holes)
     scene, memo = default_scene(), {}
     rows = [
         push_features(geom, loc1, loc2, scene, frame_deg=frame, bins=int(model.spec.bins), responses=memo)

@@ -152,7 +152,7 @@ from functools import lru_cache
 import numpy as np
 
 from feeder.errors import FeederError
-from feeder.parts.geometry import clean_outline, polygon_moments
+from feeder.parts.geometry import _check_holes, clean_holes, clean_outline, profile_moments
 from feeder.sim.fences import Fence, parse_location
 
 FULL_TURN_DEG = 360.0
@@ -265,13 +265,18 @@ def _mean_distance_integral(poly: np.ndarray) -> float:
     return float(total)
 
 
-def push_geometry(outline) -> PushGeometry:
-    """Hull, centroid and limit-surface radius of an outline ((N, 2), any orientation, metres).
+def push_geometry(outline, holes=()) -> PushGeometry:
+    """Hull, centroid and limit-surface radius of an outline ((N, 2), any orientation, metres),
+    less its through-holes ``holes`` (polygons inside it): the centroid and the limit surface are
+    the region's; the hull, and so every fence contact, is the outline's.
 
     A degenerate outline (fewer than three non-collinear points, zero area, non-finite values) is
     a one-line :class:`FeederError`."""
     pts = clean_outline(outline)  # FeederError on collinear / repeated / non-finite points
-    area, centroid, _ = polygon_moments(pts)
+    cut = clean_holes(holes)
+    if cut:
+        _check_holes(pts, cut, "part")
+    area, centroid, _ = profile_moments(pts, cut)
     rel = pts - centroid
     size = float(np.max(np.hypot(rel[:, 0], rel[:, 1])))
     hull = convex_hull(rel, REL_TOL * size)
@@ -285,7 +290,8 @@ def push_geometry(outline) -> PushGeometry:
         raise FeederError("outline's area centroid lies on its convex hull (degenerate outline)")
     feet = -np.sum(hull * e, axis=1)
     normals_deg = np.mod(np.degrees(np.arctan2(normals[:, 1], normals[:, 0])), FULL_TURN_DEG)
-    limit_radius = _mean_distance_integral(rel) / area
+    # ∫|x| dA over the region: the outline's less each hole's (all CCW, about the same centroid)
+    limit_radius = (_mean_distance_integral(rel) - sum(_mean_distance_integral(h - centroid) for h in cut)) / area
     d1, d2 = rel - np.roll(rel, 1, axis=0), np.roll(rel, -1, axis=0) - rel
     convex = d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0] >= 0.0
     for arr in (centroid, hull, normals_deg, lengths, heights, feet, rel, convex):
@@ -294,17 +300,13 @@ def push_geometry(outline) -> PushGeometry:
 
 
 def as_geometry(part) -> PushGeometry:
-    """A :class:`PushGeometry` from itself, a PartGeometry (its ``outline``) or an outline array.
-    A PartGeometry with through-holes is refused: the centroid and the limit surface here are the
-    outline's, so they would ignore the holes."""
+    """A :class:`PushGeometry` from itself, a PartGeometry (its ``outline`` less its ``holes``) or
+    an outline array."""
     if isinstance(part, PushGeometry):
         return part
-    if len(getattr(part, "holes", ())):
-        raise FeederError(
-            f"part {getattr(part, 'part_id', '')}: the push analysis takes parts without holes "
-            "(its centroid and limit surface are the outline's)"
-        )
-    return push_geometry(getattr(part, "outline", part))
+    if hasattr(part, "outline"):
+        return push_geometry(part.outline, getattr(part, "holes", ()))
+    return push_geometry(part)
 
 
 def radius_function(part, phi_deg) -> np.ndarray:
