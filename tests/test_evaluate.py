@@ -8,6 +8,7 @@ import pytest
 from factories import small_overrides
 
 from feeder.config import compose_config
+from feeder.errors import FeederError
 from feeder.labels.dataset import load_dataset
 from feeder.learn import evaluate as E
 from feeder.learn import train as T
@@ -329,3 +330,69 @@ def test_cli_tables(trained, tmp_path):
     root, ds, dirs = trained
     assert E.main(["tables", "--dataset", str(ds), "--models", *map(str, dirs), "--out-dir", str(tmp_path)]) == 0
     assert (tmp_path / "table8.md").is_file()
+
+
+def _gkf(model, per_part, seed_sd=0.01):
+    """A GroupKFold table of ``model`` and the mean-PMF baseline over parts a, b, c: per part
+    (r2, r2c, cw1) of the model; the baseline 0.1 lower in R² and 2 degrees worse everywhere."""
+    rows = []
+    for name, shift, sd in ((model, 0.0, seed_sd), (E.BASELINE_MEAN, -0.1, np.nan)):
+        vals = [(p, r2 + shift, r2c + shift, cw1 - 20.0 * shift) for p, (r2, r2c, cw1) in per_part.items()]
+        for p, r2, r2c, cw1 in vals:
+            rows.append({"model": name, "group": p, "n": 2, "r2_mean": r2, "r2c_mean": r2c, "cw1_mean": cw1})
+        means = np.mean([v[1:] for v in vals], axis=0)
+        rows.append({"model": name, "group": "all configurations", "n": 6, "r2_mean": 9, "r2c_mean": 9, "cw1_mean": 9})
+        over = dict(zip(("r2_mean", "r2c_mean", "cw1_mean"), means, strict=True))
+        rows.append({"model": name, "group": "over parts", "n": 3, **over, "r2_seed_sd": sd, "cw1_seed_sd": sd})
+    return pd.DataFrame(rows)
+
+
+def test_generalisation_table_by_hand():
+    m3 = _gkf("m3", {"a": (0.8, 0.9, 30.0), "b": (0.6, 0.8, 40.0), "c": (0.7, 0.85, 35.0)})
+    push = _gkf("m3push", {"a": (0.9, 0.95, 20.0), "b": (0.9, 0.95, 20.0), "c": (0.9, 0.95, 20.0)}, seed_sd=0.02)
+    parts = pd.DataFrame(
+        {"model": ["m3", E.BASELINE_MEAN], "r2_mean": [0.5, 0.4], "r2c_mean": [0.6, 0.5], "cw1_mean": [1.0, 2.0]}
+    )
+    boot = {"resamples": 200, "level": 0.95, "seed": 0}
+    t = E.generalisation_table([m3, push], parts, boot).set_index("predictor")
+    assert list(t.index) == ["m3", E.BASELINE_MEAN, "m3push"]  # the baseline once, from the first table
+    assert t.loc["m3", "groupkfold_r2_mean"] == pytest.approx(0.7)
+    assert t.loc["m3", "groupkfold_r2_sd_parts"] == pytest.approx(np.std([0.8, 0.6, 0.7]))
+    assert t.loc["m3push", "groupkfold_r2_sd_seeds"] == 0.02 and np.isnan(t.loc["m3", "groupkfold_r2c_sd_seeds"])
+    # every part 0.1 above the baseline in R² and 2 degrees better: a degenerate interval at the difference
+    for metric, diff in (("r2", 0.1), ("r2c", 0.1), ("cw1", -2.0)):
+        row = t.loc["m3"]
+        assert (row[f"{metric}_vs_mean_pmf"], row[f"{metric}_vs_mean_pmf_low"], row[f"{metric}_vs_mean_pmf_high"]) == (
+            pytest.approx((diff, diff, diff))
+        )
+        assert row[f"{metric}_verdict"] == "better"
+    assert t.loc[E.BASELINE_MEAN, "r2_verdict"] == "" and t.loc[E.BASELINE_MEAN, "r2_vs_mean_pmf"] == 0.0
+    assert t.loc["m3", "parts_split_r2_mean"] == 0.5 and np.isnan(t.loc["m3push", "parts_split_cw1_mean"])
+
+
+def test_generalisation_needs_the_mean_baseline_and_the_same_parts():
+    m3 = _gkf("m3", {"a": (0.8, 0.9, 30.0), "b": (0.6, 0.8, 40.0)})
+    parts = pd.DataFrame({"model": ["m3"], "r2_mean": [0.5], "r2c_mean": [0.6], "cw1_mean": [1.0]})
+    boot = {"resamples": 10, "level": 0.95, "seed": 0}
+    with pytest.raises(FeederError, match="lack the baseline_mean_pmf rows"):
+        E.generalisation_table([m3[m3.model == "m3"]], parts, boot)
+    odd = m3[~((m3.model == E.BASELINE_MEAN) & (m3.group == "b"))]
+    with pytest.raises(FeederError, match="cover different parts"):
+        E.generalisation_table([odd], parts, boot)
+
+
+def test_generalisation_cli_refuses_a_missing_table_in_one_line(tmp_path, capsys):
+    from feeder.cli import main
+
+    out = tmp_path / "g.csv"
+    argv = [
+        "evaluate",
+        "generalisation",
+        "--groupkfold",
+        str(tmp_path / "no.csv"),
+        "--parts-table",
+        str(tmp_path / "t8.csv"),
+    ]
+    assert main([*argv, "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "GroupKFold table" in err and "is missing" in err and "\n" not in err and not out.exists()

@@ -31,6 +31,7 @@ MODELS_TARGETS = [
     f"{RESULTS}/tables/model_vs_baselines.csv",
     *expand(f"{RESULTS}/tables/groupkfold_{{model}}{{suffix}}.csv", model=GROUPKFOLD, suffix=["", "_paired"]),
     *expand(f"{RESULTS}/tables/breakdown_{{split}}.{{ext}}", split=["fences", "parts"], ext=["csv", "md"]),
+    f"{RESULTS}/tables/generalisation.csv",
     f"{RESULTS}/figures/fig12_test_predictions.png",
     f"{RESULTS}/figures/fig13_parts_predictions.png",
     f"{EXPORT_DIR}/{REFERENCE_MODEL}",
@@ -136,6 +137,29 @@ rule groupkfold_model:
     shell:
         "feeder evaluate groupkfold --dataset {input.dataset} --out {output.csv} --paired-out {output.paired}"
         " --seeds {params.seeds} {params.bootstrap} model={wildcards.model} {params.overrides} > {log} 2>&1"
+
+
+rule generalisation:
+    """Every predictor on unseen parts side by side (models.groupkfold, the baselines, the analytic
+    push PMF): GroupKFold and the Parts split, each against the mean PMF paired over parts."""
+    input:
+        code("evaluate"),
+        groupkfold=expand(f"{RESULTS}/tables/groupkfold_{{model}}.csv", model=GROUPKFOLD),
+        parts=f"{RESULTS}/tables/table8.csv",
+    output:
+        csv=report(f"{RESULTS}/tables/generalisation.csv", caption="../report/generalisation.rst", category="Models"),
+        md=f"{RESULTS}/tables/generalisation.md",
+    log:
+        f"{LOGS}/models/generalisation.log",
+    benchmark:
+        f"{BENCHMARKS}/models/generalisation.tsv"
+    conda:
+        "../envs/feeder.yaml"
+    params:
+        bootstrap=BOOTSTRAP_ARGS,
+    shell:
+        "feeder evaluate generalisation --groupkfold {input.groupkfold} --parts-table {input.parts}"
+        " --out {output.csv} {params.bootstrap} > {log} 2>&1"
 
 
 rule prediction_figure_data:

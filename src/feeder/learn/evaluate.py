@@ -554,6 +554,76 @@ def grid_table(grid_dir) -> pd.DataFrame:
 # ----------------------------------------------------------------------------------------------
 # CLI
 # ----------------------------------------------------------------------------------------------
+# ----------------------------------------------------------------------------------------------
+# Generalisation: every predictor on unseen parts, side by side (issue #20)
+# ----------------------------------------------------------------------------------------------
+OVER_PARTS = "over parts"  # the GroupKFold table's row of per-part means
+GENERALISATION_METRICS = (("r2", 1), ("r2c", 1), ("cw1", -1))  # (metric, +1 higher is better / -1 lower)
+
+
+def _read_table(path: Path, what: str, columns: list[str]) -> pd.DataFrame:
+    """A CSV table with ``columns``; a missing, unreadable or incomplete file is a one-line FeederError."""
+    if not Path(path).is_file():
+        raise FeederError(f"{what} {path} is missing")
+    try:
+        df = pd.read_csv(path)
+    except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as err:
+        raise FeederError(f"{what} {path} is not a readable CSV ({err})".replace("\n", " ")) from None
+    missing = [c for c in columns if c not in df.columns]
+    if missing:
+        raise FeederError(f"{what} {path} lacks the column(s) {', '.join(missing)}")
+    return df
+
+
+def generalisation_table(groupkfold: list[pd.DataFrame], parts: pd.DataFrame, bootstrap: dict) -> pd.DataFrame:
+    """One row per predictor on unseen parts, from the leave-parts-out GroupKFold tables of one or
+    more models (the same dataset and folds, so their baseline rows agree) and the Parts split's
+    table (Table 8).
+
+    Per predictor: its GroupKFold mean over parts and SD across parts of each metric of
+    :data:`GENERALISATION_METRICS` (the paper's CDF R², the R² at the best common cut, the circular
+    W1), the SD across training seeds (models), the difference to the mean-PMF baseline paired
+    over parts with its percentile bootstrap interval, and the Parts split's means. A predictor
+    missing from Table 8 has NaN there."""
+    per_part: dict[str, pd.DataFrame] = {}
+    summary: dict[str, pd.Series] = {}
+    for table in groupkfold:
+        for name, rows in table.groupby("model", sort=False):
+            over = rows[rows["group"] == OVER_PARTS]
+            parts_rows = rows[~rows["group"].isin([OVER_PARTS, "all configurations"])]
+            if len(over) != 1 or parts_rows.empty:
+                raise FeederError(f"GroupKFold table: {name} lacks its '{OVER_PARTS}' row or its per-part rows")
+            if name in per_part:
+                continue  # a baseline repeated by a second model's table
+            per_part[name] = parts_rows.set_index("group")
+            summary[name] = over.iloc[0]
+    if BASELINE_MEAN not in per_part:
+        raise FeederError(f"GroupKFold tables lack the {BASELINE_MEAN} rows")
+    mean_parts = per_part[BASELINE_MEAN]
+    parts_split = parts.set_index("model")
+    rows = []
+    for name, over in summary.items():
+        row = {"predictor": name, "parts": int(over["n"])}
+        for metric, sign in GENERALISATION_METRICS:
+            row[f"groupkfold_{metric}_mean"] = float(over[f"{metric}_mean"])
+            row[f"groupkfold_{metric}_sd_parts"] = float(np.std(per_part[name][f"{metric}_mean"], ddof=0))
+            seed_sd = over.get(f"{metric}_seed_sd")
+            row[f"groupkfold_{metric}_sd_seeds"] = float(seed_sd) if pd.notna(seed_sd) else np.nan
+            common = per_part[name].index.intersection(mean_parts.index)
+            if len(common) != len(per_part[name]):
+                raise FeederError(f"GroupKFold tables: {name} and {BASELINE_MEAN} cover different parts")
+            diff = per_part[name].loc[common, f"{metric}_mean"] - mean_parts.loc[common, f"{metric}_mean"]
+            mean, low, high = paired_bootstrap(diff.to_numpy(), **bootstrap)
+            row[f"{metric}_vs_mean_pmf"], row[f"{metric}_vs_mean_pmf_low"] = mean, low
+            row[f"{metric}_vs_mean_pmf_high"] = high
+            row[f"{metric}_verdict"] = "" if name == BASELINE_MEAN else verdict(low, high, sign)
+            row[f"parts_split_{metric}_mean"] = (
+                float(parts_split.loc[name, f"{metric}_mean"]) if name in parts_split.index else np.nan
+            )
+        rows.append(row)
+    return pd.DataFrame(rows)
+
+
 def _bootstrap_options(p: argparse.ArgumentParser) -> None:
     """The paired bootstrap's settings (models.bootstrap in the study config)."""
     p.add_argument("--resamples", type=int, default=2000, help="bootstrap resamples (default 2000)")
@@ -588,6 +658,14 @@ def main(argv: list[str]) -> int:
     p.add_argument("--seeds", type=int, nargs="+", help="training seeds (default: the Hydra config's seed)")
     _bootstrap_options(p)
     p.add_argument("overrides", nargs="*", help="Hydra overrides, e.g. model=m3 trainer.max_epochs=50")
+
+    p = sub.add_parser(
+        "generalisation", help="every predictor on unseen parts: GroupKFold tables and Table 8 side by side"
+    )
+    p.add_argument("--groupkfold", type=Path, nargs="+", required=True, help="groupkfold_<model>.csv of each model")
+    p.add_argument("--parts-table", type=Path, required=True, help="Table 8 (the Parts split), table8.csv")
+    p.add_argument("--out", type=Path, required=True, help="CSV (a .md twin is written beside it)")
+    _bootstrap_options(p)
 
     p = sub.add_parser("figure-data", help="data of Figs. 12 (Test) and 13 (Parts): four representative CDFs each")
     p.add_argument("--dataset", type=Path, required=True)
@@ -631,6 +709,24 @@ def main(argv: list[str]) -> int:
             )
         summary = df[df.group == "over parts"][["model", "r2_mean", "r2_sd", "w1_mean"]]
         print(summary.to_string(index=False), file=sys.stderr)
+    elif args.cmd == "generalisation":
+        metrics = [f"{m}_mean" for m, _ in GENERALISATION_METRICS]
+        tables = [_read_table(path, "GroupKFold table", ["model", "group", "n", *metrics]) for path in args.groupkfold]
+        bootstrap = _bootstrap_settings(args)
+        df = generalisation_table(tables, _read_table(args.parts_table, "Table 8", ["model", *metrics]), bootstrap)
+        _write_table(
+            args.out,
+            df,
+            "Every predictor on unseen parts: leave-parts-out GroupKFold (mean over parts, SD across parts "
+            "and across training seeds) and the Parts split (Table 8); the difference to the mean-PMF "
+            f"baseline paired over parts with a {bootstrap['level']:.0%} percentile bootstrap interval "
+            f"({bootstrap['resamples']} resamples). r2: the paper's CDF R²; r2c: at the best common cut; "
+            "cw1: circular W1 (degrees, lower is better).",
+        )
+        print(
+            df[["predictor", "groupkfold_r2_mean", "groupkfold_r2c_mean", "groupkfold_cw1_mean"]].to_string(),
+            file=sys.stderr,
+        )
     elif args.cmd == "figure-data":
         from feeder.io import write_npz
 
