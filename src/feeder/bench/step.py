@@ -115,22 +115,13 @@ def bare_steps(geom, scene, preset, yaw_deg: float, calls: int, settle: int) -> 
     """The part's bounding box (its principal frame, the part's mass and inertia) at rest on a
     static box floor with the preset's engine settings: ``(cpu_s, contact_points)`` per call,
     after ``settle`` calls."""
-    from feeder.sim.body import part_model, quiet_pybullet
+    from feeder.sim.body import connect_world, part_model, quiet_pybullet
 
     pb = quiet_pybullet()
     model = part_model(geom, scene, float(preset["merge_tolerance"]))
     lo, hi = model.hull.min(axis=0), model.hull.max(axis=0)
-    c = pb.connect(pb.DIRECT)
+    c = connect_world(pb, scene, preset)
     try:
-        pb.setGravity(0, 0, -float(scene["gravity"]), physicsClientId=c)
-        pb.setPhysicsEngineParameter(
-            fixedTimeStep=float(preset["time_step"]),
-            numSubSteps=int(preset["substeps"]),
-            numSolverIterations=int(preset["solver_iterations"]),
-            enableConeFriction=1,
-            deterministicOverlappingPairs=1,
-            physicsClientId=c,
-        )
         span = float(np.max(hi - lo))
         floor = pb.createCollisionShape(pb.GEOM_BOX, halfExtents=[2 * span, 2 * span, 0.005], physicsClientId=c)
         pb.createMultiBody(0, floor, basePosition=[0, 0, -0.005], physicsClientId=c)

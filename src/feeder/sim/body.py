@@ -329,6 +329,26 @@ class Plan:
     time_limit: float
 
 
+def connect_world(pb, scene: dict, preset: dict) -> int:
+    """A fresh DIRECT client with the scene's gravity and the preset's solver settings (the
+    study's worlds and the bare world of ``feeder bench-step`` alike)."""
+    c = pb.connect(pb.DIRECT)
+    pb.resetSimulation(physicsClientId=c)
+    pb.setGravity(0, 0, -float(scene["gravity"]), physicsClientId=c)
+    pb.setPhysicsEngineParameter(
+        fixedTimeStep=float(preset["time_step"]),
+        numSubSteps=int(preset["substeps"]),
+        numSolverIterations=int(preset["solver_iterations"]),
+        enableConeFriction=1,
+        deterministicOverlappingPairs=1,
+        enableFileCaching=0,
+        physicsClientId=c,
+    )
+    if preset.get("engine"):
+        pb.setPhysicsEngineParameter(**dict(preset["engine"]), physicsClientId=c)
+    return c
+
+
 class World:
     """One pybullet DIRECT client with ``lanes`` copies of the belt lane (belt, walls, fences).
 
@@ -376,23 +396,7 @@ class World:
                 pb.setCollisionFilterGroupMask(body, -1, group, mask, physicsClientId=self.cid)
 
     def _connect(self) -> int:
-        """A fresh DIRECT client with gravity and the preset's solver settings."""
-        pb, scene, preset = self.pb, self.scene, self.preset
-        c = pb.connect(pb.DIRECT)
-        pb.resetSimulation(physicsClientId=c)
-        pb.setGravity(0, 0, -float(scene["gravity"]), physicsClientId=c)
-        pb.setPhysicsEngineParameter(
-            fixedTimeStep=float(preset["time_step"]),
-            numSubSteps=int(preset["substeps"]),
-            numSolverIterations=int(preset["solver_iterations"]),
-            enableConeFriction=1,
-            deterministicOverlappingPairs=1,
-            enableFileCaching=0,
-            physicsClientId=c,
-        )
-        if preset.get("engine"):
-            pb.setPhysicsEngineParameter(**dict(preset["engine"]), physicsClientId=c)
-        return c
+        return connect_world(self.pb, self.scene, self.preset)
 
     def _add_belt(self, x0: float, shape: int) -> int:
         """The lane's belt slab at its start pose (compliant contact when the scene asks for it)."""
