@@ -1,4 +1,5 @@
-"""Shared fixtures: the default synthetic datasets of ``factories.py``, built once per session.
+"""Shared fixtures: the default synthetic datasets of ``factories.py``, built once per session,
+and every test's pyplot figures closed after it.
 
 They are read-only; a test that needs other arguments calls the factory itself
 (``from factories import make_regression_dataset, make_level_dataset``).
@@ -32,3 +33,12 @@ def level_dataset(tmp_path_factory):
     path = tmp_path_factory.mktemp("levels") / "dataset.npz"
     make_level_dataset(path)
     return path
+
+
+@pytest.fixture(autouse=True)
+def _close_figures():
+    """Figures a test draws and returns are closed after it (pyplot keeps them otherwise)."""
+    yield
+    import matplotlib.pyplot as plt
+
+    plt.close("all")

@@ -230,28 +230,52 @@ def test_switching_the_yaw_design_reruns_every_simulation_and_no_benchmark(smoke
     assert {"datasets_build", "train_model", "bench_cost"} <= rules
 
 
-def test_editing_one_model_config_reruns_only_that_model(smoke_run, edit):
+def _models_built_on(name: str) -> set[str]:
+    """The model configs whose Hydra defaults list ``name`` (they inherit its settings)."""
+    built_on = set()
+    for path in (ROOT / "config/hydra/model").glob("*.yaml"):
+        defaults = yaml.safe_load(path.read_text()).get("defaults") or []
+        if name in defaults:
+            built_on.add(path.stem)
+    return built_on
+
+
+MODEL_JOB_RULES = {
+    "train_model",
+    "evaluate_models",
+    "groupkfold_model",
+    "generalisation",
+    "prediction_figure_data",
+    "draw_fig12_test_predictions",
+    "draw_fig13_parts_predictions",
+    "export_model",  # the shipped Model 3 (seed 0) and its card
+}
+
+
+def test_editing_one_model_config_reruns_that_model_and_the_models_built_on_it(smoke_run, edit):
+    """m3push inherits m3's settings (Hydra defaults), so a change to m3.yaml retrains both, and
+    no other model."""
+    assert "m3push" in _models_built_on("m3")
     edit("config/hydra/model/m3.yaml", "lr: 0.0004", "lr: 0.0005")
     jobs = planned_jobs(smoke_run, *SMOKE)
     trained = {out for rule, out in jobs if rule == "train_model"}
+    models = merged_config(smoke_run, "config/smoke.yaml")["models"]
+    smoke_models = {*models["regression"], *models["groupkfold"]}
+    expected = {"m3"} | (_models_built_on("m3") & smoke_models)
     assert trained == {
-        f"{SMOKE_RESULTS}/models/m3/seed{seed}/model.pt" for seed in (0, 1, 2)
-    }  # every seed, no other model
+        f"{SMOKE_RESULTS}/models/{m}/seed{seed}/model.pt" for m in expected for seed in (0, 1, 2)
+    }  # every seed of m3 and of what inherits it, no other model
     rules = {rule for rule, _ in jobs}
-    assert (
-        rules
-        <= {
-            "train_model",
-            "evaluate_models",
-            "groupkfold_model",
-            "prediction_figure_data",
-            "draw_fig12_test_predictions",
-            "draw_fig13_parts_predictions",
-            "export_model",  # the shipped Model 3 (seed 0) and its card
-        }
-        | ALWAYS
-    )
+    assert rules <= MODEL_JOB_RULES | ALWAYS
     assert "evaluate_models" in rules
+
+
+def test_editing_a_derived_model_config_leaves_its_base_alone(smoke_run, edit):
+    edit("config/hydra/model/m3push.yaml", "name: m3push", "name: m3push\nlr: 0.0003")
+    jobs = planned_jobs(smoke_run, *SMOKE)
+    trained = {out for rule, out in jobs if rule == "train_model"}
+    assert trained == {f"{SMOKE_RESULTS}/models/m3push/seed{seed}/model.pt" for seed in (0, 1, 2)}
+    assert {rule for rule, _ in jobs} <= MODEL_JOB_RULES | ALWAYS
 
 
 def test_editing_one_figure_style_reruns_only_that_figure(smoke_run, edit):
