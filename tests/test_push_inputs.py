@@ -247,6 +247,9 @@ def test_input_names_and_features_version():
     assert D.features_version("paper+push").startswith(f"{D.FEATURES_VERSION}-")
     with pytest.raises(FeederError, match="model.inputs"):
         D.features_version("push")
+    # without the DFT: the 8 fence inputs, then the push block, and a version of its own
+    assert D.input_names("fence+push") == D.FEEDER_FEATURE_NAMES + D.input_names("paper+push")[53:]
+    assert len({D.features_version(i) for i in D.INPUTS}) == 3
 
 
 def test_push_scaler_fits_training_rows_only_and_round_trips(push_regression_dataset):
@@ -264,6 +267,16 @@ def test_push_scaler_fits_training_rows_only_and_round_trips(push_regression_dat
     np.testing.assert_array_equal(back.transform(data["part_raw"], data["feeder_raw"], data["push_raw"]), x)
     with pytest.raises(FeederError, match="push"):
         sc.transform(data["part_raw"], data["feeder_raw"])
+    # fence+push: the same scaled fence and push columns, the DFT columns left out
+    no_dft = D.fit_scaler(data["part_raw"], data["feeder_raw"], mask, data["push_raw"], dft=False)
+    assert no_dft.inputs == "fence+push" and no_dft.to_dict()["dft"] is False
+    x_no_dft = no_dft.transform(data["part_raw"], data["feeder_raw"], data["push_raw"])
+    np.testing.assert_array_equal(x_no_dft, x[:, 45:])
+    back = D.Scaler.from_dict(json.loads(json.dumps(no_dft.to_dict())))
+    assert back.inputs == "fence+push"
+    np.testing.assert_array_equal(back.transform(data["part_raw"], data["feeder_raw"], data["push_raw"]), x_no_dft)
+    with pytest.raises(FeederError, match="push block"):
+        D.fit_scaler(data["part_raw"], data["feeder_raw"], mask, dft=False)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -316,7 +329,33 @@ def push_models(tmp_path_factory, push_regression_dataset):
         extra = ["model.inputs=paper+push", f"model.name={model}push"]
         T.train(compose_config("train", small_overrides(ds, root / model, model, 3, extra)))
     T.train(compose_config("train", small_overrides(ds, root / "paper", "m3", 3)))
+    T.train(compose_config("train", small_overrides(ds, root / "pushonly", "m3pushonly", 3)))
     return root, ds
+
+
+def test_a_push_only_model_reads_the_fences_and_the_push_block_and_not_the_dft(push_models):
+    root, ds = push_models
+    data = D.load_dataset(ds)
+    tm = TrainedModel.load(root / "pushonly")
+    assert tm.inputs == "fence+push" and tm.needs_push and tm.spec.name == "m3pushonly"
+    assert tm.net.body.net[0].in_features == 8 + N_PUSH
+    pmf = tm.predict(data["part_raw"], data["feeder_raw"], data["push_raw"])[0]
+    np.testing.assert_array_equal(tm.predict_rows(data)[0], pmf)
+    # other DFT values change nothing; other push values or fences do
+    np.testing.assert_array_equal(tm.predict(data["part_raw"] + 1.0, data["feeder_raw"], data["push_raw"])[0], pmf)
+    assert not np.allclose(tm.predict(data["part_raw"], data["feeder_raw"], data["push_raw"] + 1.0)[0], pmf)
+    card = json.loads((root / "pushonly" / "scaler.json").read_text())
+    assert card["dft"] is False
+    with pytest.raises(FeederError, match="push"):
+        tm.predict(data["part_raw"], data["feeder_raw"])
+
+
+def test_a_push_only_branched_model_is_refused():
+    from feeder.learn.models import ModelSpec
+
+    cfg = compose_config("train", ["model=m4", "model.inputs=fence+push"]).model
+    with pytest.raises(ValueError, match="arch standard"):
+        ModelSpec.from_config(cfg, 360)
 
 
 def test_paper_push_models_train_save_load_and_predict(push_models):

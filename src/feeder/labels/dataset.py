@@ -13,8 +13,9 @@ input scaler, ``dataset.npz`` (docs/data.md) and Table 4; and the ``feeder datas
 * :func:`load_dataset` reads ``dataset.npz`` back, checked: the one reader every stage uses.
 * :class:`Scaler` / :func:`fit_scaler`: the model-input scaler, fit on training rows only.
 * Model inputs (``model.inputs`` of the Hydra model configs, :data:`INPUTS`): ``paper``, the
-  paper's 53 (:data:`INPUT_NAMES`), or ``paper+push``, those and the push block
-  (:func:`input_names`, :func:`features_version`).
+  paper's 53 (:data:`INPUT_NAMES`), ``paper+push``, those and the push block, or ``fence+push``,
+  the 8 fence inputs and the push block without the DFT (:func:`input_names`,
+  :func:`features_version`).
 
 ``feeder datasets configurations|build|table4|convergence`` (``feeder datasets <cmd> -h``); the
 grid and splits are in :mod:`feeder.labels.grid`, the convergence study in
@@ -65,7 +66,8 @@ INPUT_NAMES = DFT_FEATURE_NAMES + FEEDER_FEATURE_NAMES  # the 53 raw model input
 FEATURES_DIGEST_CHARS = 12  # hex digits of the sha256 kept in features_version()
 PAPER_INPUTS = "paper"  # model.inputs: the paper's 53 inputs
 PUSH_INPUTS = "paper+push"  # model.inputs: the 53 and the analytic push block
-INPUTS = (PAPER_INPUTS, PUSH_INPUTS)
+FENCE_PUSH_INPUTS = "fence+push"  # model.inputs: the 8 fence inputs and the push block, no DFT
+INPUTS = (PAPER_INPUTS, PUSH_INPUTS, FENCE_PUSH_INPUTS)
 PUSH_INPUT_PREFIX = "push_"  # the push block's input names: push_<PUSH_FEATURE_NAMES entry>
 
 
@@ -76,22 +78,34 @@ def check_inputs(inputs: str) -> str:
     return inputs
 
 
+def uses_dft(inputs: str) -> bool:
+    """Whether the model inputs ``inputs`` include the part's 45 DFT values (all but ``fence+push``)."""
+    return check_inputs(inputs) != FENCE_PUSH_INPUTS
+
+
+def uses_push(inputs: str) -> bool:
+    """Whether the model inputs ``inputs`` include the analytic push block (all but ``paper``)."""
+    return check_inputs(inputs) != PAPER_INPUTS
+
+
 def input_names(inputs: str = PAPER_INPUTS) -> tuple[str, ...]:
-    """The raw model inputs of ``model.inputs`` in network order: :data:`INPUT_NAMES`, then for
-    ``paper+push`` the push block (``push_`` + :data:`feeder.parts.push.PUSH_FEATURE_NAMES`)."""
-    if check_inputs(inputs) == PAPER_INPUTS:
-        return INPUT_NAMES
-    return INPUT_NAMES + tuple(PUSH_INPUT_PREFIX + name for name in PUSH_FEATURE_NAMES)
+    """The raw model inputs of ``model.inputs`` in network order: :data:`INPUT_NAMES` (without the
+    DFT values for ``fence+push``), then, but for ``paper``, the push block (``push_`` +
+    :data:`feeder.parts.push.PUSH_FEATURE_NAMES`)."""
+    names = INPUT_NAMES if uses_dft(inputs) else FEEDER_FEATURE_NAMES
+    if not uses_push(inputs):
+        return names
+    return names + tuple(PUSH_INPUT_PREFIX + name for name in PUSH_FEATURE_NAMES)
 
 
 def features_version(inputs: str = PAPER_INPUTS) -> str:
     """The version of the model inputs this code computes, ``"<FEATURES_VERSION>-<digest>"``:
     the hand-bumped :data:`feeder.parts.features.FEATURES_VERSION` and a short sha256 of it, the
     ordered :data:`INPUT_NAMES` and the DFT settings (:data:`feeder.parts.features.DFT`); for
-    ``inputs="paper+push"`` also the push block's names, its hand-bumped
-    :data:`feeder.parts.push.PUSH_FEATURES_VERSION` and settings (the ``paper`` version is the one
-    the paper's models always had). A model card records it; a model whose inputs were computed
-    otherwise gets a different one."""
+    inputs with the push block also its names, its hand-bumped
+    :data:`feeder.parts.push.PUSH_FEATURES_VERSION` and settings, and for ``fence+push`` that the
+    DFT values are left out (the ``paper`` version is the one the paper's models always had). A
+    model card records it; a model whose inputs were computed otherwise gets a different one."""
     import dataclasses
     import hashlib
 
@@ -100,7 +114,9 @@ def features_version(inputs: str = PAPER_INPUTS) -> str:
     if len(INPUT_NAMES) != N_DFT + N_FEEDER:
         raise FeederError(f"INPUT_NAMES lists {len(INPUT_NAMES)} inputs, the models take {N_DFT + N_FEEDER}")
     content: dict = {"version": FEATURES_VERSION, "inputs": list(INPUT_NAMES), "dft": dataclasses.asdict(DFT)}
-    if check_inputs(inputs) == PUSH_INPUTS:
+    if not uses_dft(inputs):
+        content["dft_inputs"] = False
+    if uses_push(inputs):
         content["push"] = {
             "version": PUSH_FEATURES_VERSION,
             "names": list(PUSH_FEATURE_NAMES),
@@ -182,8 +198,9 @@ _PUSH_SCALER_KEYS = ("push_mean", "push_std")
 @dataclass
 class Scaler:
     """z-score of the 45 DFT values and min-max of the two fence angles, fit on training rows;
-    for ``paper+push`` models also the z-score of the push block (``push_mean``/``push_std``,
-    None for the paper's inputs)."""
+    for ``paper+push`` and ``fence+push`` models also the z-score of the push block
+    (``push_mean``/``push_std``, None for the paper's inputs). ``dft`` False (``fence+push``):
+    the DFT values are left out of the scaled inputs."""
 
     mean: np.ndarray  # (45,)
     std: np.ndarray  # (45,), zero SDs replaced by 1
@@ -191,15 +208,22 @@ class Scaler:
     angle_max: np.ndarray  # (2,)
     push_mean: np.ndarray | None = None  # (P,)
     push_std: np.ndarray | None = None  # (P,), zero SDs replaced by 1
+    dft: bool = True  # whether the scaled inputs hold the DFT values
+
+    def __post_init__(self) -> None:
+        if not self.dft and self.push_mean is None:
+            raise FeederError("a scaler without the DFT values needs the push block (model.inputs: fence+push)")
 
     @property
     def inputs(self) -> str:
         """The model inputs the scaler was fit on (:data:`INPUTS`)."""
-        return PAPER_INPUTS if self.push_mean is None else PUSH_INPUTS
+        if self.push_mean is None:
+            return PAPER_INPUTS
+        return PUSH_INPUTS if self.dft else FENCE_PUSH_INPUTS
 
     def transform(self, part_raw, feeder_raw, push_raw=None) -> np.ndarray:
-        """The scaled model inputs: 53 columns, then the push block's for a push scaler (which
-        needs ``push_raw``; a paper scaler ignores it)."""
+        """The scaled model inputs: 53 columns (the 8 fence columns without the DFT), then the
+        push block's for a push scaler (which needs ``push_raw``; a paper scaler ignores it)."""
         part_raw = np.atleast_2d(np.asarray(part_raw, dtype=np.float64))
         feeder_raw = np.atleast_2d(np.asarray(feeder_raw, dtype=np.float64))
         if part_raw.shape[1] != N_DFT or feeder_raw.shape[1] != N_FEEDER or len(part_raw) != len(feeder_raw):
@@ -215,22 +239,26 @@ class Scaler:
         if self.push_mean is None:
             return np.concatenate([z, f], axis=1)
         if push_raw is None:
-            raise FeederError("this model takes the analytic push features (model.inputs: paper+push): none given")
+            raise FeederError(f"this model takes the analytic push features (model.inputs: {self.inputs}): none given")
         push_raw = np.atleast_2d(np.asarray(push_raw, dtype=np.float64))
         if push_raw.shape != (len(part_raw), self.push_mean.size):
             raise FeederError(
                 f"Scaler.transform needs ({len(part_raw)}, {self.push_mean.size}) push features, got {push_raw.shape}"
             )
-        return np.concatenate([z, f, (push_raw - self.push_mean) / self.push_std], axis=1)
+        blocks = [z, f] if self.dft else [f]
+        return np.concatenate([*blocks, (push_raw - self.push_mean) / self.push_std], axis=1)
 
     def to_dict(self) -> dict:
         keys = _SCALER_KEYS if self.push_mean is None else _SCALER_KEYS + _PUSH_SCALER_KEYS
-        return {k: getattr(self, k).tolist() for k in keys}
+        out: dict = {k: getattr(self, k).tolist() for k in keys}
+        if not self.dft:
+            out["dft"] = False  # written only when off: the paper's scalers stay as they were
+        return out
 
     @classmethod
     def from_dict(cls, d: dict) -> Scaler:
         keys = _SCALER_KEYS + tuple(k for k in _PUSH_SCALER_KEYS if d.get(k) is not None)
-        return cls(**{k: np.asarray(d[k], dtype=np.float64) for k in keys})
+        return cls(**{k: np.asarray(d[k], dtype=np.float64) for k in keys}, dft=bool(d.get("dft", True)))
 
 
 def _zscore(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -239,9 +267,10 @@ def _zscore(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return x.mean(axis=0), np.where(std > 0, std, 1.0)
 
 
-def fit_scaler(part_raw, feeder_raw, mask, push_raw=None) -> Scaler:
+def fit_scaler(part_raw, feeder_raw, mask, push_raw=None, dft: bool = True) -> Scaler:
     """Fit on the rows selected by ``mask`` (bool (N,) or indices) only: no other row is read.
-    With ``push_raw`` ((N, P) push features) the scaler also z-scores the push block."""
+    With ``push_raw`` ((N, P) push features) the scaler also z-scores the push block; ``dft``
+    False leaves the DFT values out of its scaled inputs (``fence+push``)."""
     part_raw = np.asarray(part_raw, dtype=np.float64)
     feeder_raw = np.asarray(feeder_raw, dtype=np.float64)
     p = part_raw[mask]
@@ -257,18 +286,18 @@ def fit_scaler(part_raw, feeder_raw, mask, push_raw=None) -> Scaler:
     push_mean = push_std = None
     if push_raw is not None:
         push_mean, push_std = _zscore(np.asarray(push_raw, dtype=np.float64)[mask])
-    return Scaler(mean=mean, std=std, angle_min=lo, angle_max=hi, push_mean=push_mean, push_std=push_std)
+    return Scaler(mean=mean, std=std, angle_min=lo, angle_max=hi, push_mean=push_mean, push_std=push_std, dft=dft)
 
 
 def raw_inputs(data: dict[str, np.ndarray], inputs: str = PAPER_INPUTS, rows=None) -> tuple[np.ndarray, ...]:
     """The raw arrays a model of ``inputs`` reads from a dataset (of ``rows``, default all):
-    ``(part_raw, feeder_raw)``, and ``push_raw`` for ``paper+push``. A dataset without the push
+    ``(part_raw, feeder_raw)``, and ``push_raw`` but for ``paper``. A dataset without the push
     block, or with one of other features than this code computes, is a one-line FeederError."""
     arrays = [data["part_raw"], data["feeder_raw"]]
-    if check_inputs(inputs) == PUSH_INPUTS:
+    if uses_push(inputs):
         if "push_raw" not in data:
             raise FeederError(
-                "model.inputs: paper+push needs the dataset's analytic push features (push_raw), which this "
+                f"model.inputs: {inputs} needs the dataset's analytic push features (push_raw), which this "
                 "dataset.npz lacks: rebuild it with `feeder datasets build --parts-dir DIR`"
             )
         names = tuple(str(n) for n in np.asarray(data.get("push_feature_names", PUSH_FEATURE_NAMES)).ravel())

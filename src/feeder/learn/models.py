@@ -11,7 +11,8 @@ A model is described by its Hydra node ``model`` (``config/hydra/model/m1.yaml``
   (:data:`feeder.parts.push.PUSH_FEATURE_NAMES`, z-scored like the DFT values), appended after
   them. A branched network feeds the push block to its feeder branch (8 + P → ``feeder_hidden``):
   the block describes how the fences act on the part, the configuration-specific side of the
-  input; the part branch keeps the 45 shape features alone;
+  input; the part branch keeps the 45 shape features alone. ``fence+push`` leaves the DFT out:
+  the 8 feeder inputs and the push block only (the ablation of issue #20; standard networks only);
 * ``output_activation``: ``softmax`` (full PMF), ``sigmoid`` or ``linear`` (full CDF),
   ``linear`` (PCA scores).
 
@@ -40,7 +41,8 @@ from torch import nn
 PART_DIM = 45
 FEEDER_DIM = 8
 INPUT_DIM = PART_DIM + FEEDER_DIM
-INPUTS = ("paper", "paper+push")  # model.inputs (feeder.labels.dataset.INPUTS)
+INPUTS = ("paper", "paper+push", "fence+push")  # model.inputs (feeder.labels.dataset.INPUTS)
+NO_DFT_INPUTS = "fence+push"  # the inputs without the part's DFT: the 8 fence inputs and the push block
 
 LABELS = ("pmf", "cdf")
 REPRS = ("full", "pca")
@@ -115,11 +117,11 @@ def _mlp(sizes: list[int], final_relu: bool) -> nn.Sequential:
 
 
 class StandardFC(nn.Module):
-    """53 (+ push block) → hidden (ReLU) → out (no activation)."""
+    """53 (+ push block, or 8 + push block without the DFT) → hidden (ReLU) → out (no activation)."""
 
-    def __init__(self, hidden: list[int], out_dim: int, push_dim: int = 0):
+    def __init__(self, hidden: list[int], out_dim: int, in_dim: int = INPUT_DIM):
         super().__init__()
-        self.net = _mlp([INPUT_DIM + push_dim, *hidden, out_dim], final_relu=False)
+        self.net = _mlp([in_dim, *hidden, out_dim], final_relu=False)
 
     @property
     def head(self) -> nn.Linear:
@@ -177,6 +179,10 @@ class ModelSpec:
     def __post_init__(self) -> None:
         if self.inputs not in INPUTS:
             raise ValueError(f"model {self.name}: inputs must be one of {INPUTS}, got {self.inputs!r}")
+        if self.inputs == NO_DFT_INPUTS and self.arch != "standard":
+            raise ValueError(
+                f"model {self.name}: inputs {NO_DFT_INPUTS} has no DFT for a part branch: it needs arch standard"
+            )
         if self.label not in LABELS:
             raise ValueError(f"model {self.name}: label must be one of {LABELS}, got {self.label!r}")
         if self.repr not in REPRS:
@@ -226,8 +232,13 @@ class ModelSpec:
         return len(PUSH_FEATURE_NAMES)
 
     @property
+    def part_dim(self) -> int:
+        """Width of the part's DFT block in the network input (0 for ``fence+push``)."""
+        return 0 if self.inputs == NO_DFT_INPUTS else PART_DIM
+
+    @property
     def input_dim(self) -> int:
-        return INPUT_DIM + self.push_dim
+        return self.part_dim + FEEDER_DIM + self.push_dim
 
     def to_dict(self) -> dict:
         """Plain values; ``inputs`` only when it is not ``paper``, so a paper model's saved spec
@@ -257,7 +268,7 @@ class RegressionModel(nn.Module):
         if spec.arch == "standard":
             if not spec.hidden:
                 raise ValueError(f"model {spec.name}: a standard network needs hidden layers")
-            self.body = StandardFC(list(spec.hidden), n_out, spec.push_dim)
+            self.body = StandardFC(list(spec.hidden), n_out, spec.input_dim)
         else:
             self.body = BranchedFC(
                 list(spec.part_hidden), list(spec.feeder_hidden), list(spec.shared_hidden), n_out, spec.push_dim
@@ -394,12 +405,13 @@ class TrainedModel:
 
     @property
     def inputs(self) -> str:
-        """``model.inputs``: ``paper`` or ``paper+push``."""
+        """``model.inputs``: ``paper``, ``paper+push`` or ``fence+push``."""
         return self.spec.inputs
 
     @property
     def needs_push(self) -> bool:
-        """Whether predictions need the analytic push block (``model.inputs: paper+push``)."""
+        """Whether predictions need the analytic push block (``model.inputs``: ``paper+push``,
+        ``fence+push``)."""
         return self.spec.inputs != "paper"
 
     def raw(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -4,9 +4,10 @@ The config is ``config/hydra/train.yaml`` (defaults: ``model: m3``, ``trainer: d
 model group ``config/hydra/model/m1.yaml`` … ``m8.yaml`` holds each model's label, architecture,
 learning rate and loss terms, ``config/hydra/trainer/default.yaml`` the shared settings (Adam, batch 64, at most
 400 epochs, early stopping with patience 20 on a 10 % validation carve-out of the training rows).
-``model.inputs`` (every model file: ``paper``) chooses the network inputs: the paper's 53, or with
-``model.inputs=paper+push`` also the analytic push block of the dataset (``push_raw``,
-:mod:`feeder.labels.dataset`), scaled on the training rows like the others.
+``model.inputs`` chooses the network inputs: the paper's 53 (``paper``, m1-m8), with
+``paper+push`` also the analytic push block of the dataset (``push_raw``,
+:mod:`feeder.labels.dataset`; m3push), or with ``fence+push`` the push block and the 8 fence
+inputs without the DFT (m3pushonly); every block scaled on the training rows.
 
     feeder train model=m3 paths.dataset=results/datasets/dataset.npz \\
         paths.out=results/models/m3 hydra.run.dir=results/models/m3/hydra
@@ -89,11 +90,11 @@ def _model_spec(cfg, bins: int):
 def _model_inputs(spec, data: dict[str, np.ndarray], train_mask: np.ndarray, rows: np.ndarray):
     """The input scaler and the PCA of the label (for PCA models), both fit on the training rows,
     and the scaled inputs of every row (those of ``spec.inputs``)."""
-    from feeder.labels.dataset import fit_scaler, raw_inputs
+    from feeder.labels.dataset import fit_scaler, raw_inputs, uses_dft
     from feeder.learn.models import fit_pca
 
     raw = raw_inputs(data, spec.inputs)
-    scaler = fit_scaler(*raw[:2], train_mask, *raw[2:])
+    scaler = fit_scaler(*raw[:2], train_mask, *raw[2:], dft=uses_dft(spec.inputs))
     x_all = np.asarray(scaler.transform(*raw), dtype=np.float64)
     pca = None
     if spec.repr == "pca":
