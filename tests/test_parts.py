@@ -166,6 +166,64 @@ def test_generate_cli_twice_is_identical(tmp_path, capsys):
         assert (tmp_path / "a" / name).read_bytes() == (tmp_path / "b" / name).read_bytes()
 
 
+_RANDPOLY = {"n": 9, "radius": 30, "irregularity": 0.4, "spikiness": 0.25, "seed": 3}
+_RANDBLOB = {"radius": 28, "harmonics": 3, "max_order": 7, "amplitude": 0.45, "seed": 5}
+
+
+def _holed(*holes) -> dict:
+    """A 60 x 30 x 8 mm plate with ``holes``, as a library entry."""
+    params = {"width": 60, "height": 30, "holes": list(holes)}
+    return {"id": "plate-h", "family": "rect", "thickness_mm": 8, "params": params}
+
+
+def test_shape_metrics_with_holes_by_hand():
+    square = np.array([(0, 0), (4, 0), (4, 2), (0, 2)], float)
+    hole = np.array([(1, 0.5), (2, 0.5), (2, 1.5), (1, 1.5)], float)
+    m = shape_metrics(square, [hole])
+    assert m["area"] == pytest.approx(8 - 1) and m["perimeter"] == pytest.approx(12 + 4)
+    assert m["convexity"] == pytest.approx(7 / 8)
+    assert m["compactness"] == pytest.approx(4 * math.pi * 7 / 16**2)
+    assert shape_metrics(square, []) == shape_metrics(square)  # no holes: the metrics as before
+
+
+@pytest.mark.parametrize("family, params", [("randpoly", _RANDPOLY), ("randblob", _RANDBLOB)])
+def test_random_families_are_seeded_simple_and_differ_by_seed(family, params):
+    import shapely
+
+    a = family_outline(family, params, 64)
+    np.testing.assert_array_equal(a, family_outline(family, params, 64))
+    assert shapely.Polygon(a).is_valid and a.min() == 0.0
+    b = family_outline(family, params | {"seed": params["seed"] + 1}, 64)
+    assert a.shape != b.shape or not np.allclose(a, b)
+    if family == "randpoly":
+        assert len(a) == params["n"]
+        r = np.linalg.norm(a - a.mean(axis=0), axis=1)
+        assert r.max() / r.min() > 1.2  # irregular, not a regular polygon
+
+
+def test_a_library_part_with_holes_has_them_in_its_stl_face_cloud_and_catalog(tmp_path):
+    import shapely
+
+    entry = _holed({"circle": [15, 15, 6]}, {"rect": [45, 15, 10, 8]})
+    spec = _mini_spec(tmp_path, [entry])
+    assert generate(spec, tmp_path / "out", progress=False) == ["plate-h"]
+    geom = load_part(tmp_path / "out" / "plate-h.stl")
+    assert len(geom.holes) == 2
+    assert len(geom.holes[0]) == SPEC["hole_segments"] and len(geom.holes[1]) == 4
+    circle_area = 0.5 * SPEC["hole_segments"] * 6**2 * math.sin(2 * math.pi / SPEC["hole_segments"])
+    want_area = (60 * 30 - circle_area - 10 * 8) * 1e-6
+    row = pd.read_csv(tmp_path / "out" / "catalog.csv").iloc[0]
+    assert row["area"] == pytest.approx(want_area, rel=1e-9)
+    assert json.loads(row["params"])["holes"] == entry["params"]["holes"]
+    cloud = np.loadtxt(tmp_path / "out" / "plate-h.xyz")[:, :2]
+    rings = [shapely.Polygon(h * 1000.0) for h in geom.holes]
+    for ring in rings:  # no point inside a hole (but for the 4-decimal rounding), and points along its edge
+        assert not shapely.contains_xy(ring.buffer(-1e-3), cloud[:, 0], cloud[:, 1]).any()
+        assert (shapely.distance(ring.exterior, shapely.points(cloud)) < 1e-6).sum() >= 4
+    # the face cloud's density is that of the face, holes left out
+    assert len(cloud) == pytest.approx(SPEC["cloud"]["points_per_cm2"] * want_area * 1e4, rel=0.05)
+
+
 @pytest.mark.parametrize(
     "entry,msg",
     [
@@ -176,6 +234,13 @@ def test_generate_cli_twice_is_identical(tmp_path, capsys):
             {"id": "blobby", "family": "blob", "thickness_mm": 6, "params": {"radius": 20, "harmonics": [[2, 1.2, 0]]}},
             "vanish",
         ),
+        (_holed({"circle": [55, 15, 10]}), "not inside the outline and apart"),  # pokes out of the 60 x 30 plate
+        (_holed({"circle": [15, 15, 5]}, {"circle": [22, 15, 5]}), "not inside the outline and apart"),
+        (_holed({"circle": [15, 15, 14]}), "limits.min_wall_mm"),  # 1 mm of wall
+        (_holed({"square": [15, 15, 5]}), "hole 1 must be one of"),
+        (_holed({"rect": [15, 15, 5]}), "rect takes 4 numbers"),
+        (_holed({"circle": [15, 15, -5]}), "sizes positive"),
+        ({"id": "rp", "family": "randpoly", "thickness_mm": 6, "params": _RANDPOLY | {"n": 2}}, "randpoly needs"),
     ],
 )
 def test_bad_spec_entries_fail_before_writing(tmp_path, capsys, entry, msg):

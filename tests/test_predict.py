@@ -283,6 +283,64 @@ def test_recommend_bad_input_is_one_line_and_writes_nothing(model_dir, tmp_path,
     assert message in err and "\n" not in err and not out.exists()
 
 
+@pytest.mark.skipif(not (PARTS / "rect-a2.stl").is_file(), reason="no part library in parts/")
+def test_recommend_verify_simulates_the_top_k_as_the_workflow_labels_them(model_dir, tmp_path, capsys):
+    """--verify 1: the top configuration simulated with the study's adaptive settings; its
+    simulated probability is the window probability of `feeder simulate` + `feeder labels pmf`
+    run by hand; the others are not simulated."""
+    from feeder.config import load_study_config
+    from feeder.labels.pmf import sim_label
+    from feeder.learn import recommend as R
+    from feeder.sim import simulate as S
+    from feeder.sim.record import load_sim
+
+    part = PARTS / "rect-a2.stl"
+    out = tmp_path / "rank.csv"
+    argv = ["--model", str(model_dir / "m3"), "--part", str(part), "--target", "0", "--tolerance", "10"]
+    argv += ["--configs", "straight30_none,curved40_none", "--verify", "1", "--out", str(out)]
+    assert R.main(argv) == 0
+    ranked = pd.read_csv(out)
+    assert list(ranked.columns[-4:]) == list(R.VERIFY_COLUMNS)
+    assert ranked.simulations.notna().tolist() == [True, False]
+    top = ranked.iloc[0]
+    loc1, loc2 = top.loc1, top.loc2
+    study = load_study_config()
+    sim, adaptive = study["sim"], study["sim"]["adaptive"]
+    npz = tmp_path / "sim.npz"
+    by_hand = ["--part", str(part), "--loc1", loc1, "--loc2", loc2, "--drops", str(sim["drops"])]
+    by_hand += ["--seed", str(sim["base_seed"]), "--preset", sim["preset"], "--yaw-sampling", "adaptive"]
+    by_hand += ["--n0", str(adaptive["n0"]), "--tolerance-deg", str(adaptive["tolerance_deg"])]
+    by_hand += ["--min-width-deg", str(adaptive["min_width_deg"]), "--symmetry", str(adaptive["symmetry"])]
+    assert S.main([*by_hand, "--out", str(npz)]) == 0
+    label = sim_label(load_sim(npz), study["labels"]["bins"], study["labels"]["sigma_bins"])
+    order = R.symmetry_order("auto", part)
+    assert order == 2
+    assert top.simulated_probability == pytest.approx(R.window_probability(label.pmf, 0.0, 10.0, order), abs=1e-12)
+    assert top.ok_mass == pytest.approx(label.ok_mass, abs=1e-12) and top.simulations == label.simulations
+    printed = capsys.readouterr()
+    assert "predicted" in printed.out and "simulated" in printed.out and top.config_id in printed.out
+    assert f"verify 1/1 {top.config_id}" in printed.err
+
+
+@pytest.mark.parametrize(
+    "extra, message",
+    [
+        (["--features", "p0.json", "--verify", "1"], "--verify simulates the part"),
+        (["--part", "missing.stl", "--verify", "1"], "not found"),
+        (["--features", "p0.json", "--verify", "-1"], "--verify must be 0 or more"),
+    ],
+)
+def test_recommend_verify_bad_input_is_one_line_before_any_work(model_dir, tmp_path, capsys, extra, message):
+    from feeder.cli import main
+
+    extra = [str(model_dir / e) if e.endswith((".json", ".stl")) else e for e in extra]
+    out = tmp_path / "rank.csv"
+    argv = ["recommend", "--model", str(model_dir / "m3"), "--target", "0", "--tolerance", "10", *extra]
+    assert main([*argv, "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert message in err and "\n" not in err and not out.exists()
+
+
 def test_recommend_ranks_the_study_grid_by_default(model_dir, capsys):
     from feeder.config import load_study_config
     from feeder.learn import recommend as R
@@ -298,7 +356,9 @@ def test_recommend_ranks_the_study_grid_by_default(model_dir, capsys):
 
 def test_predict_answers_a_part_with_a_hole_with_a_note(model_dir, tmp_path, capsys):
     """A plate with a bolt hole: answered (the features are its outer contour, as in the paper), with
-    one note on stderr that the model does not see the hole; the same plate without it gets none."""
+    one note on stderr that the model does not see the hole; the same plate without it gets none.
+    The features of the STL are those of the face cloud `feeder parts xyz` exports from it (the
+    hole left out of both, so the principal frame is the holed face's)."""
     from feeder.parts.geometry import stl_bytes
     from feeder.parts.shapes import holes_mm, outline_mm
 
@@ -317,6 +377,19 @@ def test_predict_answers_a_part_with_a_hole_with_a_note(model_dir, tmp_path, cap
             if holes
             else []
         )
-    # the outer contour is the same, so is the answer
-    holed, solid = (pd.read_csv(tmp_path / f"{n}.csv") for n in ("holed", "solid"))
-    np.testing.assert_allclose(holed.pmf, solid.pmf, atol=1e-12)
+    from feeder.cli import main as cli
+    from feeder.parts.features import DFT, as_vector, features_of_file
+
+    xyz = tmp_path / "holed.xyz"
+    assert (
+        cli(["parts", "xyz", str(tmp_path / "holed.stl"), "--out", str(xyz), "--points", str(DFT.stl_cloud_points)])
+        == 0
+    )
+    of_stl, of_xyz = (as_vector(features_of_file(p)).reshape(-1, 3) for p in (tmp_path / "holed.stl", xyz))
+    np.testing.assert_array_equal(of_stl[:, 0], of_xyz[:, 0])  # the same frequencies
+    # the xyz export rounds to 1e-4 mm: magnitudes agree to 1e-5 of the largest
+    np.testing.assert_allclose(of_stl[:, 1], of_xyz[:, 1], atol=1e-5 * of_stl[:, 1].max())
+    np.testing.assert_allclose(of_stl[:, 2], of_xyz[:, 2], atol=1e-2)
+    # the hole shifts the face's principal frame, so the two plates differ
+    solid = as_vector(features_of_file(tmp_path / "solid.stl")).reshape(-1, 3)
+    assert not np.allclose(of_stl, solid)

@@ -13,9 +13,15 @@ them by the predicted probability that the final yaw lies within ``--tolerance``
 Without ``--model`` the shipped model is used (``models/m3``, written by ``feeder export-model``;
 :func:`feeder.learn.export.shipped_model_dir`).
 
-Predictions are only as good as the model (its card says how it did on unseen parts);
-``feeder simulate`` a configuration to check one. A ``model.inputs: paper+push`` model needs
-``--part`` as an STL: the analytic push block of every configuration is computed from its outline
+Predictions are only as good as the model (its card says how it did on unseen parts).
+``--verify K`` checks the top K: each is simulated with the adaptive design and the study's
+settings (:func:`verify_settings`: ``sim.preset``, ``scene``, ``sim.base_seed``, ``sim.adaptive``,
+the budget ``sim.drops``), labelled as the workflow labels it (:func:`feeder.labels.pmf.sim_label`,
+part frame), and its simulated probability of the window is printed beside the predicted one,
+with the share of drops that leave the fences at all (``ok_mass``; jams and falls are the rest).
+
+A model with the push block (``model.inputs: paper+push`` or ``fence+push``) needs ``--part`` as an
+STL: the analytic push block of every configuration is computed from its outline
 (:func:`feeder.learn.predict.push_rows`).
 """
 
@@ -33,6 +39,7 @@ from feeder.errors import FeederError
 from feeder.labels.metrics import FULL_TURN_DEG
 
 DEFAULT_TOP = 10  # configurations printed
+VERIFY_COLUMNS = ("simulated_probability", "ok_mass", "simulations", "sim_cpu_s")  # --verify adds these
 
 
 def window_probability(pmf, target_deg: float, tolerance_deg: float, order: int = 1) -> np.ndarray:
@@ -104,6 +111,71 @@ def rank(model, part_raw, frame_deg, config_ids, target_deg, tolerance_deg, orde
     return frame.sort_values("probability", ascending=False, kind="stable").reset_index(drop=True)
 
 
+def verify_settings(study: dict) -> dict:
+    """What ``--verify`` simulates with, from the study config: the scene, ``sim.preset``,
+    ``sim.base_seed``, the adaptive design's settings (``sim.adaptive``) and budget (``sim.drops``
+    when the study's design is adaptive, else the adaptive default), and the labels' bins and
+    smoothing."""
+    from feeder.labels.pushforward import DEFAULT_BUDGET
+    from feeder.sim.drops import get_preset
+
+    sim = study["sim"]
+    return {
+        "scene": study["scene"],
+        "preset_name": sim["preset"],
+        "preset": get_preset(sim["presets"], sim["preset"]),
+        "seed": int(sim["base_seed"]),
+        "budget": int(sim["drops"]) if sim["yaw_sampling"] == "adaptive" else DEFAULT_BUDGET,
+        "adaptive": dict(sim["adaptive"]),
+        "bins": int(study["labels"]["bins"]),
+        "sigma": float(study["labels"]["sigma_bins"]),
+    }
+
+
+def verify(geom, config_ids, settings: dict, target_deg, tolerance_deg, order, log=None) -> pd.DataFrame:
+    """Simulate each configuration of ``config_ids`` with the adaptive design and ``settings``
+    (:func:`verify_settings`) and return, per configuration, the simulated probability of the
+    window (its label in the part frame), the ok mass, the simulations run and their CPU seconds
+    (columns ``config_id`` and :data:`VERIFY_COLUMNS`). ``log``: called with a line per configuration."""
+    from feeder.labels.pmf import sim_label
+    from feeder.sim.fences import parse_config_id
+    from feeder.sim.record import record_of
+    from feeder.sim.simulate import simulate
+
+    rows = []
+    for k, cid in enumerate(config_ids, start=1):
+        loc1, loc2 = parse_config_id(cid)
+        result = simulate(
+            geom,
+            loc1,
+            loc2,
+            settings["budget"],
+            settings["seed"],
+            settings["scene"],
+            settings["preset"],
+            settings["preset_name"],
+            yaw_sampling="adaptive",
+            adaptive=settings["adaptive"],
+        )
+        rec = record_of(result)
+        label = sim_label(rec, settings["bins"], settings["sigma"])
+        rows.append(
+            {
+                "config_id": cid,
+                "simulated_probability": float(window_probability(label.pmf, target_deg, tolerance_deg, order))
+                if label.ok_mass > 0
+                else math.nan,
+                "ok_mass": label.ok_mass,
+                "simulations": label.simulations,
+                "sim_cpu_s": float(result["cpu_s"]),
+            }
+        )
+        if log is not None:
+            cpu = float(result["cpu_s"])
+            log(f"verify {k}/{len(config_ids)} {cid}: {label.simulations} simulations, {cpu:.1f} s CPU")
+    return pd.DataFrame(rows, columns=["config_id", *VERIFY_COLUMNS])
+
+
 def main(argv: list[str]) -> int:
     from feeder.config import load_study_config
     from feeder.learn.export import add_model_option, resolve_model_dir
@@ -123,15 +195,29 @@ def main(argv: list[str]) -> int:
     parser.add_argument("--configs", help="comma-separated configuration ids (default: the study's fence grid)")
     parser.add_argument("--top", type=int, default=DEFAULT_TOP, help="configurations printed")
     parser.add_argument("--out", type=Path, help="CSV of every ranked configuration")
+    parser.add_argument(
+        "--verify",
+        type=int,
+        default=0,
+        metavar="K",
+        help="simulate the top K (adaptive design, the study's settings) and print simulated beside predicted",
+    )
     args = parser.parse_args(argv)
 
     window_probability(np.ones(1), args.target, args.tolerance)  # bad target/tolerance fail before any work
     if args.top < 1:
         raise FeederError(f"--top must be positive, got {args.top}")
+    if args.verify < 0:
+        raise FeederError(f"--verify must be 0 or more, got {args.verify}")
+    study = load_study_config()
+    geom = None
+    if args.verify:
+        geom = verify_part(args.part)
     if args.configs:
         config_ids = [c.strip() for c in args.configs.split(",") if c.strip()]
     else:
-        config_ids = grid_configurations(load_study_config()["fences"])
+        config_ids = grid_configurations(study["fences"])
+    settings = verify_settings(study) if args.verify else None
     order = symmetry_order(args.symmetry, args.part)
     model = load_model(resolve_model_dir(args.model, "feeder recommend"))
     check_push_source(model, args.part)
@@ -142,14 +228,37 @@ def main(argv: list[str]) -> int:
 
         push_raw = push_rows(model, args.part, [parse_config_id(c) for c in config_ids], frame_deg)
     ranked = rank(model, part_raw, frame_deg, config_ids, args.target, args.tolerance, order, push_raw)
+    shown = args.top
+    if args.verify:
+        top = list(ranked.config_id[: args.verify])
+
+        def log(line: str) -> None:
+            print(f"feeder recommend: {line}", file=sys.stderr)
+
+        checked = verify(geom, top, settings, args.target, args.tolerance, order, log)
+        ranked = ranked.merge(checked, on="config_id", how="left", validate="one_to_one")
+        shown = max(args.top, len(top))
     if args.out is not None:
         from feeder.io import write_csv
 
         write_csv(args.out, ranked)
     sym = f", {order}-fold symmetric" if order > 1 else ""
     print(f"P(final yaw within {args.tolerance:g} deg of {args.target:g} deg{sym}), {len(ranked)} configurations:")
-    print(ranked.head(args.top).to_string(index=False, float_format=lambda v: f"{v:.3f}"))
+    table = ranked.head(shown).rename(columns={"probability": "predicted", "simulated_probability": "simulated"})
+    print(table.to_string(index=False, float_format=lambda v: f"{v:.3f}", na_rep="-"))
     return 0
+
+
+def verify_part(part: Path | None):
+    """The part ``--verify`` simulates: ``--part`` as an STL (a one-line FeederError otherwise,
+    before any other work)."""
+    if part is None or part.suffix.lower() != ".stl":
+        raise FeederError("--verify simulates the part: give it as --part PART.stl")
+    if not part.is_file():
+        raise FeederError(f"part file {part} not found")
+    from feeder.parts.geometry import load_part
+
+    return load_part(part, "auto")
 
 
 def symmetry_order(setting: str, part: Path | None) -> int:

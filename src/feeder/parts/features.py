@@ -4,9 +4,10 @@ Pipeline (:func:`outline_samples` then :func:`dft_features`):
 
 1. **Points.** An ``.xyz`` file is read as ``x y z`` lines (spaces or commas; blank lines and
    ``#`` comments allowed). The axis with (nearly) no spread is dropped; the others must span a
-   plane (not a line). For an ``.stl`` the exact outline of the top face is recovered
-   (:func:`feeder.parts.geometry.read_outline`) and its face is sampled into a point cloud exactly like
-   the library's exports (:func:`feeder.parts.geometry.face_cloud`, ``DFT.stl_cloud_points`` points).
+   plane (not a line). For an ``.stl`` the exact top face is recovered, outline and through-holes
+   (:func:`feeder.parts.geometry.read_profile`), and sampled into a point cloud exactly like
+   the library's exports (:func:`feeder.parts.geometry.face_cloud`, ``DFT.stl_cloud_points`` points,
+   none in a hole).
    **Units:** millimetres and metres both work and need no detection: step 3 scales the shape
    uniformly to the canvas, so every later quantity is in canvas pixels and the features do not
    depend on the unit (nor on the part's absolute size). All tolerances are relative.
@@ -180,14 +181,17 @@ def load_face(path: str | os.PathLike, settings: DFTSettings = DFT) -> tuple[np.
     path = Path(path)
     suffix = path.suffix.lower()
     if suffix == ".stl":
-        from feeder.parts.geometry import clean_outline, face_cloud, read_outline
+        from feeder.parts.geometry import clean_holes, clean_outline, face_cloud, read_profile
 
-        outline, _ = read_outline(path)  # metres or millimetres: the features are unit-free
+        outline, holes, _ = read_profile(path)  # metres or millimetres: the features are unit-free
         try:
-            outline = clean_outline(outline)
+            outline, holes = clean_outline(outline), clean_holes(holes)
         except FeederError as err:
             raise FeederError(f"{path}: {err}") from err
-        return face_cloud(outline, settings.stl_cloud_points), True
+        # the face as `feeder parts xyz` exports it, holes left out: the outline the features
+        # describe is the outer one either way (holes are filled, as in the paper), and the
+        # principal frame is the face's own
+        return face_cloud(outline, settings.stl_cloud_points, holes), True
     if suffix == ".xyz":
         pts = read_xyz(path)
         xy = planar_points(pts, str(path), settings)

@@ -640,22 +640,28 @@ def _read_in_metres(path: Path, units: str) -> tuple[np.ndarray, list[np.ndarray
 # --------------------------------------------------------------------------------------------
 # Face point clouds (what a CAD tool's point-cloud export of the planar face looks like)
 # --------------------------------------------------------------------------------------------
-def face_points(outline: np.ndarray, spacing: float) -> np.ndarray:
-    """Points on the planar face of ``outline`` at lattice spacing ``spacing`` (same units).
+def face_points(outline: np.ndarray, spacing: float, holes=()) -> np.ndarray:
+    """Points on the planar face of ``outline`` less its through-``holes``, at lattice spacing
+    ``spacing`` (same units).
 
-    Boundary: every vertex plus evenly spaced points on each edge (at most ``spacing`` apart).
-    Interior: a triangular lattice anchored at the bounding box, keeping the points inside the
-    outline and at least ``spacing / 2`` from its boundary. Deterministic, (M, 2) float64.
+    Boundary: every vertex plus evenly spaced points on each edge (at most ``spacing`` apart), of
+    the outline and then of each hole. Interior: a triangular lattice anchored at the bounding
+    box, keeping the points inside the face (not in a hole) and at least ``spacing / 2`` from
+    every edge. Deterministic, (M, 2) float64.
     """
-    return _Face(outline).points(float(spacing))
+    return _Face(outline, holes).points(float(spacing))
 
 
-def face_cloud(outline: np.ndarray, n_points: int) -> np.ndarray:
+def face_cloud(outline: np.ndarray, n_points: int, holes=()) -> np.ndarray:
     """:func:`face_points` with the spacing chosen (bisection) so that it has about ``n_points``."""
-    face = _Face(outline)
+    face = _Face(outline, holes)
     outline = face.outline
-    area = abs(signed_area(outline))
-    perim = float(np.sum(np.linalg.norm(np.roll(outline, -1, axis=0) - outline, axis=1)))
+
+    def perimeter(ring: np.ndarray) -> float:
+        return float(np.sum(np.linalg.norm(np.roll(ring, -1, axis=0) - ring, axis=1)))
+
+    area = abs(signed_area(outline)) - sum(abs(signed_area(h)) for h in face.holes)
+    perim = perimeter(outline) + sum(perimeter(h) for h in face.holes)
     # lattice estimate: n = 2A / (sqrt(3) h^2) + P / h, solved for h
     a_coef = 2.0 * area / np.sqrt(3.0)
     h = (perim + np.sqrt(perim**2 + 4.0 * a_coef * n_points)) / (2.0 * n_points)
@@ -684,19 +690,25 @@ FAR_RASTER_MAX_CELLS = 4_000_000
 
 
 class _Face:
-    """An outline's face lattice, set up once for :func:`face_points` at several spacings (what
-    :func:`face_cloud`'s bisection needs); the points are those of the straightforward
-    per-edge construction, bit for bit."""
+    """An outline's face lattice (less its holes), set up once for :func:`face_points` at several
+    spacings (what :func:`face_cloud`'s bisection needs); the points are those of the
+    straightforward per-edge construction, bit for bit. The edges are the outline's, then each
+    hole's (``vertices``/``step``: every ring's vertices and edge vectors, one after another)."""
 
-    def __init__(self, outline: np.ndarray):
+    def __init__(self, outline: np.ndarray, holes=()):
         import shapely
 
         self.outline = np.asarray(outline, dtype=np.float64)
-        self.step = np.roll(self.outline, -1, axis=0) - self.outline
+        self.holes = [np.asarray(h, dtype=np.float64) for h in holes]
+        rings = [self.outline, *self.holes]
+        self.vertices = np.concatenate(rings)
+        self.step = np.concatenate([np.roll(r, -1, axis=0) - r for r in rings])
         # each edge's length exactly as np.linalg.norm(q - p) gives it (spacing-independent)
         self.lengths = np.array([np.linalg.norm(d) for d in self.step])
         self.lo, self.hi = self.outline.min(axis=0), self.outline.max(axis=0)
-        self.poly = shapely.Polygon(self.outline)
+        self.poly = shapely.Polygon(self.outline, self.holes or None)
+        # the edges a lattice point keeps its distance from (the outline's ring alone without holes)
+        self.edges = self.poly.boundary if self.holes else self.poly.exterior
 
     def _per_edge(self, h: float) -> np.ndarray:
         return np.maximum(1, np.ceil(self.lengths / h).astype(np.int64))
@@ -706,10 +718,10 @@ class _Face:
         per_edge = self._per_edge(h)
         first = np.repeat(np.cumsum(per_edge) - per_edge, per_edge)
         t = (np.arange(int(per_edge.sum())) - first) / np.repeat(per_edge, per_edge)
-        return np.repeat(self.outline, per_edge, axis=0) + t[:, None] * np.repeat(self.step, per_edge, axis=0)
+        return np.repeat(self.vertices, per_edge, axis=0) + t[:, None] * np.repeat(self.step, per_edge, axis=0)
 
     def interior(self, h: float) -> np.ndarray:
-        """The triangular lattice points inside the outline at least ``h / 2`` from its boundary."""
+        """The triangular lattice points inside the face at least ``h / 2`` from every edge."""
         import shapely
 
         lo, hi = self.lo, self.hi
@@ -724,7 +736,7 @@ class _Face:
         limit = h / 2
         far = self._certainly_far(grid, limit)
         unsure = ~far
-        far[unsure] = shapely.distance(self.poly.exterior, shapely.points(grid[unsure])) >= limit
+        far[unsure] = shapely.distance(self.edges, shapely.points(grid[unsure])) >= limit
         return grid[far]
 
     def points(self, h: float) -> np.ndarray:
@@ -754,7 +766,7 @@ class _Face:
         per_edge = np.maximum(1, np.ceil(self.lengths / (cell / 2)).astype(np.int64)) + 1
         first = np.repeat(np.cumsum(per_edge) - per_edge, per_edge)
         t = (np.arange(int(per_edge.sum())) - first) / np.repeat(per_edge - 1, per_edge)
-        samples = np.repeat(self.outline, per_edge, axis=0) + t[:, None] * np.repeat(self.step, per_edge, axis=0)
+        samples = np.repeat(self.vertices, per_edge, axis=0) + t[:, None] * np.repeat(self.step, per_edge, axis=0)
         raster = np.full((int(shape[1]), int(shape[0])), 255, dtype=np.uint8)
         cells, on_raster = self._cells(samples, origin, cell, shape)
         if not on_raster.all():  # cannot happen (a cell of margin round the outline): measure all

@@ -267,6 +267,41 @@ def _blob(p: dict, seg: int) -> np.ndarray:
     return np.column_stack([r0 * rel * np.cos(t), r0 * rel * np.sin(t)])
 
 
+RANDPOLY_RADIUS_CLIP = (0.3, 1.7)  # randpoly: radius factors are kept in this range (no spikes to 0)
+
+def _randpoly(p: dict, seg: int) -> np.ndarray:
+    """A random star-shaped polygon about the origin, seeded (``seed``): ``n`` vertices at angles
+    spaced 2π/n times a factor drawn from [1 - irregularity, 1 + irregularity] (rescaled to a full
+    turn), at radii ``radius`` times a factor drawn from N(1, spikiness) clipped to
+    [RANDPOLY_RADIUS_CLIP]. Star-shaped, so always simple."""
+    n, r0 = int(p["n"]), float(p["radius"])
+    irregularity, spikiness = float(p["irregularity"]), float(p["spikiness"])
+    if n < 3 or not 0 <= irregularity < 1 or spikiness < 0:
+        raise FeederError("randpoly needs n >= 3, 0 <= irregularity < 1 and spikiness >= 0")
+    rng = np.random.default_rng(int(p["seed"]))
+    steps = rng.uniform(1 - irregularity, 1 + irregularity, n)
+    angles = rng.uniform(0, 2 * np.pi) + np.cumsum(2 * np.pi * steps / steps.sum())
+    radii = r0 * np.clip(rng.normal(1.0, spikiness, n), *RANDPOLY_RADIUS_CLIP)
+    return np.column_stack([radii * np.cos(angles), radii * np.sin(angles)])
+
+
+def _randblob(p: dict, seg: int) -> np.ndarray:
+    """A random star-shaped free form, seeded (``seed``): a :func:`_blob` whose ``harmonics``
+    distinct orders are drawn from 1..``max_order``, with amplitudes drawn from [0, 1] scaled so
+    that they sum to ``amplitude`` and phases drawn from [0, 360)."""
+    count, top = int(p["harmonics"]), int(p["max_order"])
+    amplitude = float(p["amplitude"])
+    if not 1 <= count <= top or not 0 < amplitude < 1:
+        raise FeederError("randblob needs 1 <= harmonics <= max_order and 0 < amplitude < 1")
+    rng = np.random.default_rng(int(p["seed"]))
+    orders = np.sort(rng.choice(np.arange(1, top + 1), size=count, replace=False))
+    weights = rng.uniform(0.0, 1.0, count)
+    amps = amplitude * weights / weights.sum()
+    phases = rng.uniform(0.0, 360.0, count)
+    harmonics = [[int(k), float(a), float(ph)] for k, a, ph in zip(orders, amps, phases, strict=True)]
+    return _blob({"radius": p["radius"], "harmonics": harmonics}, seg)
+
+
 FAMILIES: dict[str, Callable[[dict, int], np.ndarray]] = {
     "ngon": _ngon,
     "triangle": _triangle,
@@ -283,7 +318,10 @@ FAMILIES: dict[str, Callable[[dict, int], np.ndarray]] = {
     "gear": _gear,
     "keyhole": _keyhole,
     "blob": _blob,
+    "randpoly": _randpoly,
+    "randblob": _randblob,
 }
+HOLE_SHAPES = {"circle": 3, "rect": 4}  # a hole entry of `holes`: its shape and how many numbers it takes
 
 
 def family_outline(family: str, params: dict, circle_segments: int) -> np.ndarray:
@@ -291,6 +329,7 @@ def family_outline(family: str, params: dict, circle_segments: int) -> np.ndarra
     if family not in FAMILIES:
         raise FeederError(f"unknown part family {family!r} (known: {', '.join(sorted(FAMILIES))})")
     params = dict(params)
+    params.pop("holes", None)  # placed after the outline (library_holes)
     rotation = float(params.pop("rotation_deg", 0.0))
     try:
         pts = np.asarray(FAMILIES[family](params, circle_segments), dtype=np.float64)
@@ -307,16 +346,44 @@ def family_outline(family: str, params: dict, circle_segments: int) -> np.ndarra
 # --------------------------------------------------------------------------------------------
 # Shape metrics (catalog)
 # --------------------------------------------------------------------------------------------
-def shape_metrics(outline: np.ndarray) -> dict[str, float]:
+def library_holes(entries, segments: int) -> list[np.ndarray]:
+    """The through-holes (mm, CCW) of a part's ``holes`` entries, placed in its outline's frame
+    (bounding box lower-left at the origin): ``{circle: [cx, cy, r]}`` (``segments`` vertices) or
+    ``{rect: [cx, cy, width, height]}`` (axis-aligned)."""
+    holes = []
+    for k, entry in enumerate(entries or (), start=1):
+        if not isinstance(entry, dict) or len(entry) != 1 or next(iter(entry)) not in HOLE_SHAPES:
+            raise FeederError(f"hole {k} must be one of {', '.join(f'{{{s}: [...]}}' for s in HOLE_SHAPES)}")
+        shape, values = next(iter(entry.items()))
+        try:
+            v = [float(x) for x in values]
+        except (TypeError, ValueError):
+            raise FeederError(f"hole {k}: {shape} takes {HOLE_SHAPES[shape]} numbers") from None
+        if len(v) != HOLE_SHAPES[shape] or any(x <= 0 for x in v[2:]):
+            raise FeederError(f"hole {k}: {shape} takes {HOLE_SHAPES[shape]} numbers, sizes positive")
+        if shape == "circle":
+            t = 2 * np.pi * np.arange(segments) / segments
+            holes.append(np.column_stack([v[0] + v[2] * np.cos(t), v[1] + v[2] * np.sin(t)]))
+        else:
+            cx, cy, hw, hh = v[0], v[1], v[2] / 2, v[3] / 2
+            holes.append(np.array([(cx - hw, cy - hh), (cx + hw, cy - hh), (cx + hw, cy + hh), (cx - hw, cy + hh)]))
+    return holes
+
+
+def shape_metrics(outline: np.ndarray, holes=()) -> dict[str, float]:
     """Area, perimeter, aspect ratio (min-area bounding rectangle), convexity, compactness and
-    eigen ratio (largest / smallest eigenvalue of the central second-moment-of-area tensor)."""
+    eigen ratio (largest / smallest eigenvalue of the central second-moment-of-area tensor), of
+    the outline's region less its ``holes`` (the perimeter counts the holes' edges too)."""
     import shapely
 
-    from feeder.parts.geometry import polygon_moments
+    from feeder.parts.geometry import polygon_moments, profile_moments
 
     poly = shapely.Polygon(outline)
-    area, _, (ixx, iyy, ixy) = polygon_moments(np.asarray(outline))
-    perim = float(poly.length)
+    if len(holes):
+        area, _, (ixx, iyy, ixy) = profile_moments(np.asarray(outline), holes)
+    else:
+        area, _, (ixx, iyy, ixy) = polygon_moments(np.asarray(outline))
+    perim = float(poly.length) + sum(float(shapely.LinearRing(h).length) for h in holes)
     rect = np.asarray(shapely.minimum_rotated_rectangle(poly).exterior.coords)[:4]
     sides = np.linalg.norm(np.diff(np.vstack([rect, rect[:1]]), axis=0), axis=1)
     aspect = float(max(sides[0], sides[1]) / min(sides[0], sides[1]))
@@ -355,7 +422,7 @@ def load_spec(spec_path: str | Path) -> dict[str, Any]:
 
 def build_part(entry: dict, spec: dict) -> dict[str, Any]:
     """Outline (mm), thickness (mm), face cloud (mm) and catalog row of one library entry."""
-    from feeder.parts.geometry import clean_outline, face_cloud
+    from feeder.parts.geometry import _check_holes, clean_holes, clean_outline, face_cloud, thinnest_wall
 
     lim, cloud = spec["limits"], spec["cloud"]
     pid = str(entry.get("id"))
@@ -369,18 +436,30 @@ def build_part(entry: dict, spec: dict) -> dict[str, Any]:
         outline = clean_outline(family_outline(entry["family"], params, int(spec["circle_segments"])))
     except FeederError as err:
         raise FeederError(f"part {pid}: {err}") from err
+    holes = []
+    if params.get("holes"):
+        if "hole_segments" not in spec or "min_wall_mm" not in lim:
+            raise FeederError(f"part {pid} has holes: the library needs hole_segments and limits.min_wall_mm")
+        try:
+            holes = clean_holes(library_holes(params["holes"], int(spec["hole_segments"])))
+            _check_holes(outline, holes, "holes")
+        except FeederError as err:
+            raise FeederError(f"part {pid}: {err}") from err
+        wall = thinnest_wall(outline, holes)
+        if wall < float(lim["min_wall_mm"]):
+            raise FeederError(f"part {pid}: a wall round a hole is {wall:.2f} mm < limits.min_wall_mm")
     size = float(np.max(np.ptp(outline, axis=0)))
     if not lim["size_mm"][0] <= size <= lim["size_mm"][1]:
         raise FeederError(f"part {pid}: in-plane size {size:.1f} mm outside {lim['size_mm']}")
     if len(outline) > lim["max_vertices"]:
         raise FeederError(f"part {pid}: {len(outline)} vertices > limits.max_vertices")
-    metrics = shape_metrics(outline)
+    metrics = shape_metrics(outline, holes)
     area_cm2 = metrics["area"] / 100.0
     n_target = int(np.clip(round(cloud["points_per_cm2"] * area_cm2), cloud["min_points"], cloud["max_points"]))
-    pts = face_cloud(outline, n_target)
+    pts = face_cloud(outline, n_target, holes)
     if not lim["points"][0] <= len(pts) <= lim["points"][1]:
         raise FeederError(f"part {pid}: face cloud has {len(pts)} points, outside the cloud limits")
-    m = shape_metrics(outline / 1000.0)  # catalog in SI units (m, m^2)
+    m = shape_metrics(outline / 1000.0, [h / 1000.0 for h in holes])  # catalog in SI units (m, m^2)
     row = {
         "id": pid,
         "family": entry["family"],
@@ -391,7 +470,7 @@ def build_part(entry: dict, spec: dict) -> dict[str, Any]:
         "n_vertices": len(outline),
         **m,
     }
-    return {"id": pid, "outline_mm": outline, "thickness_mm": thickness, "cloud_mm": pts, "row": row}
+    return {"id": pid, "outline_mm": outline, "holes_mm": holes, "thickness_mm": thickness, "cloud_mm": pts, "row": row}
 
 
 def xyz_text(cloud_mm: np.ndarray, z_mm: float) -> str:
@@ -416,8 +495,10 @@ def generate(spec_path: str | Path, out_dir: str | Path, progress: bool = True) 
     for entry in tqdm(spec["parts"], desc="parts", disable=not (progress and sys.stderr.isatty())):
         built.append(build_part(entry, spec))  # validate everything before writing anything
     for b in built:
+        holes_m = [h / 1000.0 for h in b["holes_mm"]]
         write_bytes(
-            out_dir / f"{b['id']}.stl", stl_bytes(b["outline_mm"] / 1000.0, b["thickness_mm"] / 1000.0, b["id"])
+            out_dir / f"{b['id']}.stl",
+            stl_bytes(b["outline_mm"] / 1000.0, b["thickness_mm"] / 1000.0, b["id"], holes=holes_m),
         )
         write_text(out_dir / f"{b['id']}.xyz", xyz_text(b["cloud_mm"], b["thickness_mm"]))
         rows.append(b["row"])
@@ -450,6 +531,12 @@ def _parser() -> argparse.ArgumentParser:
     x.add_argument("stl")
     x.add_argument("--out", required=True)
     x.add_argument("--points", type=int, required=True, help="number of points (about)")
+    x.add_argument(
+        "--units",
+        default="auto",
+        choices=("auto", "m", "mm"),
+        help="units of the STL; auto: millimetres if the part would be wider than 1 m, else metres",
+    )
     li = sub.add_parser("list", help="print the part ids")
     li.add_argument("--dir", default="parts")
     li.add_argument("--include", nargs="*", default=None)
@@ -484,8 +571,8 @@ def main(argv: list[str]) -> int:
 
         if args.points < 1:
             raise FeederError(f"--points must be positive, got {args.points}")
-        g = load_part(args.stl)
-        pts = face_cloud(g.outline * 1000.0, args.points)
+        g = load_part(args.stl, args.units)
+        pts = face_cloud(g.outline * 1000.0, args.points, [h * 1000.0 for h in g.holes])
         write_text(args.out, xyz_text(pts, g.thickness * 1000.0))
         return 0
     if args.cmd == "list":

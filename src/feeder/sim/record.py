@@ -48,6 +48,22 @@ class SimRecord:
         return str(self.meta.get("yaw_sampling", "random"))
 
 
+def record_of(result: dict) -> SimRecord:
+    """The :class:`SimRecord` of a :func:`feeder.sim.simulate.simulate` payload held in memory: what
+    :func:`load_sim` reads back once it is written (``feeder recommend --verify`` labels without a file)."""
+    status = np.asarray(result["status"]).astype(str)
+    ok = status == "ok"
+    yaws = np.asarray(result["final_yaw_deg"], dtype=np.float64)
+    initial = result.get("initial_yaw_deg")
+    return SimRecord(
+        yaws=np.where(ok, yaws, np.nan),
+        ok=ok,
+        meta=json.loads(str(result["meta"])),
+        initial=None if initial is None else np.asarray(initial, dtype=np.float64),
+        status=status,
+    )
+
+
 def load_sim(path, min_ok_drops: int = 1) -> SimRecord:
     """Read and check one ``results/sim/<part>/<config>.npz``; raise :class:`BadData` naming it."""
     path = Path(path)
