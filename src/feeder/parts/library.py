@@ -269,6 +269,7 @@ def _blob(p: dict, seg: int) -> np.ndarray:
 
 RANDPOLY_RADIUS_CLIP = (0.3, 1.7)  # randpoly: radius factors are kept in this range (no spikes to 0)
 
+
 def _randpoly(p: dict, seg: int) -> np.ndarray:
     """A random star-shaped polygon about the origin, seeded (``seed``): ``n`` vertices at angles
     spaced 2π/n times a factor drawn from [1 - irregularity, 1 + irregularity] (rescaled to a full
