@@ -125,7 +125,7 @@ def test_library_files_meet_the_format():
 def test_catalog_agrees_with_the_stl_within_one_percent():
     for row in CATALOG.itertuples():
         g = load_part(PARTS / f"{row.id}.stl")
-        m = shape_metrics(g.outline)
+        m = shape_metrics(g.outline, g.holes)
         for key in ["area", "perimeter", "aspect_ratio", "convexity", "compactness", "eigen_ratio"]:
             assert m[key] == pytest.approx(getattr(row, key), rel=0.01), (row.id, key)
         assert g.area == pytest.approx(row.area, rel=0.01)
