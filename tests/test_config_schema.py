@@ -60,3 +60,18 @@ def test_bad_config_stops_with_the_key_named(dotted, value, named):
     with pytest.raises(WorkflowError) as err:
         validate(config, schema=SCHEMA)
     assert named in str(err.value)
+
+
+def test_a_shipped_model_without_its_tables_stops_the_workflow_at_parse_time(tmp_path):
+    """models.ship names a model that is not trained with a GroupKFold: one clear error, no job."""
+    import subprocess
+
+    from workflow_helpers import SNAKEMAKE
+
+    overlay = tmp_path / "ship.yaml"
+    overlay.write_text(yaml.safe_dump({"models": {"ship": ["m3push"], "groupkfold": ["m3"]}}))
+    proc = subprocess.run(
+        [SNAKEMAKE, "-n", "--configfile", str(overlay)], cwd=ROOT, capture_output=True, text=True, timeout=300
+    )
+    assert proc.returncode != 0
+    assert "models.ship: m3push must also be in models.regression and models.groupkfold" in proc.stderr + proc.stdout

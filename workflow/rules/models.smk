@@ -10,6 +10,8 @@
 # The §3.4.1 grid search is not part of the DAG: `feeder train -m hparams_search=grid model=m3`.
 import shlex
 
+from snakemake.exceptions import WorkflowError
+
 from feeder.learn.train import resolved_config_yaml
 
 MODELS = config["models"]["regression"]
@@ -21,7 +23,14 @@ SEEDS = config["models"]["seeds"]
 GROUPKFOLD = list(dict.fromkeys([REFERENCE_MODEL, *config["models"]["groupkfold"]]))
 # the first seed's Model 3: Figs. 12-13 and the model `feeder predict` uses
 REFERENCE_MODEL_DIR = f"{RESULTS}/models/{REFERENCE_MODEL}/seed{SEEDS[0]}"
-EXPORT_DIR = config["models"]["export_dir"]  # the shipped model's folder (models/ in the default study)
+EXPORT_DIR = config["models"]["export_dir"]  # the shipped models' folder (models/ in the default study)
+# the shipped models: Model 3 always, and models.ship beside it (each needs its table rows and GroupKFold)
+SHIPPED = list(dict.fromkeys([REFERENCE_MODEL, *config["models"]["ship"]]))
+_UNSHIPPABLE = [m for m in SHIPPED[1:] if m not in MODELS or m not in GROUPKFOLD]
+if _UNSHIPPABLE:
+    raise WorkflowError(
+        f"models.ship: {', '.join(_UNSHIPPABLE)} must also be in models.regression and models.groupkfold"
+    )
 BOOTSTRAP_ARGS = "--resamples {resamples} --level {level} --bootstrap-seed {seed}".format(
     **config["models"]["bootstrap"]
 )
@@ -34,7 +43,7 @@ MODELS_TARGETS = [
     f"{RESULTS}/tables/generalisation.csv",
     f"{RESULTS}/figures/fig12_test_predictions.png",
     f"{RESULTS}/figures/fig13_parts_predictions.png",
-    f"{EXPORT_DIR}/{REFERENCE_MODEL}",
+    *expand(f"{EXPORT_DIR}/{{model}}", model=SHIPPED),
 ]
 # resolved Hydra settings of every model the DAG can train (composed once, at parse time)
 HYDRA_SETTINGS = {
@@ -183,24 +192,24 @@ rule prediction_figure_data:
 
 
 rule export_model:
-    """The shipped model (models/m3/, committed): the first seed's Model 3 with its scaler and a model
-    card (training data, metrics on Test / Fences / Parts and unseen parts, the features' version),
-    which `feeder predict` and `feeder recommend` use when no --model is given."""
+    """A shipped model (models/<model>/, committed): the first seed's model with its scaler and a
+    model card (training data, metrics on Test / Fences / Parts and unseen parts, the features'
+    version). `feeder predict` and `feeder recommend` use models/m3 when no --model is given."""
     input:
         code("export-model"),
-        model=f"{REFERENCE_MODEL_DIR}/model.pt",
+        model=f"{RESULTS}/models/{{model}}/seed{SEEDS[0]}/model.pt",
         dataset=DATASET,
         tables=[
             *expand(f"{RESULTS}/tables/table{{n}}.csv", n=[6, 7, 8]),
-            f"{RESULTS}/tables/groupkfold_{REFERENCE_MODEL}.csv",
+            f"{RESULTS}/tables/groupkfold_{{model}}.csv",
             f"{RESULTS}/tables/model_vs_baselines.csv",
         ],
     output:
-        directory(f"{EXPORT_DIR}/{REFERENCE_MODEL}"),
+        directory(f"{EXPORT_DIR}/{{model}}"),
     log:
-        f"{LOGS}/models/export_model.log",
+        f"{LOGS}/models/export_model_{{model}}.log",
     benchmark:
-        f"{BENCHMARKS}/models/export_model.tsv"
+        f"{BENCHMARKS}/models/export_model_{{model}}.tsv"
     conda:
         "../envs/feeder.yaml"
     shell:

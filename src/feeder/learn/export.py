@@ -352,12 +352,25 @@ def _table_md(rows: list[dict], caption: str) -> str:
     return markdown_table(frame, caption).rstrip("\n")
 
 
+# what a model reads, by model.inputs (the card's "What it does")
+CARD_INPUTS = {
+    "paper": "the part's 45 DFT shape features and the 8 fence inputs (type and angle per location)",
+    "paper+push": "the part's 45 DFT shape features, the 8 fence inputs (type and angle per location) and "
+    "the analytic push features of the part's hull against each fence (from its STL)",
+    "fence+push": "the 8 fence inputs (type and angle per location) and the analytic push features of the "
+    "part's hull against each fence (from its STL), not the DFT shape features",
+}
+
+
 def card_markdown(card: dict) -> str:
     """``MODEL_CARD.md``: the card for a person."""
     from feeder.learn.evaluate import TABLES
 
     name, data, spec = card["model"], card["training_data"], card["spec"]
     seed = "unknown" if card["seed"] is None else card["seed"]
+    inputs = str(spec.get("inputs") or "paper")  # a paper model's spec leaves it out
+    default = name == SHIPPED_MODEL  # the model predict and recommend use without --model
+    model_option = "" if default else f" --model {SHIPPED_ROOT}/{name}"
     lines = [
         f"# Model card: {name} (seed {seed})",
         "",
@@ -366,17 +379,17 @@ def card_markdown(card: dict) -> str:
         "## What it does",
         "",
         f"Predicts the {spec['bins']}-bin distribution (PMF and CDF) of the final yaw of a flat part that "
-        "rides a conveyor past two fence locations, from the part's 45 DFT shape features and the 8 "
-        "fence inputs (type and angle per location), without simulating. "
+        f"rides a conveyor past two fence locations, from {CARD_INPUTS[inputs]}, without simulating. "
         f"Architecture: {spec['arch']} network, {spec['label']} labels ({spec['repr']}), "
         f"{spec['output_activation']} output.",
         "",
         "```",
-        "feeder predict --part my.stl --loc1 straight:30 --loc2 none",
-        "feeder recommend --part my.stl --target 0 --tolerance 10",
+        f"feeder predict{model_option} --part my.stl --loc1 straight:30 --loc2 none",
+        f"feeder recommend{model_option} --part my.stl --target 0 --tolerance 10",
         "```",
         "",
-        "Both use this folder when `--model` is not given. Predictions are only as good as the tables "
+        ("Both use this folder when `--model` is not given. " if default else "")
+        + "Predictions are only as good as the tables "
         "below: check an important configuration with `feeder simulate`.",
         "",
         f"- label frame: `{card['label_frame']}` (yaws of a `principal`-frame model are moved back to the "
