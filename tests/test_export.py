@@ -190,6 +190,15 @@ def test_the_card_says_what_the_model_reads_and_how_to_call_it(shipped):
     assert "feeder predict --model models/m3pushonly --part my.stl" in md
 
 
+def test_shipped_models_are_model_3_then_models_ship_each_with_its_tables():
+    models = {"regression": ["m3", "m3push"], "groupkfold": ["m3", "m3push"], "ship": ["m3push", "m3"]}
+    assert E.shipped_models(models) == ["m3", "m3push"]
+    assert E.shipped_models({**models, "ship": []}) == ["m3"]
+    for bad in ({**models, "groupkfold": ["m3"]}, {**models, "regression": ["m3"]}):
+        with pytest.raises(FeederError, match="models.ship: m3push must also be in"):
+            E.shipped_models(bad)
+
+
 def test_card_metrics_are_the_table_rows(run, shipped):
     card = json.loads((shipped / E.CARD_FILE).read_text())
     metrics = card["metrics"]

@@ -10,8 +10,7 @@
 # The §3.4.1 grid search is not part of the DAG: `feeder train -m hparams_search=grid model=m3`.
 import shlex
 
-from snakemake.exceptions import WorkflowError
-
+from feeder.learn.export import shipped_models
 from feeder.learn.train import resolved_config_yaml
 
 MODELS = config["models"]["regression"]
@@ -24,13 +23,7 @@ GROUPKFOLD = list(dict.fromkeys([REFERENCE_MODEL, *config["models"]["groupkfold"
 # the first seed's Model 3: Figs. 12-13 and the model `feeder predict` uses
 REFERENCE_MODEL_DIR = f"{RESULTS}/models/{REFERENCE_MODEL}/seed{SEEDS[0]}"
 EXPORT_DIR = config["models"]["export_dir"]  # the shipped models' folder (models/ in the default study)
-# the shipped models: Model 3 always, and models.ship beside it (each needs its table rows and GroupKFold)
-SHIPPED = list(dict.fromkeys([REFERENCE_MODEL, *config["models"]["ship"]]))
-_UNSHIPPABLE = [m for m in SHIPPED[1:] if m not in MODELS or m not in GROUPKFOLD]
-if _UNSHIPPABLE:
-    raise WorkflowError(
-        f"models.ship: {', '.join(_UNSHIPPABLE)} must also be in models.regression and models.groupkfold"
-    )
+SHIPPED = shipped_models(config["models"])  # Model 3, then models.ship beside it
 BOOTSTRAP_ARGS = "--resamples {resamples} --level {level} --bootstrap-seed {seed}".format(
     **config["models"]["bootstrap"]
 )

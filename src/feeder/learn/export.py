@@ -79,6 +79,17 @@ def shipped_model_dir() -> Path:
     return Path(feeder.__file__).resolve().parents[2] / SHIPPED_ROOT / SHIPPED_MODEL
 
 
+def shipped_models(models: dict) -> list[str]:
+    """The models the workflow exports (the ``models`` section of the Snakemake config): Model 3,
+    then ``models.ship``. Each of these needs its table rows and its GroupKFold, so one missing
+    from ``models.regression`` or ``models.groupkfold`` is a one-line FeederError."""
+    shipped = list(dict.fromkeys([SHIPPED_MODEL, *models["ship"]]))
+    missing = [m for m in shipped[1:] if m not in models["regression"] or m not in models["groupkfold"]]
+    if missing:
+        raise FeederError(f"models.ship: {', '.join(missing)} must also be in models.regression and models.groupkfold")
+    return shipped
+
+
 def add_model_option(parser: argparse.ArgumentParser) -> None:
     """The ``--model`` option of ``feeder predict`` and ``feeder recommend`` (optional)."""
     parser.add_argument(
