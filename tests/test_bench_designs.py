@@ -169,6 +169,7 @@ def test_emulated_adaptive_refines_the_reference_map_and_finds_its_jumps(tmp_pat
     (each of its two jumps misplaces at most half of min_width), at any offset, within budget."""
     cfg = settings()
     cfg["sim"]["design_bench"] |= {"drop_levels": [20], "repeats": 3}
+    cfg["sim"]["yaw_sampling"] = "random"  # the study's own budget is not emulated then
     frame = pd.DataFrame(B.entry_rows(*_files(tmp_path), cfg))
     emu = frame[frame.design == "adaptive_emulated"]
     assert len(emu) == 3 and (emu.drops == 4).all() and (emu.simulations == 4).all()  # the file's budget 4
@@ -180,6 +181,29 @@ def test_emulated_adaptive_refines_the_reference_map_and_finds_its_jumps(tmp_pat
         assert label.simulations <= 64
         mass_30 = label.pmf[30]  # the basin of β < 120: a third of the turn
         assert mass_30 == pytest.approx(1.0 / 3.0, abs=2 * 0.25 / 360 + 1e-9)
+
+
+def test_the_studys_own_adaptive_budget_is_emulated_beside_the_real_runs_budgets(tmp_path):
+    """An adaptive study at a budget never simulated for real (here 12, the file has 4) still gets
+    its rows: the refinement on the reference map, at most that many simulations, more than 4."""
+    cfg = settings()
+    cfg["sim"] |= {"yaw_sampling": "adaptive", "drops": 12}
+    cfg["sim"]["design_bench"] |= {"drop_levels": [20], "repeats": 2}
+    frame = pd.DataFrame(B.entry_rows(*_files(tmp_path), cfg))
+    emu = frame[frame.design == "adaptive_emulated"]
+    assert sorted(set(emu.drops)) == [4, 12] and len(emu) == 4
+    own = emu[emu.drops == 12]
+    assert (own.simulations <= 12).all() and (own.simulations > 4).all()
+    assert (frame[frame.design == "adaptive"].drops == 4).all()  # the real rows stay the file's own
+    assert B.emulated_budgets(
+        {"budgets": [{"budget": 64}, {"budget": 32}]}, {"yaw_sampling": "adaptive", "drops": 40}
+    ) == [
+        32,
+        40,
+        64,
+    ]
+    assert B.emulated_budgets({"budgets": [{"budget": 64}]}, {"yaw_sampling": "adaptive", "drops": 64}) == [64]
+    assert B.emulated_budgets({"budgets": [{"budget": 64}]}, {"yaw_sampling": "golden", "drops": 40}) == [64]
 
 
 def test_unknown_configuration_is_a_one_line_error(capsys):

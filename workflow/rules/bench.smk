@@ -251,7 +251,9 @@ rule bench_designs:
     conda:
         "../envs/feeder.yaml"
     params:
-        settings=settings_json("labels", "sim.design_bench", "sim.adaptive", "sim.min_ok_mass"),
+        settings=settings_json(
+            "labels", "sim.design_bench", "sim.adaptive", "sim.min_ok_mass", "sim.drops", "sim.yaw_sampling"
+        ),
     shell:
         "feeder bench-designs table --references {input.references} --adaptive {input.adaptive}"
         " --settings '{params.settings}' --out-csv {output.rows} --out-summary {output.summary} > {log} 2>&1"

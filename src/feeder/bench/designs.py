@@ -16,10 +16,11 @@ close each design gets to it, and at what cost:
   same initial yaws (same-status and same-basin fractions, median |Δ final yaw|), which says how
   well the sampled map stands in for the simulator between its samples:
   - ``adaptive`` from its real runs (one realisation: the offset of seed ``design_bench.seed``);
-  - ``adaptive_emulated``: the same refinement (the real runs' settings) at each budget,
-    ``repeats`` seeded offsets, each simulation replaced by the reference map
-    (:func:`emulated_adaptive`), so the adaptive design gets an interval like the others; the
-    real run says whether the emulation is faithful;
+  - ``adaptive_emulated``: the same refinement (the real runs' settings) at each budget and at
+    the study's own (``sim.drops``, when ``sim.yaw_sampling`` is adaptive), ``repeats`` seeded
+    offsets, each simulation replaced by the reference map (:func:`emulated_adaptive`), so the
+    adaptive design gets an interval like the others; the real run says whether the emulation is
+    faithful;
   - ``random``, ``golden`` and ``grid`` at each of ``drop_levels`` drops, ``repeats`` seeded
     realisations each, **emulated** through the reference map (the drops a design would simulate,
     mapped by :func:`feeder.labels.pushforward.map_yaws`). The paired check says how exact that is.
@@ -233,6 +234,17 @@ def _load(path: Path) -> dict:
         return {k: z[k] for k in z.files}
 
 
+def emulated_budgets(run_meta: dict, sim: dict) -> list[int]:
+    """Budgets of the emulated adaptive design: those of the real runs (``run_meta["budgets"]``)
+    and, when the study labels adaptively, the study's own budget ``sim.drops``, so that the
+    table always says what the default's labels cost and how close they are, even at a budget
+    that was never simulated for real."""
+    budgets = {int(b["budget"]) for b in run_meta["budgets"]}
+    if sim.get("yaw_sampling") == "adaptive":
+        budgets.add(int(sim["drops"]))
+    return sorted(budgets)
+
+
 def entry_rows(reference: Path, adaptive: Path, settings: dict) -> list[dict]:
     """Rows of one configuration (its reference file and its adaptive file): the reference's own,
     the adaptive runs and every emulated design. A configuration whose reference has no ok drop
@@ -274,8 +286,7 @@ def entry_rows(reference: Path, adaptive: Path, settings: dict) -> list[dict]:
         label = sim_label(rec, bins, sigma) if rec.ok.any() else None
         rows.append(_row(base, "adaptive", b["budget"], 0, float(runs[f"{tag}_cpu_s"]), label, ref_pmf))
     order = round(360.0 / float(meta["period_deg"]))
-    for b in run_meta["budgets"]:
-        budget = int(b["budget"])
+    for budget in emulated_budgets(run_meta, settings["sim"]):
         for r in range(int(db["repeats"])):
             seed = seed_of(base["config"], "adaptive", budget, r)
             label = emulated_adaptive(ref, order, budget, seed, run_meta["adaptive"], bins, sigma)
