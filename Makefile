@@ -4,7 +4,7 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: run test test-cluster smoke bench lint dryrun lock clean-venv
+.PHONY: run report test test-cluster smoke bench lint dryrun lock clean-venv
 
 # (Re)build the environment when it is missing or older than the lock or the package metadata.
 $(STAMP): environment.lock pyproject.toml
@@ -18,6 +18,10 @@ $(STAMP): environment.lock pyproject.toml
 
 run: $(STAMP)
 	$(BIN)/snakemake --cores 2
+
+# The one-page HTML report of the default run (after `make run`; tests/test_report_browser.py).
+report: $(STAMP)
+	$(BIN)/snakemake --cores 2 --report results/report.html
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -q
