@@ -235,9 +235,9 @@ def test_groupkfold_never_trains_on_a_held_out_part(trained, tmp_path, monkeypat
         seen["fit"].append(np.asarray(train).copy())
         return real_fit(cfg, data, train, **kw)
 
-    def spy_baselines(data, train):
+    def spy_baselines(data, train, prior_grids=None):
         seen["baseline"].append(np.asarray(train).copy())
-        return real_baselines(data, train)
+        return real_baselines(data, train, prior_grids)
 
     monkeypatch.setattr(T, "fit", spy_fit)
     monkeypatch.setattr(E, "baseline_predictions", spy_baselines)
@@ -267,9 +267,9 @@ def test_groupkfold_scores_each_row_with_the_model_that_held_it_out(trained, tmp
         fitted = real_fit(cfg, data, train, **kw)
         real_predict = fitted.model.predict
 
-        def spy_predict(part_raw, feeder_raw):
+        def spy_predict(part_raw, feeder_raw, *rest, **kw):
             seen.append((np.asarray(train).copy(), np.asarray(part_raw).copy()))
-            return real_predict(part_raw, feeder_raw)
+            return real_predict(part_raw, feeder_raw, *rest, **kw)
 
         fitted.model.predict = spy_predict
         return fitted

@@ -446,8 +446,8 @@ def test_groupkfold_compares_with_the_analytic_baseline(push_models):
     bootstrap = {"resamples": 20, "level": 0.9, "seed": 0}
     table, paired = E.groupkfold(data, cfg, seeds=[0], progress=False, bootstrap=bootstrap)
     over = table[table.group == "over parts"].set_index("model")
-    assert E.BASELINE_ANALYTIC in over.index
-    assert set(paired.baseline) == {E.BASELINE_MEAN, E.BASELINE_NEAREST, E.BASELINE_ANALYTIC}
+    assert E.BASELINE_ANALYTIC in over.index and E.BASELINE_PRIOR in over.index  # the config has a prior node
+    assert set(paired.baseline) == {E.BASELINE_MEAN, E.BASELINE_NEAREST, E.BASELINE_ANALYTIC, E.BASELINE_PRIOR}
 
 
 # ---------------------------------------------------------------------------------------------

@@ -69,7 +69,7 @@ rule train_model:
 
 
 rule evaluate_models:
-    """Tables 5-8 (Train, Test, Fences, Parts) with both baselines, the Fences/Parts breakdowns and
+    """Tables 5-8 (Train, Test, Fences, Parts) with the baselines, the Fences/Parts breakdowns and
     every model against each baseline (paired bootstrap over configurations)."""
     input:
         code("evaluate"),
@@ -105,9 +105,11 @@ rule evaluate_models:
         "../envs/feeder.yaml"
     params:
         bootstrap=BOOTSTRAP_ARGS,
+        hydra=HYDRA_SETTINGS[REFERENCE_MODEL],  # holds the prior node: the analytic prior's grids
+        overrides=HYDRA_ARGS,
     shell:
         "feeder evaluate tables --dataset {input.dataset} --models $(dirname {input.models})"
-        " --out-dir $(dirname {output.t5}) {params.bootstrap} > {log} 2>&1"
+        " --out-dir $(dirname {output.t5}) {params.bootstrap} {params.overrides} > {log} 2>&1"
 
 
 rule groupkfold_model:

@@ -8,7 +8,7 @@ the circle; ``cw1``: circular W1, the W1 minimised over cuts), which do not depe
 falls in the label frame; a table reports mean ± population SD (ddof = 0) over the configurations
 of a split.
 
-Two baselines sit beside the models in every table, and a third when the dataset has the
+Two baselines sit beside the models in every table, and two more when the dataset has the
 analytic push block (:func:`baseline_names`):
 
 * ``baseline_mean_pmf``: the mean PMF of the training rows, for every configuration;
@@ -17,7 +17,11 @@ analytic push block (:func:`baseline_names`):
   own neighbour (leave-one-out), so the Train table shows an honest baseline;
 * ``baseline_analytic_pmf``: the analytic PMF of the configuration itself (the dataset's
   ``pmf_analytic``: quasi-static pushing of the part's outline, :mod:`feeder.parts.push`, in the
-  label frame with the labels' smoothing), no training row read. Only with ``pmf_analytic``.
+  label frame with the labels' smoothing), no training row read. Only with ``pmf_analytic``;
+* ``baseline_analytic_prior``: the analytic PMF widened and blended with the training-mean PMF,
+  ``λ · widen(analytic, σ) + (1 − λ) · mean`` (:mod:`feeder.learn.prior`), with (σ, λ) chosen on
+  the training rows from the grids of the Hydra config's ``prior`` node. With ``pmf_analytic``
+  and those grids (``prior_grids``; the CLI reads them from the training config).
 
 ``train_s`` is the training wall time (from the model's ``metrics.json``, the mean over seeds);
 for the baselines it is the measured time to build them from the dataset (for the analytic one,
@@ -38,7 +42,7 @@ zero. GroupKFold does the same over parts (each part's mean over its held-out co
 Subcommands::
 
     feeder evaluate tables --dataset D --models results/models/m1/seed0 ... --out-dir results/tables \
-        [--resamples 2000 --level 0.95 --bootstrap-seed 0]
+        [--resamples 2000 --level 0.95 --bootstrap-seed 0] [Hydra overrides of the training config]
     feeder evaluate groupkfold --dataset D --out results/tables/groupkfold_m3.csv \
         --paired-out results/tables/groupkfold_m3_paired.csv --seeds 0 1 2 model=m3 [overrides]
     feeder evaluate figure-data --dataset D --model results/models/m3/seed0 --fig12-data F12.npz --fig13-data F13.npz
@@ -90,6 +94,7 @@ PAIRED_SPLITS = ("test", "fences", "parts")
 BASELINE_MEAN = "baseline_mean_pmf"
 BASELINE_NEAREST = "baseline_nearest_part"
 BASELINE_ANALYTIC = "baseline_analytic_pmf"
+BASELINE_PRIOR = "baseline_analytic_prior"
 ANALYTIC_KEY = "pmf_analytic"  # the dataset array the analytic baseline reads
 # Figs. 12-13: the rows at these quantiles of the model's R² (best to worst) are shown.
 FIGURE_QUANTILES = (0.9, 0.6, 0.3, 0.1)
@@ -231,15 +236,19 @@ def nearest_rows(query: np.ndarray, ref: np.ndarray, exclude_same: np.ndarray | 
     return out
 
 
-def baseline_names(data: dict) -> list[str]:
+def baseline_names(data: dict, prior_grids=None) -> list[str]:
     """The baselines a dataset supports, in table order: the mean PMF, the nearest configuration,
-    and the analytic PMF when the dataset has ``pmf_analytic``."""
-    return [BASELINE_MEAN, BASELINE_NEAREST] + ([BASELINE_ANALYTIC] if ANALYTIC_KEY in data else [])
+    and when the dataset has ``pmf_analytic`` the analytic PMF and (given ``prior_grids``,
+    :class:`feeder.learn.prior.Grids`) the analytic prior."""
+    names = [BASELINE_MEAN, BASELINE_NEAREST]
+    if ANALYTIC_KEY in data:
+        names += [BASELINE_ANALYTIC] + ([BASELINE_PRIOR] if prior_grids is not None else [])
+    return names
 
 
-def baseline_predictions(data: dict, train_mask: np.ndarray) -> dict[str, tuple[np.ndarray, float]]:
+def baseline_predictions(data: dict, train_mask: np.ndarray, prior_grids=None) -> dict[str, tuple[np.ndarray, float]]:
     """CDF predictions of every baseline of :func:`baseline_names` for every row, with the
-    seconds each took to build."""
+    seconds each took to build (the prior's include fitting its (σ, λ) on the training rows)."""
     from feeder.labels.dataset import fit_scaler
 
     t0 = time.perf_counter()
@@ -263,6 +272,14 @@ def baseline_predictions(data: dict, train_mask: np.ndarray) -> dict[str, tuple[
         t0 = time.perf_counter()
         analytic_cdf = np.cumsum(np.asarray(data[ANALYTIC_KEY], dtype=np.float64), axis=1)
         out[BASELINE_ANALYTIC] = (analytic_cdf, time.perf_counter() - t0)
+        if prior_grids is not None:
+            from feeder.learn.prior import blend, fit_blend
+
+            t0 = time.perf_counter()
+            analytic = np.asarray(data[ANALYTIC_KEY], dtype=np.float64)
+            best = fit_blend(data["pmf"], analytic, train_mask, prior_grids.sigmas_bins, prior_grids.weights)
+            prior = blend(analytic, mean_pmf, best.sigma_bins, best.weight)
+            out[BASELINE_PRIOR] = (np.cumsum(prior, axis=1), time.perf_counter() - t0)
     return out
 
 
@@ -307,7 +324,7 @@ def load_models(model_dirs) -> list[tuple[str, int, object, float]]:
     return out
 
 
-def _per_seed_predictions(data: dict, models) -> dict[str, list[tuple[np.ndarray, float]]]:
+def _per_seed_predictions(data: dict, models, prior_grids=None) -> dict[str, list[tuple[np.ndarray, float]]]:
     """name -> [(predicted CDFs, train_s) per seed, in seed order] for the models, then the
     baselines (one entry each: they have no seed)."""
     train_mask = data["split"] == "train"
@@ -316,15 +333,15 @@ def _per_seed_predictions(data: dict, models) -> dict[str, list[tuple[np.ndarray
         _, cdf = model.predict_rows(data)
         preds.setdefault(name, []).append((seed, cdf, train_s))
     out = {name: [(cdf, s) for _, cdf, s in sorted(runs, key=lambda r: r[0])] for name, runs in preds.items()}
-    for name, (cdf, secs) in baseline_predictions(data, train_mask).items():
+    for name, (cdf, secs) in baseline_predictions(data, train_mask, prior_grids).items():
         out[name] = [(cdf, secs)]
     return out
 
 
-def evaluation_tables(data: dict, models, bootstrap: dict | None = None):
+def evaluation_tables(data: dict, models, bootstrap: dict | None = None, prior_grids=None):
     """Tables 5–8 (split -> DataFrame), the Fences/Parts breakdowns and the paired comparison of
     every model with every baseline (:func:`baseline_names`; None when ``bootstrap`` is None)."""
-    preds = _per_seed_predictions(data, models)
+    preds = _per_seed_predictions(data, models, prior_grids)
     per_row = {name: [row_metrics(data["cdf"], cdf) for cdf, _ in runs] for name, runs in preds.items()}
     train_s = {name: float(np.mean([s for _, s in runs])) for name, runs in preds.items()}
 
@@ -346,7 +363,7 @@ def evaluation_tables(data: dict, models, bootstrap: dict | None = None):
     breakdowns = {"fences": breakdown("fences", combos), "parts": breakdown("parts", data["part"])}
     if bootstrap is None:
         return tables, breakdowns, None
-    baselines = baseline_names(data)
+    baselines = baseline_names(data, prior_grids)
     paired = []
     for split in PAIRED_SPLITS:
         mask = data["split"] == split
@@ -361,12 +378,12 @@ def evaluation_tables(data: dict, models, bootstrap: dict | None = None):
     return tables, breakdowns, pd.DataFrame(paired, columns=PAIRED_COLUMNS)
 
 
-def write_tables(dataset, model_dirs, out_dir, bootstrap: dict | None = None) -> list[Path]:
+def write_tables(dataset, model_dirs, out_dir, bootstrap: dict | None = None, prior_grids=None) -> list[Path]:
     from feeder.labels.dataset import load_dataset
 
     data = load_dataset(dataset)
     models = load_models(model_dirs)
-    tables, breakdowns, paired = evaluation_tables(data, models, bootstrap)
+    tables, breakdowns, paired = evaluation_tables(data, models, bootstrap, prior_grids)
     seeds = sorted({seed for _, seed, _, _ in models})
     seed_note = f"{len(seeds)} training seed{'s' if len(seeds) > 1 else ''} ({', '.join(map(str, seeds))})"
     out_dir = Path(out_dir)
@@ -408,6 +425,13 @@ def _part_means(m: dict[str, np.ndarray], parts: np.ndarray, names: list[str]) -
     return {k: np.array([v[parts == p].mean() for p in names]) for k, v in m.items()}
 
 
+def _prior_grids(cfg):
+    """The grids of the composed training config's ``prior`` node (None when it has none)."""
+    from feeder.learn.prior import grids
+
+    return grids(cfg["prior"]) if "prior" in cfg else None
+
+
 def groupkfold(data: dict, cfg, seeds=None, progress: bool | None = None, bootstrap: dict | None = None):
     """Train ``cfg.model`` once per ``group_fold`` and seed on every row of the other folds and
     predict the held-out parts. Rows: per part, all held-out configurations, and the mean ± SD of
@@ -426,7 +450,8 @@ def groupkfold(data: dict, cfg, seeds=None, progress: bool | None = None, bootst
         raise FeederError(f"GroupKFold seeds {seeds}: give at least one, without repeats")
     n_rows, bins = data["cdf"].shape
     name = str(cfg.model.name)
-    baselines = baseline_names(data)
+    prior_grids = _prior_grids(cfg)
+    baselines = baseline_names(data, prior_grids)
     runs = {
         name: [np.full((n_rows, bins), np.nan) for _ in seeds],
         **{b: [np.full((n_rows, bins), np.nan)] for b in baselines},
@@ -439,7 +464,7 @@ def groupkfold(data: dict, cfg, seeds=None, progress: bool | None = None, bootst
             fitted = fit(cfg, data, train, seed=seed + int(fold), progress=progress)
             _, runs[name][i][test] = fitted.model.predict_rows(data, test)
             secs[name] += fitted.train_s / len(seeds)
-        for b, (cdf, s) in baseline_predictions(data, train).items():
+        for b, (cdf, s) in baseline_predictions(data, train, prior_grids).items():
             runs[b][0][test] = cdf[test]
             secs[b] += s
     per_row = {k: [row_metrics(data["cdf"], cdf) for cdf in v] for k, v in runs.items()}
@@ -650,6 +675,7 @@ def main(argv: list[str]) -> int:
     )
     p.add_argument("--out-dir", type=Path, required=True)
     _bootstrap_options(p)
+    p.add_argument("overrides", nargs="*", help="Hydra overrides of the training config (its prior node)")
 
     p = sub.add_parser("groupkfold", help="leave-parts-out GroupKFold of one model (trains one per fold and seed)")
     p.add_argument("--dataset", type=Path, required=True)
@@ -679,7 +705,10 @@ def main(argv: list[str]) -> int:
 
     args = parser.parse_args(argv)
     if args.cmd == "tables":
-        for path in write_tables(args.dataset, args.models, args.out_dir, _bootstrap_settings(args)):
+        from feeder.config import compose_config
+
+        prior_grids = _prior_grids(compose_config("train", args.overrides))
+        for path in write_tables(args.dataset, args.models, args.out_dir, _bootstrap_settings(args), prior_grids):
             print(path)
     elif args.cmd == "groupkfold":
         from feeder.config import compose_config

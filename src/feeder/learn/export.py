@@ -392,7 +392,13 @@ def card_markdown(card: dict) -> str:
         f"Predicts the {spec['bins']}-bin distribution (PMF and CDF) of the final yaw of a flat part that "
         f"rides a conveyor past two fence locations, from {CARD_INPUTS[inputs]}, without simulating. "
         f"Architecture: {spec['arch']} network, {spec['label']} labels ({spec['repr']}), "
-        f"{spec['output_activation']} output.",
+        f"{spec['output_activation']} output"
+        + (
+            ", started from the analytic prior: its logits add log(λ · widened analytic PMF + (1 − λ) · "
+            "training-mean PMF) of the configuration, (σ, λ) fitted on its training rows."
+            if spec.get("base") == "prior"
+            else "."
+        ),
         "",
         "```",
         f"feeder predict{model_option} --part my.stl --loc1 straight:30 --loc2 none",

@@ -14,7 +14,15 @@ A model is described by its Hydra node ``model`` (``config/hydra/model/m1.yaml``
   input; the part branch keeps the 45 shape features alone. ``fence+push`` leaves the DFT out:
   the 8 feeder inputs and the push block only (the ablation of issue #20; standard networks only);
 * ``output_activation``: ``softmax`` (full PMF), ``sigmoid`` or ``linear`` (full CDF),
-  ``linear`` (PCA scores).
+  ``linear`` (PCA scores);
+* ``base``: what the network starts from and corrects. ``mean`` (the default, and what a model
+  saved without the key has): the training-mean label, as below. ``prior`` (softmax PMF models
+  only): the analytic + mean-PMF prior of each row (:mod:`feeder.learn.prior`; its (σ, λ) fitted
+  on the training rows from the grids of the training config's ``prior`` node, stored with the
+  weights as buffers with the training-mean PMF). The softmax logits are the network's output plus
+  log(prior), so the network learns a per-configuration correction of the prior, and with the
+  output layer at zero it predicts the prior itself. Such a model needs the configuration's
+  analytic PMF (the dataset's ``pmf_analytic``; for a new part :func:`feeder.parts.push.push_block`).
 
 The network's forward pass returns the *raw* distribution in 360-bin space (PCA outputs are
 reconstructed with the stored training mean and loadings inside the graph, so the losses of
@@ -48,8 +56,11 @@ LABELS = ("pmf", "cdf")
 REPRS = ("full", "pca")
 ARCHS = ("standard", "branched")
 ACTIVATIONS = ("softmax", "sigmoid", "linear")
+BASES = ("mean", "prior")  # model.base: the training-mean label, or the analytic prior of each row
 # Floor for probabilities/CDF values turned into logits for the output bias.
 _BIAS_FLOOR = 1e-6
+# Floor of the prior's bins before the log (a bin the prior leaves empty can still be reached).
+_PRIOR_FLOOR = 1e-9
 
 
 # ----------------------------------------------------------------------------------------------
@@ -175,6 +186,7 @@ class ModelSpec:
     feeder_hidden: tuple[int, ...] = ()
     shared_hidden: tuple[int, ...] = ()
     inputs: str = "paper"
+    base: str = "mean"
 
     def __post_init__(self) -> None:
         if self.inputs not in INPUTS:
@@ -199,6 +211,10 @@ class ModelSpec:
             raise ValueError(f"model {self.name}: PCA scores need a linear output")
         if self.repr == "pca" and not (self.components and self.components > 0):
             raise ValueError(f"model {self.name}: PCA labels need a positive number of components")
+        if self.base not in BASES:
+            raise ValueError(f"model {self.name}: base must be one of {BASES}, got {self.base!r}")
+        if self.base == "prior" and self.output_activation != "softmax":
+            raise ValueError(f"model {self.name}: base prior adds log(prior) to softmax logits: it needs a full PMF")
 
     @classmethod
     def from_config(cls, model_cfg, bins: int) -> ModelSpec:
@@ -220,6 +236,7 @@ class ModelSpec:
             feeder_hidden=tup("feeder_hidden"),
             shared_hidden=tup("shared_hidden"),
             inputs=str(get("inputs") or "paper"),
+            base=str(get("base") or "mean"),
         )
 
     @property
@@ -241,11 +258,14 @@ class ModelSpec:
         return self.part_dim + FEEDER_DIM + self.push_dim
 
     def to_dict(self) -> dict:
-        """Plain values; ``inputs`` only when it is not ``paper``, so a paper model's saved spec
-        (and its model.pt, byte for byte) is what it was before the key existed."""
+        """Plain values; ``inputs`` only when it is not ``paper`` and ``base`` only when it is not
+        ``mean``, so an older model's saved spec (and its model.pt, byte for byte) is what it was
+        before the keys existed."""
         out = {k: (list(v) if isinstance(v, tuple) else v) for k, v in self.__dict__.items()}
         if out["inputs"] == "paper":
             del out["inputs"]
+        if out["base"] == "mean":
+            del out["base"]
         return out
 
     @classmethod
@@ -280,16 +300,43 @@ class RegressionModel(nn.Module):
             self.register_buffer("pca_components", torch.as_tensor(pca_components, dtype=torch.float32))
         elif n_out != spec.bins:
             raise ValueError(f"model {spec.name}: full output must have {spec.bins} values, got {n_out}")
+        if spec.base == "prior":  # the fitted prior (set_prior), saved with the weights
+            self.register_buffer("prior_mean_pmf", torch.full((spec.bins,), 1.0 / spec.bins, dtype=torch.float64))
+            self.register_buffer("prior_sigma_bins", torch.zeros((), dtype=torch.float64))
+            self.register_buffer("prior_weight", torch.zeros((), dtype=torch.float64))
+
+    def set_prior(self, mean_pmf: np.ndarray, sigma_bins: float, weight: float) -> None:
+        """Store the prior fitted on the training rows (``base: prior`` models only)."""
+        if self.spec.base != "prior":
+            raise ValueError(f"model {self.spec.name}: only a base prior model holds a prior")
+        with torch.no_grad():
+            self.prior_mean_pmf.copy_(torch.as_tensor(np.asarray(mean_pmf, dtype=np.float64)))
+            self.prior_sigma_bins.fill_(float(sigma_bins))
+            self.prior_weight.fill_(float(weight))
+
+    def prior_pmf(self, analytic: np.ndarray) -> np.ndarray:
+        """The stored prior of rows of analytic PMFs (:func:`feeder.learn.prior.blend`)."""
+        from feeder.learn.prior import blend
+
+        return blend(analytic, self.prior_mean_pmf.numpy(), float(self.prior_sigma_bins), float(self.prior_weight))
+
+    def log_prior(self, analytic: np.ndarray) -> torch.Tensor:
+        """log(prior) of rows of analytic PMFs, floored at log(_PRIOR_FLOOR), float32 for the logits."""
+        prior = np.clip(self.prior_pmf(analytic), _PRIOR_FLOOR, None)
+        return torch.as_tensor(np.log(prior), dtype=torch.float32)
 
     def init_output_to_mean(self, mean_pmf: np.ndarray, mean_cdf: np.ndarray) -> None:
         """Zero the output layer's weights and set its bias to the training-mean label, so the
         untrained network predicts the mean-distribution baseline for every input (hidden
-        layers still get gradients once the output weights move off zero)."""
+        layers still get gradients once the output weights move off zero). A ``base: prior``
+        network gets a zero bias: it starts at its prior."""
         spec = self.spec
         head = self.body.head
         with torch.no_grad():
             head.weight.zero_()
-            if spec.repr == "pca":
+            if spec.base == "prior":
+                bias = np.zeros(head.bias.shape[0])
+            elif spec.repr == "pca":
                 bias = np.zeros(head.bias.shape[0])
             elif spec.label == "pmf":  # softmax
                 bias = np.log(np.clip(mean_pmf, _BIAS_FLOOR, None))
@@ -301,9 +348,15 @@ class RegressionModel(nn.Module):
                 bias = np.asarray(mean_cdf, dtype=np.float64)
             head.bias.copy_(torch.as_tensor(bias, dtype=head.bias.dtype))
 
-    def forward(self, x: torch.Tensor) -> dict[str, torch.Tensor | None]:
+    def forward(self, x: torch.Tensor, log_prior: torch.Tensor | None = None) -> dict[str, torch.Tensor | None]:
+        """Raw outputs of scaled inputs ``x``; a ``base: prior`` network also takes the rows'
+        log(prior) (:meth:`log_prior`) and adds it to its logits."""
         out = self.body(x)
         spec = self.spec
+        if spec.base == "prior":
+            if log_prior is None:
+                raise ValueError(f"model {spec.name}: base prior needs the rows' log(prior)")
+            out = out + log_prior
         log_pmf = None
         if spec.repr == "pca":
             values = out @ self.pca_components + self.pca_mean
@@ -414,32 +467,69 @@ class TrainedModel:
         ``fence+push``)."""
         return self.spec.inputs != "paper"
 
-    def raw(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Raw (pmf, cdf) network outputs for scaled inputs ``x`` (N, 53 + push block), float64."""
+    @property
+    def needs_analytic(self) -> bool:
+        """Whether predictions need each configuration's analytic PMF (``model.base: prior``)."""
+        return self.spec.base == "prior"
+
+    def _log_prior(self, analytic, n: int) -> torch.Tensor | None:
+        if not self.needs_analytic:
+            return None
+        from feeder.errors import FeederError
+
+        if analytic is None:
+            raise FeederError(
+                f"model {self.spec.name} starts from the analytic prior (model.base: prior): it needs the "
+                "configurations' analytic PMFs (the dataset's pmf_analytic, or the part's outline)"
+            )
+        analytic = np.atleast_2d(np.asarray(analytic, dtype=np.float64))
+        if analytic.shape != (n, self.spec.bins):
+            raise FeederError(
+                f"model {self.spec.name}: analytic PMFs of shape {analytic.shape}, need ({n}, {self.spec.bins})"
+            )
+        return self.net.log_prior(analytic)
+
+    def raw(self, x: np.ndarray, analytic: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Raw (pmf, cdf) network outputs for scaled inputs ``x`` (N, 53 + push block), float64;
+        ``analytic``: the rows' analytic PMFs (N, bins), for a ``base: prior`` model."""
+        x = np.asarray(x)
+        log_prior = self._log_prior(analytic, int(np.atleast_2d(x).shape[0]))
         with torch.no_grad():
-            out = self.net(torch.as_tensor(np.asarray(x), dtype=torch.float32))
+            out = self.net(torch.as_tensor(x, dtype=torch.float32), log_prior)
         return out["pmf"].double().numpy(), out["cdf"].double().numpy()
 
-    def predict_scaled(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def predict_scaled(self, x: np.ndarray, analytic: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Post-processed (pmf, cdf) for scaled inputs."""
-        return postprocess(self.spec, *self.raw(x))
+        return postprocess(self.spec, *self.raw(x, analytic))
 
     def predict(
-        self, part_raw: np.ndarray, feeder_raw: np.ndarray, push_raw: np.ndarray | None = None
+        self,
+        part_raw: np.ndarray,
+        feeder_raw: np.ndarray,
+        push_raw: np.ndarray | None = None,
+        analytic: np.ndarray | None = None,
     ) -> tuple[np.ndarray, np.ndarray]:
         """Post-processed (pmf, cdf) for raw DFT triplets (N, 45) and feeder vectors (N, 8), and
         for a ``paper+push`` model the raw push features (N, P) (a one-line FeederError without
-        them; a paper model ignores them)."""
+        them; a paper model ignores them); for a ``base: prior`` model also the analytic PMFs
+        (N, bins) in the label frame."""
         push = None if push_raw is None or not self.needs_push else np.atleast_2d(push_raw)
         x = self.scaler.transform(np.atleast_2d(part_raw), np.atleast_2d(feeder_raw), push)
-        return self.predict_scaled(x)
+        return self.predict_scaled(x, analytic)
 
     def predict_rows(self, data: dict, rows=None) -> tuple[np.ndarray, np.ndarray]:
         """:meth:`predict` on the rows ``rows`` (default all) of a dataset dict
         (:func:`feeder.labels.dataset.load_dataset`), with the inputs the model takes."""
         from feeder.labels.dataset import raw_inputs
 
-        return self.predict(*raw_inputs(data, self.spec.inputs, rows))
+        analytic = None
+        if self.needs_analytic:
+            from feeder.errors import FeederError
+
+            if "pmf_analytic" not in data:
+                raise FeederError(f"model {self.spec.name}: the dataset has no pmf_analytic (rebuild it)")
+            analytic = np.asarray(data["pmf_analytic"])[slice(None) if rows is None else rows]
+        return self.predict(*raw_inputs(data, self.spec.inputs, rows), analytic=analytic)
 
     def save(self, out_dir) -> None:
         """Write ``model.pt`` (spec + weights) and ``scaler.json`` atomically into ``out_dir``.

@@ -20,7 +20,10 @@ milliseconds.
 A model with ``model.inputs: paper+push`` also reads the analytic push block of the part in the
 configuration (:func:`push_rows`: :func:`feeder.parts.push.push_features` of the STL's outline, in
 the study config's scene and the model's label frame, as ``feeder datasets build`` computes it):
-it needs ``--part`` as an STL (``--features`` and ``.xyz`` files hold no outline).
+it needs ``--part`` as an STL (``--features`` and ``.xyz`` files hold no outline). So does a model
+that starts from the analytic prior (``model.base: prior``): it reads the configuration's analytic
+PMF, from the same pass (:func:`push_inputs`, :func:`feeder.parts.push.push_block`), smoothed as
+the study config's labels are (``labels.sigma_bins``).
 """
 
 from __future__ import annotations
@@ -105,27 +108,41 @@ def part_vector(
 
 
 def check_push_source(model, part: Path | None) -> None:
-    """Refuse, before any work, a ``paper+push`` model without a part outline to push: it needs
-    ``--part`` as an STL. Models of the paper's inputs need nothing more."""
-    if not model.needs_push:
+    """Refuse, before any work, a ``paper+push`` or ``base: prior`` model without a part outline
+    to push: it needs ``--part`` as an STL. Models of the paper's inputs need nothing more."""
+    if not (model.needs_push or model.needs_analytic):
         return
     if part is None or part.suffix.lower() != ".stl":
+        what = (
+            f"the analytic push features (model.inputs: {model.inputs})"
+            if model.needs_push
+            else "the analytic PMF (model.base: prior)"
+        )
         raise FeederError(
-            f"model {model.spec.name} takes the analytic push features (model.inputs: {model.inputs}), computed "
-            "from the part's outline: give --part PART.stl (a features JSON or .xyz file has no outline)"
+            f"model {model.spec.name} takes {what}, computed from the part's outline: "
+            "give --part PART.stl (a features JSON or .xyz file has no outline)"
         )
 
 
 def push_rows(model, part: Path | None, pairs, frame_deg: float | None) -> np.ndarray | None:
     """The raw push block of the part for every (loc1, loc2) in ``pairs`` ((N, P)), or None when
-    ``model`` takes the paper's inputs only. As the dataset has it: the STL's outline (units as
-    ``--units auto``) in the study config's scene, in the model's label frame (``frame_deg`` of the
-    part for a ``principal``-frame model, which it then needs) over the model's bins."""
-    if not model.needs_push:
-        return None
+    ``model`` takes the paper's inputs only (:func:`push_inputs`)."""
+    return push_inputs(model, part, pairs, frame_deg)[0]
+
+
+def push_inputs(model, part: Path | None, pairs, frame_deg: float | None) -> tuple[np.ndarray | None, ...]:
+    """``(push block (N, P) or None, analytic PMFs (N, bins) or None)`` of the part for every
+    (loc1, loc2) in ``pairs``, each only when ``model`` takes it. As the dataset has them: the
+    STL's outline (units as ``--units auto``) in the study config's scene, in the model's label
+    frame (``frame_deg`` of the part for a ``principal``-frame model, which it then needs) over
+    the model's bins, the PMF smoothed as the study config's labels (``labels.sigma_bins``)."""
+    if not (model.needs_push or model.needs_analytic):
+        return None, None
     check_push_source(model, part)
+    from feeder.config import load_study_config
+    from feeder.labels.dataset import label_smooth_deg
     from feeder.parts.geometry import load_profile
-    from feeder.parts.push import default_scene, push_features, push_geometry
+    from feeder.parts.push import default_scene, push_block, push_geometry
 
     frame = 0.0
     if model.label_frame == "principal":
@@ -137,12 +154,15 @@ def push_rows(model, part: Path | None, pairs, frame_deg: float | None) -> np.nd
         frame = float(frame_deg)
     outline, holes, _ = load_profile(part, "auto")
     geom = push_geometry(outline, holes)
-    scene, memo = default_scene(), {}
+    scene, memo, bins = default_scene(), {}, int(model.spec.bins)
+    smooth = label_smooth_deg(bins, float(load_study_config()["labels"]["sigma_bins"]))
     rows = [
-        push_features(geom, loc1, loc2, scene, frame_deg=frame, bins=int(model.spec.bins), responses=memo)
+        push_block(geom, loc1, loc2, scene, frame_deg=frame, bins=bins, pmf_smooth_deg=smooth, responses=memo)
         for loc1, loc2 in pairs
     ]
-    return np.stack(rows)
+    push = np.stack([r[0] for r in rows]) if model.needs_push else None
+    analytic = np.stack([r[1] for r in rows]) if model.needs_analytic else None
+    return push, analytic
 
 
 def predict_frame(
@@ -152,12 +172,14 @@ def predict_frame(
     loc2: str,
     frame_deg: float | None = None,
     push_raw: np.ndarray | None = None,
+    analytic: np.ndarray | None = None,
 ) -> pd.DataFrame:
     """The 360-bin prediction of ``model`` (a TrainedModel) as a DataFrame, in the part's own frame.
 
     A model trained on ``principal``-frame labels predicts the yaw of the part's feature frame;
     it is moved back by ``frame_deg`` (:func:`feeder.labels.metrics.shift_pmf`), which it then needs.
-    ``push_raw``: the push block (:func:`push_rows`) a ``paper+push`` model needs.
+    ``push_raw``: the push block (:func:`push_rows`) a ``paper+push`` model needs; ``analytic``:
+    the analytic PMF (:func:`push_inputs`) a ``base: prior`` model needs.
     """
     from feeder.labels import metrics as L
     from feeder.labels.dataset import feeder_vector
@@ -165,7 +187,7 @@ def predict_frame(
 
     feeder_raw = feeder_vector(parse_location(loc1), parse_location(loc2))
     push = None if push_raw is None else np.atleast_2d(push_raw)
-    pmf, cdf = model.predict(part_raw[None, :], feeder_raw[None, :], push)
+    pmf, cdf = model.predict(part_raw[None, :], feeder_raw[None, :], push, analytic)
     if model.label_frame == "principal":
         if frame_deg is None:
             raise FeederError(
@@ -272,9 +294,9 @@ def main(argv: list[str]) -> int:
     t0 = time.perf_counter()
     part_raw, frame_deg = part_vector(args.part, args.features)
     t_dft = time.perf_counter()
-    push_raw = push_rows(model, args.part, [(args.loc1, args.loc2)], frame_deg)
+    push_raw, analytic = push_inputs(model, args.part, [(args.loc1, args.loc2)], frame_deg)
     t1 = time.perf_counter()
-    frame = predict_frame(model, part_raw, args.loc1, args.loc2, frame_deg, push_raw)
+    frame = predict_frame(model, part_raw, args.loc1, args.loc2, frame_deg, push_raw, analytic)
     t2 = time.perf_counter()
     if args.out is not None:
         from feeder.io import write_csv
@@ -295,7 +317,7 @@ def main(argv: list[str]) -> int:
             outline, holes, _ = load_profile(args.part, "auto")
         title = f"{model.spec.name}: {name}, loc1 {args.loc1}, loc2 {args.loc2}"
         save_figure(args.plot, plot(frame, title, outline, holes))
-    push_ms = "" if push_raw is None else f", push features {1e3 * (t1 - t_dft):.1f} ms"
+    push_ms = "" if push_raw is None and analytic is None else f", push features {1e3 * (t1 - t_dft):.1f} ms"
     print(
         f"feeder predict: features {1e3 * (t_dft - t0):.1f} ms{push_ms}, network {1e3 * (t2 - t1):.1f} ms",
         file=sys.stderr,

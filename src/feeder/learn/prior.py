@@ -12,7 +12,10 @@ with ``widen`` a wrapped Gaussian of σ bins (:func:`feeder.labels.metrics.wrapp
 rows only, from given grids, by the mean CDF R² (:func:`fit_blend`). Measured on the default run's
 dataset (docs/results.md, "Unseen parts"): every GroupKFold fold chose σ = 4, λ = 0.6.
 
-Pure functions on arrays: no settings are read here; the grids come from the caller.
+The grids are the ``prior`` node of the Hydra training config (``config/hydra/train.yaml``), the
+one source for the evaluation baseline (``baseline_analytic_prior``, :mod:`feeder.learn.evaluate`)
+and for networks that start from the prior (``model.base: prior``, :mod:`feeder.learn.models`);
+:func:`grids` reads and checks it. Everything else here is a pure function on arrays.
 """
 
 from __future__ import annotations
@@ -29,6 +32,29 @@ class Blend:
     sigma_bins: float  # width of the wrapped Gaussian that widens the analytic PMF (0: as is)
     weight: float  # λ: the analytic PMF's share; 1 − λ goes to the training-mean PMF
     score: float  # mean CDF R² of the blend on the rows it was fitted on
+
+
+@dataclass(frozen=True)
+class Grids:
+    sigmas_bins: tuple[float, ...]  # candidate widths of the wrapped Gaussian (bins; 0: as is)
+    weights: tuple[float, ...]  # candidate λ in [0, 1]
+
+
+def grids(prior_cfg) -> Grids:
+    """The checked grids of a ``prior`` config node (``sigmas_bins``, ``weights``); a missing key,
+    an empty grid, a negative width or a weight outside [0, 1] is a one-line FeederError."""
+    try:
+        sigmas = tuple(float(s) for s in prior_cfg["sigmas_bins"])
+        weights = tuple(float(w) for w in prior_cfg["weights"])
+    except (KeyError, TypeError, ValueError) as err:
+        raise FeederError(f"prior: needs lists sigmas_bins and weights of numbers ({err})") from None
+    if not sigmas or not weights:
+        raise FeederError("prior: sigmas_bins and weights must each hold at least one value")
+    if not all(np.isfinite(sigmas)) or min(sigmas) < 0:
+        raise FeederError(f"prior.sigmas_bins {list(sigmas)}: must be finite and >= 0")
+    if not all(np.isfinite(weights)) or min(weights) < 0 or max(weights) > 1:
+        raise FeederError(f"prior.weights {list(weights)}: must lie in [0, 1]")
+    return Grids(sigmas, weights)
 
 
 def _check_pmfs(name: str, pmf) -> np.ndarray:

@@ -79,10 +79,13 @@ def grid_configurations(fences: dict) -> list[str]:
     return [cid for combo in fences["combos"] for cid in combo_grid(fences, combo)]
 
 
-def rank(model, part_raw, frame_deg, config_ids, target_deg, tolerance_deg, order, push_raw=None) -> pd.DataFrame:
+def rank(
+    model, part_raw, frame_deg, config_ids, target_deg, tolerance_deg, order, push_raw=None, analytic=None
+) -> pd.DataFrame:
     """Every configuration's predicted probability of the target window, best first (ties in the
     given order); columns ``config_id, loc1, loc2, probability, mode_deg`` (the PMF's largest bin,
-    part frame). ``push_raw``: the push block of every configuration, for a ``paper+push`` model."""
+    part frame). ``push_raw``: the push block of every configuration, for a ``paper+push`` model;
+    ``analytic``: their analytic PMFs, for a ``base: prior`` model."""
     from feeder.labels import metrics as L
     from feeder.labels.dataset import feeder_vector
     from feeder.sim.fences import parse_config_id
@@ -91,7 +94,7 @@ def rank(model, part_raw, frame_deg, config_ids, target_deg, tolerance_deg, orde
         raise FeederError("no fence configurations to rank")
     pairs = [parse_config_id(c) for c in config_ids]
     feeder_raw = np.stack([feeder_vector(f1, f2) for f1, f2 in pairs])
-    pmf, _ = model.predict(np.repeat(part_raw[None, :], len(pairs), axis=0), feeder_raw, push_raw)
+    pmf, _ = model.predict(np.repeat(part_raw[None, :], len(pairs), axis=0), feeder_raw, push_raw, analytic)
     if model.label_frame == "principal":
         if frame_deg is None:
             raise FeederError(
@@ -179,7 +182,7 @@ def verify(geom, config_ids, settings: dict, target_deg, tolerance_deg, order, l
 def main(argv: list[str]) -> int:
     from feeder.config import load_study_config
     from feeder.learn.export import add_model_option, resolve_model_dir
-    from feeder.learn.predict import check_push_source, load_model, part_vector, push_rows
+    from feeder.learn.predict import check_push_source, load_model, part_vector, push_inputs
 
     parser = argparse.ArgumentParser(prog="feeder recommend", description=__doc__.splitlines()[0])
     add_model_option(parser)
@@ -222,12 +225,12 @@ def main(argv: list[str]) -> int:
     model = load_model(resolve_model_dir(args.model, "feeder recommend"))
     check_push_source(model, args.part)
     part_raw, frame_deg = part_vector(args.part, args.features, "feeder recommend")
-    push_raw = None
-    if model.needs_push:
+    push_raw = analytic = None
+    if model.needs_push or model.needs_analytic:
         from feeder.sim.fences import parse_config_id
 
-        push_raw = push_rows(model, args.part, [parse_config_id(c) for c in config_ids], frame_deg)
-    ranked = rank(model, part_raw, frame_deg, config_ids, args.target, args.tolerance, order, push_raw)
+        push_raw, analytic = push_inputs(model, args.part, [parse_config_id(c) for c in config_ids], frame_deg)
+    ranked = rank(model, part_raw, frame_deg, config_ids, args.target, args.tolerance, order, push_raw, analytic)
     shown = args.top
     if args.verify:
         top = list(ranked.config_id[: args.verify])

@@ -108,8 +108,10 @@ def _model_inputs(spec, data: dict[str, np.ndarray], train_mask: np.ndarray, row
     return scaler, x_all, pca
 
 
-def _init_net(spec, pca, data: dict[str, np.ndarray], rows: np.ndarray, seed: int):
-    """The seeded network, its output initialised to the training rows' mean label."""
+def _init_net(spec, pca, data: dict[str, np.ndarray], rows: np.ndarray, seed: int, prior_cfg=None):
+    """The seeded network, its output initialised to the training rows' mean label; for
+    ``model.base: prior`` with the prior fitted on those rows from the grids of ``prior_cfg``
+    (the training config's ``prior`` node), its output at the prior."""
     import torch
 
     from feeder.learn.models import RegressionModel
@@ -118,6 +120,21 @@ def _init_net(spec, pca, data: dict[str, np.ndarray], rows: np.ndarray, seed: in
     torch.manual_seed(seed)
     net = RegressionModel(spec, n_out, None if pca is None else pca.mean, None if pca is None else pca.components)
     net.init_output_to_mean(data["pmf"][rows].mean(axis=0), data["cdf"][rows].mean(axis=0))
+    if spec.base == "prior":
+        from feeder.learn.prior import fit_blend, grids
+
+        if "pmf_analytic" not in data:
+            raise FeederError(
+                f"model {spec.name} starts from the analytic prior (model.base: prior): the dataset has no "
+                "pmf_analytic; rebuild it with `feeder datasets build --parts-dir DIR`"
+            )
+        if prior_cfg is None:
+            raise FeederError(f"model {spec.name}: model.base prior needs the training config's prior node")
+        g = grids(prior_cfg)
+        train = np.zeros(len(data["pmf"]), dtype=bool)
+        train[rows] = True
+        best = fit_blend(data["pmf"], data["pmf_analytic"], train, g.sigmas_bins, g.weights)
+        net.set_prior(data["pmf"][rows].mean(axis=0), best.sigma_bins, best.weight)
     return net
 
 
@@ -125,13 +142,13 @@ def _train_epoch(net, opt, loss_of, tensors, batch: int, gen, name: str, epoch: 
     """One pass over the fit rows in a seeded batch order; the mean training loss."""
     import torch
 
-    x, p, c = tensors
+    x, p, c, lp = tensors
     net.train()
     order = torch.randperm(x.shape[0], generator=gen)
     total, seen = 0.0, 0
     for start in range(0, x.shape[0], batch):
         idx = order[start : start + batch]
-        loss, _ = loss_of(x[idx], p[idx], c[idx])
+        loss, _ = loss_of(x[idx], p[idx], c[idx], None if lp is None else lp[idx])
         if not torch.isfinite(loss):
             raise FeederError(f"{name}: non-finite training loss at epoch {epoch}")
         opt.zero_grad(set_to_none=True)
@@ -165,11 +182,14 @@ def _train_epochs(
     opt = torch.optim.Adam(net.parameters(), lr=float(cfg.model.lr))
     gen = torch.Generator().manual_seed(seed)
     f32 = lambda a: torch.as_tensor(a, dtype=torch.float32)  # noqa: E731
-    fit_t = f32(x_all[fit_rows]), f32(data["pmf"][fit_rows]), f32(data["cdf"][fit_rows])
-    xv, pv, cv = f32(x_all[val_rows]), f32(data["pmf"][val_rows]), f32(data["cdf"][val_rows])
+    # log(prior) of every row for a base prior network (fixed: the prior is not trained)
+    lp_all = net.log_prior(np.asarray(data["pmf_analytic"])) if spec.base == "prior" else None
+    sub = lambda rows: None if lp_all is None else lp_all[rows]  # noqa: E731
+    fit_t = f32(x_all[fit_rows]), f32(data["pmf"][fit_rows]), f32(data["cdf"][fit_rows]), sub(fit_rows)
+    xv, pv, cv, lpv = f32(x_all[val_rows]), f32(data["pmf"][val_rows]), f32(data["cdf"][val_rows]), sub(val_rows)
 
-    def loss_of(x, p, c):
-        out = net(x)
+    def loss_of(x, p, c, lp):
+        out = net(x, lp)
         return losses.composite(weights, out["pmf"], out["log_pmf"], out["cdf"], p, c)
 
     batch, patience, max_epochs = int(tr.batch_size), int(tr.patience), int(tr.max_epochs)
@@ -183,7 +203,7 @@ def _train_epochs(
         train_loss = _train_epoch(net, opt, loss_of, fit_t, batch, gen, spec.name, epoch)
         net.eval()
         with torch.no_grad():
-            val_loss, parts = loss_of(xv, pv, cv)
+            val_loss, parts = loss_of(xv, pv, cv, lpv)
         val_loss = float(val_loss)
         if not np.isfinite(val_loss):
             raise FeederError(f"{spec.name}: non-finite validation loss at epoch {epoch}")
@@ -222,7 +242,7 @@ def fit(
     fit_rows, val_rows = validation_split(rows, float(tr.val_fraction), seed, "trainer.val_fraction")
     spec, weights = _model_spec(cfg, data["pmf"].shape[1])
     scaler, x_all, pca = _model_inputs(spec, data, train_mask, rows)
-    net = _init_net(spec, pca, data, rows, seed)
+    net = _init_net(spec, pca, data, rows, seed, cfg.get("prior"))
     history, best_epoch, best_val = _train_epochs(
         cfg, net, spec, weights, x_all, data, fit_rows, val_rows, seed, progress
     )
