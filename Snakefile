@@ -17,7 +17,7 @@ envvars:
 wildcard_constraints:
     part=r"[A-Za-z0-9-]+",
     fence=r"[a-z0-9.]+_[a-z0-9.]+",
-    model=r"m[1-8](push|pushonly)?",
+    model=r"m[1-8](push|pushonly|prior)?",
     seed=r"[0-9]+",
 
 
