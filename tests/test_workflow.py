@@ -231,12 +231,16 @@ def test_switching_the_yaw_design_reruns_every_simulation_and_no_benchmark(smoke
 
 
 def _models_built_on(name: str) -> set[str]:
-    """The model configs whose Hydra defaults list ``name`` (they inherit its settings)."""
-    built_on = set()
-    for path in (ROOT / "config/hydra/model").glob("*.yaml"):
-        defaults = yaml.safe_load(path.read_text()).get("defaults") or []
-        if name in defaults:
-            built_on.add(path.stem)
+    """The model configs that inherit ``name``'s settings: whose Hydra defaults list it, or list a
+    config that does (m3prior builds on m3pushonly, which builds on m3)."""
+    parents = {
+        path.stem: set(yaml.safe_load(path.read_text()).get("defaults") or [])
+        for path in (ROOT / "config/hydra/model").glob("*.yaml")
+    }
+    built_on, frontier = set(), {name}
+    while frontier:
+        frontier = {m for m, p in parents.items() if p & frontier} - built_on
+        built_on |= frontier
     return built_on
 
 
