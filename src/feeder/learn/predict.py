@@ -18,7 +18,7 @@ CSV goes to stdout. The time spent on features and on the network is printed to 
 milliseconds.
 
 A model with ``model.inputs: paper+push`` also reads the analytic push block of the part in the
-configuration (:func:`push_rows`: :func:`feeder.parts.push.push_features` of the STL's outline, in
+configuration (:func:`push_inputs`: :func:`feeder.parts.push.push_features` of the STL's outline, in
 the study config's scene and the model's label frame, as ``feeder datasets build`` computes it):
 it needs ``--part`` as an STL (``--features`` and ``.xyz`` files hold no outline). So does a model
 that starts from the analytic prior (``model.base: prior``): it reads the configuration's analytic
@@ -124,12 +124,6 @@ def check_push_source(model, part: Path | None) -> None:
         )
 
 
-def push_rows(model, part: Path | None, pairs, frame_deg: float | None) -> np.ndarray | None:
-    """The raw push block of the part for every (loc1, loc2) in ``pairs`` ((N, P)), or None when
-    ``model`` takes the paper's inputs only (:func:`push_inputs`)."""
-    return push_inputs(model, part, pairs, frame_deg)[0]
-
-
 def push_inputs(model, part: Path | None, pairs, frame_deg: float | None) -> tuple[np.ndarray | None, ...]:
     """``(push block (N, P) or None, analytic PMFs (N, bins) or None)`` of the part for every
     (loc1, loc2) in ``pairs``, each only when ``model`` takes it. As the dataset has them: the
@@ -178,7 +172,7 @@ def predict_frame(
 
     A model trained on ``principal``-frame labels predicts the yaw of the part's feature frame;
     it is moved back by ``frame_deg`` (:func:`feeder.labels.metrics.shift_pmf`), which it then needs.
-    ``push_raw``: the push block (:func:`push_rows`) a ``paper+push`` model needs; ``analytic``:
+    ``push_raw``: the push block (:func:`push_inputs`) a ``paper+push`` model needs; ``analytic``:
     the analytic PMF (:func:`push_inputs`) a ``base: prior`` model needs.
     """
     from feeder.labels import metrics as L

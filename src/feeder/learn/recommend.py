@@ -22,7 +22,7 @@ with the share of drops that leave the fences at all (``ok_mass``; jams and fall
 
 A model with the push block (``model.inputs: paper+push`` or ``fence+push``) needs ``--part`` as an
 STL: the analytic push block of every configuration is computed from its outline
-(:func:`feeder.learn.predict.push_rows`).
+(:func:`feeder.learn.predict.push_inputs`).
 """
 
 from __future__ import annotations
