@@ -15,7 +15,7 @@ import numpy as np
 import pandas as pd
 
 from feeder.labels import metrics as L
-from feeder.labels.grid import hash_seed
+from feeder.labels.grid import PROTOCOL_SPLITS, hash_seed
 
 
 def full_run_pmf(ds: dict) -> np.ndarray:
@@ -151,10 +151,25 @@ def pick_examples(pmf: np.ndarray, prominence_frac: float) -> list[tuple[int, st
     return picks
 
 
+CONVERGENCE_KEYS = ("part", "config_id", "pmf", "pmf_levels", "final_yaw_deg", "n_drops", "n_ok_levels")
+
+
+def protocol_rows(ds: dict) -> dict:
+    """The dataset's rows of the paper's protocol (Main, Fences, Parts: not the wide library), with
+    the keys the convergence study reads."""
+    keep = np.isin(ds["split"], PROTOCOL_SPLITS)
+    out = {k: ds[k][keep] for k in CONVERGENCE_KEYS}
+    out["levels_pct"] = ds["levels_pct"]
+    return out
+
+
 def convergence_data(ds: dict, settings: dict) -> dict:
     """Everything the convergence study shows: the two tables (``dkw_table``, ``js_table``) and the
     data of Figs. 4, 5, 9 and the DKW view (``fig4``, ``fig5``, ``fig9``, ``dkw``: the formats the
-    modules of the same names in :mod:`feeder.figures` read; all drawing is there)."""
+    modules of the same names in :mod:`feeder.figures` read; all drawing is there). Over the rows
+    of the paper's protocol only (:func:`protocol_rows`), when the dataset has splits."""
+    if "split" in ds:
+        ds = protocol_rows(ds)
     conv = settings["datasets"]["convergence"]
     bins = int(settings["labels"]["bins"])
     sigma = float(settings["labels"]["sigma_bins"])

@@ -600,6 +600,7 @@ _TABLE4_ROWS = [
     ("Main (Test)", ("test",), "Held-out configurations of known parts (random row split)", "P1"),
     ("Fences", ("fences",), "Type combinations never seen with these parts in training", "P1"),
     ("Parts", ("parts",), "Unseen part geometries with known fences", "P3"),
+    ("Wide", ("wide",), "The wider library: unseen parts of the leave-parts-out GroupKFold only", "GroupKFold"),
     ("Total (All)", SPLITS, "All datasets combined", ""),
 ]
 

@@ -19,6 +19,11 @@ Configurations (``configurations(config, part_ids)``, pure and seeded by ids):
   allowed type combinations (remainder to a seeded choice of combinations), angles drawn without
   replacement. ``split`` is ``train``/``test`` by a random row split of the Main rows
   (``datasets.test_fraction``, ``datasets.split_seed``), ``fences`` and ``parts`` otherwise.
+* Wide dataset (the wider library): parts whose id matches a pattern of ``datasets.wide.parts``
+  (shell patterns) stay out of the three datasets above, which are built from the other parts
+  alone (so adding wide parts changes none of their rows). Each gets ``datasets.wide.per_part``
+  configurations drawn as Main's are, over every type combination; split ``wide``. They serve the
+  leave-parts-out GroupKFold, which runs over every part.
 
 Seeds derive from ``fences.seed`` and the part id, so adding a part never changes another part's
 configurations. The workflow calls :func:`configurations` at parse time: this module imports no
@@ -27,6 +32,7 @@ more than numpy, pandas and :mod:`feeder.sim.fences`.
 
 from __future__ import annotations
 
+import fnmatch
 import hashlib
 import itertools
 import math
@@ -38,8 +44,10 @@ import pandas as pd
 from feeder.errors import FeederError
 from feeder.sim.fences import TYPES, Fence, config_id, parse_config_id
 
-DATASETS = ("main", "fences", "parts")
-SPLITS = ("train", "test", "fences", "parts")
+DATASETS = ("main", "fences", "parts", "wide")
+PROTOCOL_SPLITS = ("train", "test", "fences", "parts")  # the paper's Main/Fences/Parts protocol
+WIDE = "wide"  # the wider library's dataset and split: in the GroupKFold only
+SPLITS = (*PROTOCOL_SPLITS, WIDE)
 
 
 def hash_seed(*tokens) -> int:
@@ -79,8 +87,8 @@ def _split_combo(combo: str) -> tuple[str, str]:
     return t[0], t[1]
 
 
-def _sample_main(fences: dict, part: str, combos: list[str], n: int) -> list[str]:
-    rng = np.random.default_rng(hash_seed(fences["seed"], "main", part))
+def _sample_main(fences: dict, part: str, combos: list[str], n: int, token: str = "main") -> list[str]:
+    rng = np.random.default_rng(hash_seed(fences["seed"], token, part))
     base, rem = divmod(n, len(combos))
     extra = set(rng.permutation(len(combos))[:rem].tolist())
     chosen = []
@@ -100,6 +108,13 @@ def random_test_rows(n: int, test_fraction: float, seed: int) -> np.ndarray:
     if not 0 < n_test < n:
         raise FeederError(f"datasets.test_fraction={test_fraction} leaves no train or no test row of {n}")
     return np.random.RandomState(seed).permutation(n)[:n_test]
+
+
+def wide_parts(config: dict, part_ids) -> list[str]:
+    """The wide-dataset parts: those whose id matches a shell pattern of ``datasets.wide.parts``."""
+    wide = config["datasets"].get("wide") or {}
+    patterns = [str(p) for p in wide.get("parts") or ()]
+    return sorted(p for p in set(part_ids) if any(fnmatch.fnmatchcase(p, pat) for pat in patterns))
 
 
 def holdout_parts(config: dict, part_ids) -> list[str]:
@@ -142,8 +157,8 @@ def _assign_splits(df: pd.DataFrame, ds: dict) -> pd.Series:
 def configurations(config: dict, part_ids) -> pd.DataFrame:
     """Every simulated (part, fence configuration) with its dataset and split (see module doc).
 
-    Columns: part, config_id, loc1, loc2 (command-line fence specs), dataset (main/fences/parts),
-    split (train/test/fences/parts). Rows are sorted by dataset, part, config_id.
+    Columns: part, config_id, loc1, loc2 (command-line fence specs), dataset (main/fences/parts/wide),
+    split (train/test/fences/parts/wide). Rows are sorted by dataset, part, config_id.
     """
     fences, ds = config["fences"], config["datasets"]
     parts = sorted(set(part_ids))
@@ -152,10 +167,12 @@ def configurations(config: dict, part_ids) -> pd.DataFrame:
         _split_combo(c)
     if not set(fences["reserved_combos"]) <= set(combos):
         raise FeederError("fences.reserved_combos must be listed in fences.combos")
-    held = holdout_parts(config, parts)
-    main_parts = [p for p in parts if p not in held]
+    wide = wide_parts(config, parts)
+    protocol = [p for p in parts if p not in wide]
+    held = holdout_parts(config, protocol)
+    main_parts = [p for p in protocol if p not in held]
     if not main_parts:
-        raise FeederError("no parts left for the Main dataset after the holdout parts")
+        raise FeederError("no parts left for the Main dataset after the holdout and wide parts")
     reserved_of = _fence_parts(config, main_parts)
     fence_parts = list(reserved_of)
 
@@ -175,6 +192,11 @@ def configurations(config: dict, part_ids) -> pd.DataFrame:
         rng = np.random.default_rng(hash_seed(fences["seed"], "parts", p))
         take = sorted(rng.choice(len(known), size=min(int(ds["parts_per_part"]), len(known)), replace=False))
         rows += [(p, known[j], "parts") for j in take]
+    per_wide = int((ds.get("wide") or {}).get("per_part", 0))
+    if wide and per_wide < 1:
+        raise FeederError(f"datasets.wide.parts matches {len(wide)} parts but datasets.wide.per_part is {per_wide}")
+    for p in wide:
+        rows += [(p, cid, WIDE) for cid in _sample_main(fences, p, combos, per_wide, token=WIDE)]
 
     df = pd.DataFrame(rows, columns=["part", "config_id", "dataset"])
     locs = [parse_config_id(c) for c in df["config_id"]]

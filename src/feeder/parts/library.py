@@ -201,6 +201,40 @@ def _cross(p: dict, seg: int) -> np.ndarray:
     )
 
 
+def _zshape(p: dict, seg: int) -> np.ndarray:
+    """A Z section: a web of thickness ``web`` up the middle, a bottom flange to the left and a top
+    flange to the right, each ``flange`` thick."""
+    w, h, f, t = float(p["width"]), float(p["height"]), float(p["flange"]), float(p["web"])
+    if not (2 * f < h and t < w):
+        raise FeederError("zshape needs 2*flange < height and web < width")
+    x0, x1 = (w - t) / 2, (w + t) / 2
+    return np.array([[0, 0], [x1, 0], [x1, h - f], [w, h - f], [w, h], [x0, h], [x0, f], [0, f]], dtype=float)
+
+
+def _hat(p: dict, seg: int) -> np.ndarray:
+    """A hat (omega) section: walls ``wall`` thick, a brim of width ``brim`` on each side."""
+    w, h, t, b = float(p["width"]), float(p["height"]), float(p["wall"]), float(p["brim"])
+    if not (2 * (b + t) < w and t < h):
+        raise FeederError("hat needs 2*(brim + wall) < width and wall < height")
+    return np.array(
+        [
+            [0, 0],
+            [b + t, 0],
+            [b + t, h - t],
+            [w - b - t, h - t],
+            [w - b - t, 0],
+            [w, 0],
+            [w, t],
+            [w - b, t],
+            [w - b, h],
+            [b, h],
+            [b, t],
+            [0, t],
+        ],
+        dtype=float,
+    )
+
+
 def _crescent(p: dict, seg: int) -> np.ndarray:
     """Disc of ``radius`` minus a disc of ``inner_radius`` whose centre is ``offset`` to +x."""
     big, r, d = float(p["radius"]), float(p["inner_radius"]), float(p["offset"])
@@ -313,6 +347,8 @@ FAMILIES: dict[str, Callable[[dict, int], np.ndarray]] = {
     "lshape": _lshape,
     "tshape": _tshape,
     "ushape": _ushape,
+    "zshape": _zshape,
+    "hat": _hat,
     "cross": _cross,
     "crescent": _crescent,
     "star": _star,
