@@ -122,6 +122,31 @@ def test_adding_a_part_keeps_other_parts_configurations():
     pd.testing.assert_frame_equal(a, b)
 
 
+def test_wide_parts_leave_the_protocol_rows_unchanged_and_get_their_own_split():
+    base = G.configurations(small_config(), PARTS)
+    wide = {"parts": ["w-*", "x?"], "per_part": 2}
+    df = G.configurations(small_config(wide=wide), PARTS + ["w-1", "w-2", "x9"])
+    assert G.wide_parts(small_config(wide=wide), PARTS + ["w-1", "x9", "xx-no"]) == ["w-1", "x9"]
+    protocol = df[df.dataset != "wide"].reset_index(drop=True)
+    pd.testing.assert_frame_equal(protocol, base)
+    w = df[df.dataset == "wide"]
+    assert (w.split == "wide").all() and sorted(set(w.part)) == ["w-1", "w-2", "x9"]
+    assert (w.groupby("part").size() == 2).all()
+    assert set(w.config_id.map(_combo)) <= set(small_config()["fences"]["combos"])
+    # seeded by the part id: the same rows whatever the other parts
+    again = G.configurations(small_config(wide=wide), PARTS + ["w-2"])
+    pd.testing.assert_frame_equal(
+        again[again.part == "w-2"].reset_index(drop=True), w[w.part == "w-2"].reset_index(drop=True)
+    )
+    # patterns that match nothing: no wide rows
+    none = G.configurations(small_config(wide={"parts": ["zz*"], "per_part": 2}), PARTS)
+    pd.testing.assert_frame_equal(none, base)
+    with pytest.raises(FeederError, match="per_part"):
+        G.configurations(small_config(wide={"parts": ["w-*"], "per_part": 0}), PARTS + ["w-1"])
+    with pytest.raises(FeederError, match="no parts left"):
+        G.configurations(small_config(wide={"parts": ["*"], "per_part": 1}), PARTS)
+
+
 def test_holdout_list_and_errors():
     cfg = small_config(holdout_parts=["c", "e"])
     df = G.configurations(cfg, PARTS)
@@ -526,3 +551,24 @@ def test_principal_frame_without_frame_deg_is_an_error_naming_the_file(tmp_path,
             tmp_path / "sim",
             {k: cfg[k] for k in ("sim", "labels", "datasets")},
         )
+
+
+def test_wide_rows_are_counted_in_table4_and_left_out_of_the_convergence_study(tmp_path):
+    cfg = small_config(wide={"parts": ["w-*"], "per_part": 2})
+    df, csv = make_world(tmp_path, cfg, parts=PARTS + ["w-1", "w-2"])
+    assert (df.split == "wide").sum() == 4
+    assert run_build(tmp_path, csv, cfg) == 0
+    ds = D.load_dataset(tmp_path / "dataset.npz")
+    assert set(np.unique(ds["group_fold"][ds["split"] == "wide"])) <= set(range(3))
+    t4 = D.table4(ds).set_index("dataset")
+    assert t4.loc["Wide", "samples"] == 4 and t4.loc["Wide", "unique_parts"] == 2
+    assert t4.loc["Total (All)", "samples"] == len(df)
+    # the same protocol rows without the wide ones: the same convergence study
+    df[df.split != "wide"].to_csv(tmp_path / "protocol.csv", index=False)
+    assert run_build(tmp_path, tmp_path / "protocol.csv", cfg, out="protocol.npz") == 0
+    settings = {k: cfg[k] for k in ("labels", "datasets")}
+    with_wide = C.convergence_data(ds, settings)
+    without = C.convergence_data(D.load_dataset(tmp_path / "protocol.npz"), settings)
+    for key in ("dkw_table", "js_table", "fig4"):
+        pd.testing.assert_frame_equal(with_wide[key], without[key])
+    np.testing.assert_array_equal(with_wide["fig5"]["js"], without["fig5"]["js"])

@@ -60,6 +60,18 @@ def test_family_outlines_by_hand():
     assert shape_metrics(lsh)["area"] == pytest.approx(6 * 1 + 2 * 3)
     ib = family_outline("ibeam", {"width": 5, "height": 6, "flange": 1, "web": 1}, 64)
     assert shape_metrics(ib)["area"] == pytest.approx(2 * 5 + 4 * 1)
+    # Z: two flanges (w + t)/2 x f and the web t x (h - 2f); hat: two brims b x t, two walls t x h
+    # and the crown (w - 2b - 2t) x t
+    zs = family_outline("zshape", {"width": 8, "height": 10, "flange": 2, "web": 2}, 64)
+    assert shape_metrics(zs)["area"] == pytest.approx(2 * 5 * 2 + 2 * 6)
+    assert shape_metrics(zs)["convexity"] < 1
+    hat = family_outline("hat", {"width": 20, "height": 6, "wall": 1, "brim": 3}, 64)
+    assert shape_metrics(hat)["area"] == pytest.approx(2 * 3 * 1 + 2 * 1 * 6 + 12 * 1)
+    np.testing.assert_allclose(np.ptp(hat, axis=0), [20, 6])
+    with pytest.raises(FeederError, match="zshape needs"):
+        family_outline("zshape", {"width": 8, "height": 4, "flange": 2, "web": 2}, 64)
+    with pytest.raises(FeederError, match="hat needs"):
+        family_outline("hat", {"width": 8, "height": 6, "wall": 1, "brim": 3}, 64)
     star = family_outline("star", {"points": 5, "outer": 2, "inner": 1}, 64)
     assert len(star) == 10
     # crescent: disc minus lens; analytic area of the bite (circle-circle intersection)
@@ -84,7 +96,7 @@ def test_family_outlines_by_hand():
 # ---------------------------------------------------------------- the committed library
 def test_library_meets_the_diversity_targets():
     s = diversity_summary(CATALOG)
-    assert s["parts"] >= 48
+    assert s["parts"] >= 120  # the wider library of #20 (59 protocol parts + 62 wide)
     assert s["highly_concave(convexity<0.75)"] >= 8
     assert s["elongated(aspect_ratio>=4)"] >= 8
     assert s["near_symmetric(eigen_ratio<1.05)"] >= 4
@@ -104,6 +116,10 @@ def test_library_meets_the_diversity_targets():
         "gear",
         "keyhole",
         "blob",
+        "randpoly",
+        "randblob",
+        "zshape",
+        "hat",
     ]:
         assert fam in fams
     assert list(CATALOG["id"]) == list_parts(PARTS)
