@@ -48,6 +48,10 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "datasets": ("feeder.labels.dataset", "configuration list, splits and the merged dataset"),
     "train": ("feeder.learn.train", "train one regression model (Hydra config)"),
     "evaluate": ("feeder.learn.evaluate", "evaluate trained models into tables"),
+    "generalisation-sets": (
+        "feeder.learn.generalisation_sets",
+        "every predictor on unseen parts by library set: the protocol parts and the wider library",
+    ),
     "predict": ("feeder.learn.predict", "predict the orientation PMF of a part and fences"),
     "recommend": ("feeder.learn.recommend", "rank fence configurations by the predicted chance of a target yaw"),
     "export-model": (

@@ -34,6 +34,7 @@ MODELS_TARGETS = [
     *expand(f"{RESULTS}/tables/groupkfold_{{model}}{{suffix}}.csv", model=GROUPKFOLD, suffix=["", "_paired"]),
     *expand(f"{RESULTS}/tables/breakdown_{{split}}.{{ext}}", split=["fences", "parts"], ext=["csv", "md"]),
     f"{RESULTS}/tables/generalisation.csv",
+    f"{RESULTS}/tables/generalisation_by_set.csv",
     f"{RESULTS}/figures/fig12_test_predictions.png",
     f"{RESULTS}/figures/fig13_parts_predictions.png",
     *expand(f"{EXPORT_DIR}/{{model}}", model=SHIPPED),
@@ -163,6 +164,33 @@ rule generalisation:
         bootstrap=BOOTSTRAP_ARGS,
     shell:
         "feeder evaluate generalisation --groupkfold {input.groupkfold} --parts-table {input.parts}"
+        " --out {output.csv} {params.bootstrap} > {log} 2>&1"
+
+
+rule generalisation_by_set:
+    """The GroupKFold of every predictor by library set: all parts, the protocol parts, the wider
+    library (datasets.wide), each against the mean PMF paired over the set's parts."""
+    input:
+        code("generalisation-sets"),
+        groupkfold=expand(f"{RESULTS}/tables/groupkfold_{{model}}.csv", model=GROUPKFOLD),
+        configurations=f"{RESULTS}/datasets/configurations.csv",
+    output:
+        csv=report(
+            f"{RESULTS}/tables/generalisation_by_set.csv",
+            caption="../report/generalisation_by_set.rst",
+            category="Models",
+        ),
+        md=f"{RESULTS}/tables/generalisation_by_set.md",
+    log:
+        f"{LOGS}/models/generalisation_by_set.log",
+    benchmark:
+        f"{BENCHMARKS}/models/generalisation_by_set.tsv"
+    conda:
+        "../envs/feeder.yaml"
+    params:
+        bootstrap=BOOTSTRAP_ARGS,
+    shell:
+        "feeder generalisation-sets --groupkfold {input.groupkfold} --configurations {input.configurations}"
         " --out {output.csv} {params.bootstrap} > {log} 2>&1"
 
 
