@@ -82,3 +82,16 @@ def test_cli_writes_csv_and_markdown(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "nope.csv is missing" in err and len(err.strip().splitlines()) == 1
     assert not (tmp_path / "x.csv").exists()
+
+
+def test_one_table_per_model_each_repeating_the_baselines():
+    """The workflow's layout: groupkfold_<model>.csv per model, each with the same baseline rows."""
+    scores = {"a": (0.5, 0.6, 30.0), "b": (0.7, 0.8, 20.0), "w1": (0.4, 0.5, 40.0), "w2": (0.6, 0.7, 50.0)}
+    base = _table(BASELINE_MEAN, scores)
+    first = pd.concat([_table("m1", scores), base])
+    second = pd.concat([_table("m2", {k: (v[0] + 0.1, v[1], v[2]) for k, v in scores.items()}), base])
+    df = GS.sets_table([first, second], CONFIGS, BOOT)
+    assert list(df.groupby("predictor", sort=False).size()) == [3, 3, 3]
+    assert list(dict.fromkeys(df["predictor"])) == ["m1", BASELINE_MEAN, "m2"]
+    m2 = df[df.predictor == "m2"].set_index("set")
+    assert m2["r2_vs_mean_pmf"].to_numpy() == pytest.approx([0.1, 0.1, 0.1])

@@ -33,6 +33,9 @@ def test_list_parts_sorted_and_include(tmp_path):
     assert list_parts(tmp_path) == ["C3", "a-1", "b-2"]
     assert list_parts(tmp_path, ["b-2", "a-1"]) == ["a-1", "b-2"]
     assert list_parts(tmp_path, "b-2") == ["b-2"]
+    assert list_parts(tmp_path, exclude=["a-*", "C?"]) == ["b-2"]
+    assert list_parts(tmp_path, ["b-2", "a-1"], exclude=["b-2"]) == ["a-1"]
+    assert list_parts(tmp_path, exclude=["zz*"]) == ["C3", "a-1", "b-2"]
     with pytest.raises(FeederError, match="no STL.*zz-9"):
         list_parts(tmp_path, ["a-1", "zz-9"])
     with pytest.raises(FeederError, match="does not exist"):

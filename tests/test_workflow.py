@@ -249,6 +249,7 @@ MODEL_JOB_RULES = {
     "evaluate_models",
     "groupkfold_model",
     "generalisation",
+    "generalisation_by_set",
     "prediction_figure_data",
     "draw_fig12_test_predictions",
     "draw_fig13_parts_predictions",

@@ -46,7 +46,7 @@ EMULATION_KEYS = [e["key"] for e in emulation_bench_entries(config)]
 # the parts bench_predict times: its default panel, those in use (else the first part in use)
 PREDICT_BENCH_PARTS = [p for p in PREDICT_BENCH_DEFAULT_PARTS if p in PARTS] or PARTS[:1]
 # the contact bench picks its parts from the whole library (those with many convex pieces)
-CONTACT_PARTS = list_parts(config["parts"]["dir"], "all")
+CONTACT_PARTS = PROTOCOL_PARTS  # candidates of the contact bench (those with sim.contact_bench.min_pieces pieces)
 EMULATION_DIR = "{results}/bench/emulation/{preset}".format(results=RESULTS, **config["sim"]["emulation_bench"])
 
 
@@ -118,8 +118,10 @@ rule bench_contact:
     threads: config["sim"]["contact_bench"]["workers"]
     params:
         settings=settings_json("scene", "sim.presets", "sim.contact_bench", "sim.base_seed", "parts.dir"),
+        parts=",".join(CONTACT_PARTS),
     shell:
-        "feeder bench-contact --settings '{params.settings}' --out-csv {output.table} --out-raw {output.raw} > {log} 2>&1"
+        "feeder bench-contact --settings '{params.settings}' --parts '{params.parts}'"
+        " --out-csv {output.table} --out-raw {output.raw} > {log} 2>&1"
 
 
 rule bench_step:
@@ -180,6 +182,7 @@ rule bench_cost:
         settings=settings_json(
             "parts.dir",
             "parts.include",
+            "parts.exclude",
             "fences",
             "datasets",
             "scene",

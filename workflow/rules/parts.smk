@@ -54,7 +54,7 @@ rule parts_fig6_data:
 
 
 rule parts_s1:
-    """Supplementary Fig. S1 table: reconstruction MSE over every part in use vs the number of
+    """Supplementary Fig. S1 table: reconstruction MSE over every protocol part vs the number of
     largest-magnitude coefficients kept (1 .. parts.s1_max_coefficients)."""
     input:
         code("parts"),
@@ -64,7 +64,7 @@ rule parts_s1:
                 if exists(f"{config['parts']['dir']}/{p}.xyz")
                 else f"{config['parts']['dir']}/{p}.stl"
             )
-            for p in PARTS
+            for p in PROTOCOL_PARTS
         ],
     output:
         report(f"{RESULTS}/tables/s1_dft_mse.csv", caption="../report/s1_dft_mse_table.rst", category="Parts"),

@@ -90,6 +90,11 @@ def summarize(raw: pd.DataFrame, pieces: dict[str, int], reference: str) -> pd.D
 def main(argv: list[str]) -> int:
     parser = argparse.ArgumentParser(prog="feeder bench-contact", description=__doc__.splitlines()[0])
     parser.add_argument("--settings", required=True, help="JSON {scene, sim, parts} config sections")
+    parser.add_argument(
+        "--parts",
+        help="comma-separated candidate part ids (default: every part in parts.dir); those with "
+        "sim.contact_bench.min_pieces convex pieces or more are benched",
+    )
     parser.add_argument("--out-csv", required=True)
     parser.add_argument("--out-raw", required=True, help="every drop (CSV): final yaw, status, CPU of its run")
     args = parser.parse_args(argv)
@@ -113,7 +118,8 @@ def main(argv: list[str]) -> int:
     from feeder.parts.geometry import load_part
     from feeder.parts.library import list_parts
 
-    pieces = {p: len(load_part(f"{parts_dir}/{p}.stl").convex_pieces) for p in list_parts(parts_dir, "all")}
+    candidates = list_parts(parts_dir, [p for p in args.parts.split(",") if p] if args.parts else "all")
+    pieces = {p: len(load_part(f"{parts_dir}/{p}.stl").convex_pieces) for p in candidates}
     parts = sorted(p for p, n in pieces.items() if n >= min_pieces)
     if not parts:
         raise FeederError(f"no part in {parts_dir} has {min_pieces} convex pieces or more")

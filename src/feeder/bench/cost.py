@@ -228,7 +228,7 @@ def run_bench(cfg: dict, progress: bool = False):
     if preset_name not in sim["presets"]:
         raise FeederError(f"sim.preset {preset_name!r} is not a preset")
     parts_dir = Path(cfg["parts"]["dir"])
-    configs = configurations(cfg, list_parts(parts_dir, cfg["parts"]["include"]))
+    configs = configurations(cfg, list_parts(parts_dir, cfg["parts"]["include"], cfg["parts"].get("exclude", [])))
     take = sample_rows(len(configs), int(cb["configurations"]), int(cb["seed"]))
     sample = configs.iloc[take].reset_index(drop=True)
     drops = int(cb["drops"])

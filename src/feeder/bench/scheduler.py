@@ -52,7 +52,7 @@ def sim_targets(study: Path, configfiles: list[str], n_jobs: int) -> list[str]:
     from feeder.parts.library import list_parts
 
     cfg = load_study_config(*configfiles, root=study)
-    parts = list_parts(str(study / cfg["parts"]["dir"]), cfg["parts"]["include"])
+    parts = list_parts(str(study / cfg["parts"]["dir"]), cfg["parts"]["include"], cfg["parts"].get("exclude", []))
     grid = configurations(cfg, parts)
     rows = spread(list(zip(grid["part"], grid["config_id"])), n_jobs)
     return [f"{cfg['results']}/sim/{part}/{config_id}.npz" for part, config_id in rows]

@@ -125,7 +125,9 @@ def holdout_parts(config: dict, part_ids) -> list[str]:
     if listed:
         missing = [p for p in listed if p not in parts]
         if missing:
-            raise FeederError(f"datasets.holdout_parts names unknown parts: {', '.join(missing)}")
+            raise FeederError(
+                f"datasets.holdout_parts names unknown parts or parts of the wider library: {', '.join(missing)}"
+            )
         return sorted(listed)
     return sorted(_rank(parts, config["fences"]["seed"], "holdout")[: int(ds["n_holdout"])])
 

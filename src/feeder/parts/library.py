@@ -23,6 +23,7 @@ s1_dft_mse`` (:mod:`feeder.figures`).
 from __future__ import annotations
 
 import argparse
+import fnmatch
 import json
 import math
 import re
@@ -58,8 +59,9 @@ CATALOG_COLUMNS = [
 # --------------------------------------------------------------------------------------------
 # Listing (called at Snakemake parse time: keep it cheap)
 # --------------------------------------------------------------------------------------------
-def list_parts(parts_dir: str | Path, include: str | list[str] = "all") -> list[str]:
-    """Sorted ids of the ``<id>.stl`` files in ``parts_dir`` (optionally only ``include``)."""
+def list_parts(parts_dir: str | Path, include: str | list[str] = "all", exclude=()) -> list[str]:
+    """Sorted ids of the ``<id>.stl`` files in ``parts_dir`` (optionally only ``include``), less
+    those matching a shell pattern of ``exclude`` (``parts.exclude``)."""
     parts_dir = Path(parts_dir)
     if not parts_dir.is_dir():
         raise FeederError(f"parts directory {parts_dir} does not exist")
@@ -73,14 +75,15 @@ def list_parts(parts_dir: str | Path, include: str | list[str] = "all") -> list[
             )
         ids.append(path.stem)
     ids.sort()
-    if include == "all":
-        return ids
-    if isinstance(include, str):
-        include = [include]
-    missing = [i for i in include if i not in ids]
-    if missing:
-        raise FeederError(f"parts.include names part(s) with no STL in {parts_dir}: {', '.join(missing)}")
-    return sorted(set(include))
+    if include != "all":
+        if isinstance(include, str):
+            include = [include]
+        missing = [i for i in include if i not in ids]
+        if missing:
+            raise FeederError(f"parts.include names part(s) with no STL in {parts_dir}: {', '.join(missing)}")
+        ids = sorted(set(include))
+    patterns = [str(p) for p in exclude or ()]
+    return [i for i in ids if not any(fnmatch.fnmatchcase(i, pat) for pat in patterns)]
 
 
 # --------------------------------------------------------------------------------------------
