@@ -331,3 +331,21 @@ def test_a_part_with_holes_pushes_about_the_regions_centroid_with_the_outlines_h
     np.testing.assert_allclose(P.as_geometry(geom).centroid, off.centroid)  # a PartGeometry's holes count
     with pytest.raises(FeederError, match="holes are not inside the outline"):
         P.push_geometry(square, [hole + [0.01, 0.0]])  # reaches the outline
+
+
+def test_a_fence_that_no_drop_reaches_gives_finite_features():
+    """Hard case from the wider library (randblob-15, straight:25 | curved:50): the curved fence
+    upstream jams every drop (its margin is -1.4 deg), so the straight fence downstream meets an
+    empty set. Its margin is the margin at its exit angle, not the mean of nothing (NaN, which
+    stopped the dataset build)."""
+    from pathlib import Path
+
+    from feeder.parts.geometry import load_part
+
+    part = load_part(Path(__file__).resolve().parents[1] / "parts" / "randblob-15.stl")
+    dist = P.analytic_distribution(part, "straight:25", "curved:50")
+    mu = P.fence_mu(P.default_scene())
+    assert dist.margin["loc1"] == pytest.approx(float(P.friction_margin_deg(25.0, mu)))
+    assert dist.jam["loc2"] == 1.0 and dist.ok_mass == 0.0
+    assert dist.touch["loc1"] == 0.0 and dist.jam["loc1"] == 0.0
+    assert np.isfinite(P.push_features(part, "straight:25", "curved:50")).all()

@@ -1071,7 +1071,9 @@ def _support_towards(geom: PushGeometry, yaw_deg: np.ndarray, side: int) -> np.n
 
 def _apply(geom, resp: FenceResponse, mu: float, yaw, x, w, jams: bool = True):
     """One fence on the drops (yaws, lateral centroid positions, weights); returns the new
-    arrays and (touch share, jam share, mean entry margin) of the arriving weight."""
+    arrays and (touch share, jam share, mean entry margin) of the arriving weight. The margin is
+    over the drops that touch, else over all arriving drops, else (nothing arrives: an upstream
+    fence jammed every drop) the margin at the fence's exit angle."""
     m = resp.model
     side = m.side
     reach = _support_towards(geom, yaw, side)
@@ -1091,7 +1093,11 @@ def _apply(geom, resp: FenceResponse, mu: float, yaw, x, w, jams: bool = True):
     stats = (
         float(w[touch].sum()) / total if total > 0 else 0.0,
         float(w[jam].sum()) / total if total > 0 else 0.0,
-        float(np.average(margin[touch], weights=w[touch])) if w[touch].sum() > 0 else float(margin.mean()),
+        float(np.average(margin[touch], weights=w[touch]))
+        if w[touch].sum() > 0
+        else float(margin.mean())
+        if margin.size
+        else float(friction_margin_deg(m.exit_deg, mu)),
     )
     if push.any() and resp.push.rolls:  # every pushed drop leaves at the rolling density
         phi = (np.arange(ROLL_SAMPLES) + 0.5) * (FULL_TURN_DEG / ROLL_SAMPLES)
