@@ -249,8 +249,14 @@ def test_features_work_on_every_library_part():
         assert v.shape == (45,) and np.all(np.isfinite(v))
         assert f["magnitude"] == sorted(f["magnitude"], reverse=True)
         vectors.append(v)
-    # different parts give different features
-    assert len({tuple(np.round(v, 6)) for v in vectors}) == len(vectors)
+    # different parts give different features, but for a part with holes whose outer contour is
+    # another part's (the paper's DFT sees the outer contour only): holed-washer is circle-a's disc
+    groups: dict[tuple, list[str]] = {}
+    for path, v in zip(xyz, vectors, strict=True):
+        groups.setdefault(tuple(np.round(v, 6)), []).append(path.stem)
+    shared = [g for g in groups.values() if len(g) > 1]
+    assert all(sum(not p.startswith("holed-") for p in g) <= 1 for g in shared), shared
+    assert ["circle-a", "holed-washer"] in shared
 
 
 def test_figure_data_and_s1_table(tmp_path):

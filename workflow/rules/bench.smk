@@ -46,7 +46,10 @@ EMULATION_KEYS = [e["key"] for e in emulation_bench_entries(config)]
 # the parts bench_predict times: its default panel, those in use (else the first part in use)
 PREDICT_BENCH_PARTS = [p for p in PREDICT_BENCH_DEFAULT_PARTS if p in PARTS] or PARTS[:1]
 # the contact bench picks its parts from the whole library (those with many convex pieces)
-CONTACT_PARTS = PROTOCOL_PARTS  # candidates of the contact bench (those with sim.contact_bench.min_pieces pieces)
+# candidates of the contact bench (those with sim.contact_bench.min_pieces pieces): the library's parts
+# but the wider library's (contact_model.csv predates it)
+LIBRARY_PARTS = list_parts(config["parts"]["dir"], "all")
+CONTACT_PARTS = [p for p in LIBRARY_PARTS if p not in set(wide_parts(config, LIBRARY_PARTS))]
 EMULATION_DIR = "{results}/bench/emulation/{preset}".format(results=RESULTS, **config["sim"]["emulation_bench"])
 
 
