@@ -127,6 +127,7 @@ def test_wide_parts_leave_the_protocol_rows_unchanged_and_get_their_own_split():
     wide = {"parts": ["w-*", "x?"], "per_part": 2}
     df = G.configurations(small_config(wide=wide), PARTS + ["w-1", "w-2", "x9"])
     assert G.wide_parts(small_config(wide=wide), PARTS + ["w-1", "x9", "xx-no"]) == ["w-1", "x9"]
+    assert G.protocol_parts(small_config(wide=wide), ["xx-no", "w-1", "b", "x9", "a"]) == ["xx-no", "b", "a"]
     protocol = df[df.dataset != "wide"].reset_index(drop=True)
     pd.testing.assert_frame_equal(protocol, base)
     w = df[df.dataset == "wide"]

@@ -48,8 +48,7 @@ PREDICT_BENCH_PARTS = [p for p in PREDICT_BENCH_DEFAULT_PARTS if p in PARTS] or 
 # the contact bench picks its parts from the whole library (those with many convex pieces)
 # candidates of the contact bench (those with sim.contact_bench.min_pieces pieces): the library's parts
 # but the wider library's (contact_model.csv predates it)
-LIBRARY_PARTS = list_parts(config["parts"]["dir"], "all")
-CONTACT_PARTS = [p for p in LIBRARY_PARTS if p not in set(wide_parts(config, LIBRARY_PARTS))]
+CONTACT_PARTS = protocol_parts(config, list_parts(config["parts"]["dir"], "all"))
 EMULATION_DIR = "{results}/bench/emulation/{preset}".format(results=RESULTS, **config["sim"]["emulation_bench"])
 
 

@@ -6,7 +6,7 @@ import json
 from snakemake.utils import validate
 
 from feeder.bench.reference import entries as design_bench_entries
-from feeder.labels.grid import configurations, wide_parts
+from feeder.labels.grid import configurations, protocol_parts
 from feeder.sim.fences import parse_config_id
 from feeder.parts.library import list_parts
 from feeder.workflow import (
@@ -30,7 +30,7 @@ put_interpreter_on_path()
 PARTS = list_parts(config["parts"]["dir"], config["parts"]["include"], config["parts"].get("exclude", []))
 CONFIGS = configurations(config, PARTS)
 # the parts of the paper's Main/Fences/Parts protocol: every part but the wider library (datasets.wide)
-PROTOCOL_PARTS = [p for p in PARTS if p not in set(wide_parts(config, PARTS))]
+PROTOCOL_PARTS = protocol_parts(config, PARTS)
 
 
 def sim_path(part, config_id):

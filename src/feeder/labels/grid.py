@@ -117,6 +117,12 @@ def wide_parts(config: dict, part_ids) -> list[str]:
     return sorted(p for p in set(part_ids) if any(fnmatch.fnmatchcase(p, pat) for pat in patterns))
 
 
+def protocol_parts(config: dict, part_ids) -> list[str]:
+    """``part_ids`` (in their order) without the wide-dataset parts: the paper's protocol."""
+    wide = set(wide_parts(config, part_ids))
+    return [p for p in part_ids if p not in wide]
+
+
 def holdout_parts(config: dict, part_ids) -> list[str]:
     """The Parts-dataset parts: the configured list, or the seeded hash-ranked first n_holdout."""
     ds = config["datasets"]
@@ -170,7 +176,7 @@ def configurations(config: dict, part_ids) -> pd.DataFrame:
     if not set(fences["reserved_combos"]) <= set(combos):
         raise FeederError("fences.reserved_combos must be listed in fences.combos")
     wide = wide_parts(config, parts)
-    protocol = [p for p in parts if p not in wide]
+    protocol = protocol_parts(config, parts)
     held = holdout_parts(config, protocol)
     main_parts = [p for p in protocol if p not in held]
     if not main_parts:

@@ -1090,14 +1090,16 @@ def _apply(geom, resp: FenceResponse, mu: float, yaw, x, w, jams: bool = True):
     jam = touch & (margin < 0.0) if jams else np.zeros(yaw.shape, dtype=bool)
     push = touch & ~jam
     total = float(w.sum())
+    if w[touch].sum() > 0:
+        mean_margin = np.average(margin[touch], weights=w[touch])
+    elif margin.size:
+        mean_margin = margin.mean()
+    else:  # nothing arrives: an upstream fence jammed every drop
+        mean_margin = friction_margin_deg(m.exit_deg, mu)
     stats = (
         float(w[touch].sum()) / total if total > 0 else 0.0,
         float(w[jam].sum()) / total if total > 0 else 0.0,
-        float(np.average(margin[touch], weights=w[touch]))
-        if w[touch].sum() > 0
-        else float(margin.mean())
-        if margin.size
-        else float(friction_margin_deg(m.exit_deg, mu)),
+        float(mean_margin),
     )
     if push.any() and resp.push.rolls:  # every pushed drop leaves at the rolling density
         phi = (np.arange(ROLL_SAMPLES) + 0.5) * (FULL_TURN_DEG / ROLL_SAMPLES)
