@@ -308,7 +308,8 @@ def _pinned(model_dir: Path, data: dict) -> dict:
         "cdf": sha(cdf.tobytes()),
     }
     rows = list(PINNED_ROWS)
-    return {"sha256": digests, "pmf_rows": pmf[rows].tolist(), "cdf_rows": cdf[rows].tolist(), "pmf_mean": pmf.mean(0).tolist()}
+    full = {"pmf_rows": pmf[rows].tolist(), "cdf_rows": cdf[rows].tolist(), "pmf_mean": pmf.mean(0).tolist()}
+    return {"sha256": digests, **full}
 
 
 def _train_paper_model(tmp_path: Path, model: str, out: str, extra=()) -> tuple[dict, dict]:
