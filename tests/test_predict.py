@@ -34,8 +34,8 @@ def model_dir(tmp_path_factory):
 
 def test_predict_csv_matches_model(model_dir, tmp_path):
     from feeder.labels.dataset import feeder_vector
+    from feeder.lane.fences import parse_location
     from feeder.learn.models import TrainedModel
-    from feeder.sim.fences import parse_location
 
     out = tmp_path / "pmf.csv"
     args = [
@@ -82,8 +82,8 @@ def test_predict_to_stdout(model_dir, capsys):
     import io
 
     from feeder.labels.dataset import feeder_vector
+    from feeder.lane.fences import parse_location
     from feeder.learn.models import TrainedModel
-    from feeder.sim.fences import parse_location
 
     code = P.main(
         [
@@ -300,7 +300,7 @@ def test_recommend_verify_simulates_the_top_k_as_the_workflow_labels_them(model_
     argv += ["--configs", "straight30_none,curved40_none", "--verify", "1", "--out", str(out)]
     assert R.main(argv) == 0
     ranked = pd.read_csv(out)
-    assert list(ranked.columns[-4:]) == list(R.VERIFY_COLUMNS)
+    assert list(ranked.columns[-len(R.VERIFY_COLUMNS) :]) == list(R.VERIFY_COLUMNS)
     assert ranked.simulations.notna().tolist() == [True, False]
     top = ranked.iloc[0]
     loc1, loc2 = top.loc1, top.loc2
@@ -320,6 +320,75 @@ def test_recommend_verify_simulates_the_top_k_as_the_workflow_labels_them(model_
     printed = capsys.readouterr()
     assert "predicted" in printed.out and "simulated" in printed.out and top.config_id in printed.out
     assert f"verify 1/1 {top.config_id}" in printed.err
+
+
+def fake_simulation(jammed: set[str], drops: int = 8):
+    """A stand-in for feeder.sim.simulate.simulate: every drop of a configuration in ``jammed``
+    jams; the others' drops all end ok at 0 deg (random initial yaws: a drawn design)."""
+    from feeder.lane.fences import config_id
+
+    def simulate(geom, loc1, loc2, budget, seed, scene, preset, preset_name, **_):
+        cid = config_id(loc1, loc2)
+        status = np.array(["jammed" if cid in jammed else "ok"] * drops)
+        return {
+            "final_yaw_deg": np.zeros(drops),
+            "initial_yaw_deg": np.linspace(0.0, 360.0, drops, endpoint=False),
+            "status": status,
+            "cpu_s": 0.5,
+            "meta": json.dumps({"yaw_sampling": "random", "config_id": cid}),
+        }
+
+    return simulate
+
+
+def test_verify_reports_a_jammed_configuration_and_keeps_the_others(monkeypatch):
+    """A configuration whose drops all jam is an answer (ok mass 0, its statuses, no simulated
+    probability), not an error; the next one is verified as usual; progress goes to the log."""
+    from feeder.learn import recommend as R
+    from feeder.sim import simulate as S
+
+    monkeypatch.setattr(S, "simulate", fake_simulation({"curved40_none"}))
+    settings = {"budget": 8, "seed": 0, "scene": {}, "preset": {}, "preset_name": "fast", "adaptive": {}}
+    settings |= {"bins": 360, "sigma": 0.0}
+    lines: list[str] = []
+    got = R.verify(None, ["curved40_none", "straight30_none"], settings, 0.0, 10.0, 1, lines.append)
+    assert list(got.columns) == ["config_id", *R.VERIFY_COLUMNS]
+    jam, ok = got.iloc[0], got.iloc[1]
+    assert jam.config_id == "curved40_none" and jam.ok_mass == 0.0 and np.isnan(jam.simulated_probability)
+    assert jam.statuses == "jammed 8" and jam.simulations == 8
+    assert ok.ok_mass == 1.0 and ok.simulated_probability == pytest.approx(1.0) and ok.statuses == "ok 8"
+    assert sum("verify 1/2 curved40_none" in line for line in lines) == 2  # before and after
+    assert "jammed 8" in lines[1] and "verify 2/2 straight30_none" in lines[2]
+
+
+def test_status_counts_most_frequent_first():
+    from feeder.learn.recommend import status_counts
+
+    assert status_counts(["ok", "jammed", "fell_off", "jammed"]) == "jammed 2, fell_off 1, ok 1"
+    assert status_counts(np.array(["jammed"] * 3)) == "jammed 3"
+
+
+@pytest.mark.skipif(not (PARTS / "rect-a2.stl").is_file(), reason="no part library in parts/")
+def test_recommend_verify_keeps_the_ranking_when_the_top_pick_jams(model_dir, tmp_path, monkeypatch, capsys):
+    from feeder.cli import main
+    from feeder.learn import recommend as R
+    from feeder.sim import simulate as S
+
+    ids = ["straight30_none", "curved45_straight20", "none_curved10"]
+    base = ["--model", str(model_dir / "m3"), "--part", str(PARTS / "rect-a2.stl"), "--target", "0"]
+    base += ["--tolerance", "10", "--configs", ",".join(ids)]
+    assert R.main([*base, "--out", str(tmp_path / "plain.csv")]) == 0
+    top = pd.read_csv(tmp_path / "plain.csv").config_id[0]
+    monkeypatch.setattr(S, "simulate", fake_simulation({top}))
+    out = tmp_path / "rank.csv"
+    assert main(["recommend", *base, "--verify", "2", "--out", str(out)]) == 0
+    ranked = pd.read_csv(out)
+    assert len(ranked) == len(ids) and ranked.config_id[0] == top  # the whole ranking, in its order
+    assert ranked.ok_mass[0] == 0.0 and ranked.statuses[0] == "jammed 8" and np.isnan(ranked.simulated_probability[0])
+    assert ranked.ok_mass[1] == 1.0 and ranked.simulations.notna().tolist() == [True, True, False]
+    printed = capsys.readouterr()
+    assert top in printed.out and "jammed 8" in printed.out
+    assert f"verify 1/2 {top}" in printed.err and "verify 2/2" in printed.err
 
 
 @pytest.mark.parametrize(

@@ -31,6 +31,7 @@ from feeder.errors import FeederError
 HYDRA_SUBDIR = Path("config") / "hydra"  # relative to a study directory (or the repository)
 STUDY_CONFIG = Path("config") / "config.yaml"  # likewise
 STUDY_SCHEMA = Path("workflow") / "schemas" / "config.schema.yaml"  # what Snakemake validates at start
+PROJECT_ENV = "FEEDER_PROJECT"  # names the project a command outside the workflow reads
 
 
 # ----------------------------------------------------------------------------------------------
@@ -72,7 +73,9 @@ def load_study_config(*overlays: str | os.PathLike, root: str | os.PathLike = ".
     paths = [Path(root) / name for name in (STUDY_CONFIG, *overlays)]
     for path in paths:
         if not path.is_file():
-            raise FeederError(f"config file {path} not found (run from the project root or pass --settings)")
+            raise FeederError(
+                f"config file {path} not found (run inside the project, set ${PROJECT_ENV} to it, or pass --settings)"
+            )
         try:
             data = yaml.load(path.read_text(), Loader=_yaml_loader()) or {}
         except (yaml.YAMLError, UnicodeDecodeError) as err:
@@ -108,7 +111,7 @@ def _schema_validator(path: Path, mtime_ns: int):
 def study_schema(root: str | os.PathLike = ".") -> Path:
     """The config schema of the study in ``root``, else the repository's (next to the package)."""
     local = Path(root) / STUDY_SCHEMA
-    return local if local.is_file() else Path(__file__).resolve().parents[2] / STUDY_SCHEMA
+    return local if local.is_file() else package_project() / STUDY_SCHEMA
 
 
 def check_study_config(config: dict, source: str = "config", schema: str | os.PathLike | None = None) -> dict:
@@ -126,29 +129,67 @@ def check_study_config(config: dict, source: str = "config", schema: str | os.Pa
     return config
 
 
+def package_project() -> Path:
+    """The project the package belongs to: the repository that holds ``src/feeder``."""
+    return Path(__file__).resolve().parents[2]
+
+
+def project_override() -> Path | None:
+    """The project named by ``$FEEDER_PROJECT`` (:data:`PROJECT_ENV`), or None when it is unset;
+    a one-line :class:`FeederError` when it names no project (no ``config/config.yaml`` there)."""
+    named = os.environ.get(PROJECT_ENV)
+    if not named:
+        return None
+    root = Path(named).expanduser().resolve()
+    if not (root / STUDY_CONFIG).is_file():
+        raise FeederError(f"${PROJECT_ENV}={named} names no project: {root / STUDY_CONFIG} not found")
+    return root
+
+
 def study_root(cwd: str | os.PathLike | None = None) -> Path:
-    """The study directory of a command run outside the workflow without ``--settings``: the
-    working directory when it holds ``config/config.yaml``, else the repository next to the
-    package (like :func:`hydra_config_dir`). When neither holds it, the working directory, so
-    that :func:`load_study_config` names the file it looked for there."""
-    local = Path(cwd or os.getcwd())
-    repo = Path(__file__).resolve().parents[2]
-    if not (local / STUDY_CONFIG).is_file() and (repo / STUDY_CONFIG).is_file():
-        return repo
-    return local
+    """The study directory of a command run outside the workflow without ``--settings``, found as
+    git finds its repository: ``$FEEDER_PROJECT`` when set (:func:`project_override`), else the
+    working directory or the nearest folder above it that holds ``config/config.yaml``, else the
+    project of the package (:func:`package_project`, like :func:`hydra_config_dir`). When none
+    holds it, the working directory, so that :func:`load_study_config` names the file it looked
+    for there."""
+    override = project_override()
+    if override is not None:
+        return override
+    local = Path(cwd or os.getcwd()).resolve()
+    for folder in (local, *local.parents):
+        if (folder / STUDY_CONFIG).is_file():
+            return folder
+    repo = package_project()
+    return repo if (repo / STUDY_CONFIG).is_file() else local
+
+
+def project_path(path: str | os.PathLike) -> Path:
+    """A path named relative to the project (``parts``, ``models/m3prior``): as given when it is
+    absolute or exists from the working directory, else in the project (:func:`study_root`) when
+    it exists there, else as given (so that an error names what was asked for)."""
+    path = Path(path)
+    if path.is_absolute() or path.exists():
+        return path
+    in_project = study_root() / path
+    return in_project if in_project.exists() else path
 
 
 # ----------------------------------------------------------------------------------------------
 # Model settings (Hydra)
 # ----------------------------------------------------------------------------------------------
 def hydra_config_dir(cwd: str | os.PathLike | None = None) -> str:
-    """Where the Hydra model settings live: ``config/hydra/`` of the directory the study runs in
-    (the workflow's working directory, like ``config/config.yaml``), else the repository's own
-    ``config/hydra/`` next to the package. Parse-time params and the jobs both read this one place."""
+    """Where the Hydra model settings live: ``config/hydra/`` of the project named by
+    ``$FEEDER_PROJECT`` when set, else of the directory the study runs in (the workflow's working
+    directory, like ``config/config.yaml``), else the repository's own ``config/hydra/`` next to
+    the package. Parse-time params and the jobs both read this one place."""
+    override = project_override()
+    if override is not None and (override / HYDRA_SUBDIR).is_dir():
+        return str(override / HYDRA_SUBDIR)
     local = Path(cwd or os.getcwd()) / HYDRA_SUBDIR
     if local.is_dir():
         return str(local.resolve())
-    return str(Path(__file__).resolve().parents[2] / HYDRA_SUBDIR)
+    return str(package_project() / HYDRA_SUBDIR)
 
 
 def compose_config(name: str, overrides: Sequence[str] = (), config_dir: str | os.PathLike | None = None):

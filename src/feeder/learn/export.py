@@ -102,9 +102,16 @@ def add_model_option(parser: argparse.ArgumentParser) -> None:
 
 def resolve_model_dir(model: Path | None, prog: str = "feeder") -> Path:
     """``model`` when given, else the shipped folder (:func:`shipped_model_dir`), which must hold
-    an exported model: its weights and its card. The choice is said on stderr."""
+    an exported model: its weights and its card. The choice is said on stderr. A relative
+    ``model`` that is not in the working directory is looked for in the project
+    (:func:`feeder.config.project_path`: ``--model models/m3prior`` works from any folder)."""
     if model is not None:
-        return Path(model)
+        from feeder.config import project_path
+
+        found = project_path(model)
+        if found != Path(model):
+            print(f"{prog}: the model {found}", file=sys.stderr)
+        return found
     from feeder.learn.models import WEIGHTS_FILE
 
     shipped = shipped_model_dir()

@@ -10,7 +10,7 @@ features version is not the code's is refused (:func:`feeder.learn.export.check_
 
 The part's 45 DFT features come from its ``.stl``/``.xyz`` (:func:`feeder.parts.features.features_of_file`)
 or from a precomputed ``--features results/features/<id>.json``; the fences are parsed by
-:func:`feeder.sim.fences.parse_location`. The output CSV has one row per bin: ``angle_deg`` (the
+:func:`feeder.lane.fences.parse_location`. The output CSV has one row per bin: ``angle_deg`` (the
 bin's lower edge in degrees), ``pmf`` (probability of the bin) and ``cdf`` (cumulative from 0°),
 post-processed exactly as in evaluation, for the yaw of the part file's own frame (a model trained
 on ``principal``-frame labels is shifted back by the part's ``frame_deg``). Without ``--out`` the
@@ -59,22 +59,23 @@ def load_model(path: Path):
     return TrainedModel.load(path)
 
 
-def check_part_fits(part: Path, prog: str = "feeder predict") -> None:
+def check_part_fits(part: Path, prog: str = "feeder predict", scene: dict | None = None) -> None:
     """Refuse an STL part the simulator refuses (wider than the belt, or too thin for the fences:
     :func:`feeder.sim.body.check_fit`, units as ``--units auto``): the model has never seen such a
     part and would answer for a scene that cannot happen. A face point cloud (``.xyz``) has no
     thickness and is not checked. A part with through-holes is answered with a note on stderr: the
     shape features describe its outer contour only (as in the paper), so the model does not see
-    how the holes move its centre of mass."""
+    how the holes move its centre of mass. ``scene``: the study's scene section (default: the
+    study config's, :func:`feeder.lane.settings.load_settings`)."""
     if part.suffix.lower() != ".stl":
         return
+    from feeder.lane.settings import load_settings
     from feeder.parts.geometry import load_profile, profile_moments
     from feeder.sim.body import check_fit
-    from feeder.sim.scene import load_settings
 
     outline, holes, thickness = load_profile(part, "auto")
     _, centroid, _ = profile_moments(outline, holes)
-    check_fit(part.stem, outline, centroid, thickness, load_settings()[0])
+    check_fit(part.stem, outline, centroid, thickness, load_settings()[0] if scene is None else scene)
     if holes:
         print(
             f"{prog}: note: {part.name} has {len(holes)} through-hole(s); the model sees its outer "
@@ -84,14 +85,16 @@ def check_part_fits(part: Path, prog: str = "feeder predict") -> None:
 
 
 def part_vector(
-    part: Path | None, features: Path | None, prog: str = "feeder predict"
+    part: Path | None, features: Path | None, prog: str = "feeder predict", scene: dict | None = None
 ) -> tuple[np.ndarray, float | None]:
     """(the 45 raw DFT values, ``frame_deg`` or None) of a part, from its geometry file or a features
-    JSON; ``prog`` names the command in a note on stderr."""
+    JSON; ``prog`` names the command in a note on stderr; ``scene`` is the scene the part must fit
+    (:func:`check_part_fits`)."""
     if (part is None) == (features is None):
         raise FeederError("give exactly one of --part or --features")
     if features is not None:
-        from feeder.labels.dataset import load_features, load_frame_deg
+        from feeder.labels.dataset import load_features
+        from feeder.parts.features import load_frame_deg
 
         try:
             frame = load_frame_deg(features)
@@ -100,7 +103,7 @@ def part_vector(
         return load_features(features), frame
     if not part.is_file():
         raise FeederError(f"part file {part} is missing")
-    check_part_fits(part, prog)
+    check_part_fits(part, prog, scene)
     from feeder.parts.features import as_vector, features_of_file
 
     feats = features_of_file(part)
@@ -124,16 +127,20 @@ def check_push_source(model, part: Path | None) -> None:
         )
 
 
-def push_inputs(model, part: Path | None, pairs, frame_deg: float | None) -> tuple[np.ndarray | None, ...]:
+def push_inputs(
+    model, part: Path | None, pairs, frame_deg: float | None, study: dict | None = None
+) -> tuple[np.ndarray | None, ...]:
     """``(push block (N, P) or None, analytic PMFs (N, bins) or None)`` of the part for every
     (loc1, loc2) in ``pairs``, each only when ``model`` takes it. As the dataset has them: the
     STL's outline (units as ``--units auto``) in the study config's scene, in the model's label
     frame (``frame_deg`` of the part for a ``principal``-frame model, which it then needs) over
-    the model's bins, the PMF smoothed as the study config's labels (``labels.sigma_bins``)."""
+    the model's bins, the PMF smoothed as the study config's labels (``labels.sigma_bins``).
+    ``study``: the study settings (``scene``, ``labels``; default: the study config of
+    :func:`feeder.config.study_root`)."""
     if not (model.needs_push or model.needs_analytic):
         return None, None
     check_push_source(model, part)
-    from feeder.config import load_study_config
+    from feeder.config import load_study_config, study_root
     from feeder.labels.dataset import label_smooth_deg
     from feeder.parts.geometry import load_profile
     from feeder.parts.push import default_scene, push_block, push_geometry
@@ -148,8 +155,10 @@ def push_inputs(model, part: Path | None, pairs, frame_deg: float | None) -> tup
         frame = float(frame_deg)
     outline, holes, _ = load_profile(part, "auto")
     geom = push_geometry(outline, holes)
-    scene, memo, bins = default_scene(), {}, int(model.spec.bins)
-    smooth = label_smooth_deg(bins, float(load_study_config()["labels"]["sigma_bins"]))
+    if study is None:
+        study = load_study_config(root=study_root())
+    scene, memo, bins = study.get("scene") or default_scene(), {}, int(model.spec.bins)
+    smooth = label_smooth_deg(bins, float(study["labels"]["sigma_bins"]))
     rows = [
         push_block(geom, loc1, loc2, scene, frame_deg=frame, bins=bins, pmf_smooth_deg=smooth, responses=memo)
         for loc1, loc2 in pairs
@@ -177,7 +186,7 @@ def predict_frame(
     """
     from feeder.labels import metrics as L
     from feeder.labels.dataset import feeder_vector
-    from feeder.sim.fences import parse_location
+    from feeder.lane.fences import parse_location
 
     feeder_raw = feeder_vector(parse_location(loc1), parse_location(loc2))
     push = None if push_raw is None else np.atleast_2d(push_raw)
@@ -264,6 +273,7 @@ def orientation_summary(frame, top: int = TOP_ORIENTATIONS) -> str:
 
 
 def main(argv: list[str]) -> int:
+    from feeder.config import add_settings_options, study_settings
     from feeder.learn.export import add_model_option, resolve_model_dir
 
     parser = argparse.ArgumentParser(prog="feeder predict", description=__doc__.split("\n")[0])
@@ -274,9 +284,10 @@ def main(argv: list[str]) -> int:
     parser.add_argument("--loc2", required=True, help="none | straight:ANGLE | curved:ANGLE")
     parser.add_argument("--out", type=Path, help="CSV path (default: stdout)")
     parser.add_argument("--plot", type=Path, help="also draw the PMF/CDF to this image")
+    add_settings_options(parser)
     args = parser.parse_args(argv)
 
-    from feeder.sim.fences import parse_location
+    from feeder.lane.fences import parse_location
 
     parse_location(args.loc1), parse_location(args.loc2)  # bad fences fail before any work
     if args.plot is not None:
@@ -285,10 +296,11 @@ def main(argv: list[str]) -> int:
         check_figure_path(args.plot)
     model = load_model(resolve_model_dir(args.model, "feeder predict"))
     check_push_source(model, args.part)
+    study = study_settings(args)
     t0 = time.perf_counter()
-    part_raw, frame_deg = part_vector(args.part, args.features)
+    part_raw, frame_deg = part_vector(args.part, args.features, scene=study.get("scene"))
     t_dft = time.perf_counter()
-    push_raw, analytic = push_inputs(model, args.part, [(args.loc1, args.loc2)], frame_deg)
+    push_raw, analytic = push_inputs(model, args.part, [(args.loc1, args.loc2)], frame_deg, study)
     t1 = time.perf_counter()
     frame = predict_frame(model, part_raw, args.loc1, args.loc2, frame_deg, push_raw, analytic)
     t2 = time.perf_counter()

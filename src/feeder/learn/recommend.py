@@ -39,7 +39,8 @@ from feeder.errors import FeederError
 from feeder.labels.metrics import FULL_TURN_DEG
 
 DEFAULT_TOP = 10  # configurations printed
-VERIFY_COLUMNS = ("simulated_probability", "ok_mass", "simulations", "sim_cpu_s")  # --verify adds these
+# --verify adds these; ``statuses``: the simulated drops by status ("ok 20, jammed 12")
+VERIFY_COLUMNS = ("simulated_probability", "ok_mass", "statuses", "simulations", "sim_cpu_s")
 
 
 def window_probability(pmf, target_deg: float, tolerance_deg: float, order: int = 1) -> np.ndarray:
@@ -88,7 +89,7 @@ def rank(
     ``analytic``: their analytic PMFs, for a ``base: prior`` model."""
     from feeder.labels import metrics as L
     from feeder.labels.dataset import feeder_vector
-    from feeder.sim.fences import parse_config_id
+    from feeder.lane.fences import parse_config_id
 
     if not config_ids:
         raise FeederError("no fence configurations to rank")
@@ -138,16 +139,21 @@ def verify_settings(study: dict) -> dict:
 def verify(geom, config_ids, settings: dict, target_deg, tolerance_deg, order, log=None) -> pd.DataFrame:
     """Simulate each configuration of ``config_ids`` with the adaptive design and ``settings``
     (:func:`verify_settings`) and return, per configuration, the simulated probability of the
-    window (its label in the part frame), the ok mass, the simulations run and their CPU seconds
-    (columns ``config_id`` and :data:`VERIFY_COLUMNS`). ``log``: called with a line per configuration."""
+    window (its label in the part frame), the ok mass, the drops by status, the simulations run
+    and their CPU seconds (columns ``config_id`` and :data:`VERIFY_COLUMNS`). A configuration whose
+    drops all jam or fall off is an answer too: ok mass 0, no simulated probability (NaN), its
+    statuses counted; the other configurations are verified as usual. ``log``: called with a line
+    before and after each configuration (progress)."""
     from feeder.labels.pmf import sim_label
-    from feeder.sim.fences import parse_config_id
+    from feeder.lane.fences import parse_config_id
     from feeder.sim.record import record_of
     from feeder.sim.simulate import simulate
 
     rows = []
     for k, cid in enumerate(config_ids, start=1):
         loc1, loc2 = parse_config_id(cid)
+        if log is not None:
+            log(f"verify {k}/{len(config_ids)} {cid}: simulating ({settings['budget']} drops at most)")
         result = simulate(
             geom,
             loc1,
@@ -161,26 +167,39 @@ def verify(geom, config_ids, settings: dict, target_deg, tolerance_deg, order, l
             adaptive=settings["adaptive"],
         )
         rec = record_of(result)
-        label = sim_label(rec, settings["bins"], settings["sigma"])
+        statuses = status_counts(rec.status)
+        probability, ok_mass = math.nan, 0.0
+        if rec.ok.any():  # else every drop failed: no label, ok mass 0
+            label = sim_label(rec, settings["bins"], settings["sigma"])
+            ok_mass = label.ok_mass
+            if ok_mass > 0:
+                probability = float(window_probability(label.pmf, target_deg, tolerance_deg, order))
+        cpu = float(result["cpu_s"])
         rows.append(
             {
                 "config_id": cid,
-                "simulated_probability": float(window_probability(label.pmf, target_deg, tolerance_deg, order))
-                if label.ok_mass > 0
-                else math.nan,
-                "ok_mass": label.ok_mass,
-                "simulations": label.simulations,
-                "sim_cpu_s": float(result["cpu_s"]),
+                "simulated_probability": probability,
+                "ok_mass": ok_mass,
+                "statuses": statuses,
+                "simulations": int(rec.status.size),
+                "sim_cpu_s": cpu,
             }
         )
         if log is not None:
-            cpu = float(result["cpu_s"])
-            log(f"verify {k}/{len(config_ids)} {cid}: {label.simulations} simulations, {cpu:.1f} s CPU")
+            log(f"verify {k}/{len(config_ids)} {cid}: {rec.status.size} simulations ({statuses}), {cpu:.1f} s CPU")
     return pd.DataFrame(rows, columns=["config_id", *VERIFY_COLUMNS])
 
 
+def status_counts(status) -> str:
+    """The simulated drops by status, most frequent first (ties by name): ``"jammed 32"``,
+    ``"ok 20, fell_off 12"``."""
+    names, counts = np.unique(np.asarray(status).astype(str), return_counts=True)
+    pairs = sorted(zip(names.tolist(), counts.tolist()), key=lambda nc: (-nc[1], nc[0]))
+    return ", ".join(f"{name} {count}" for name, count in pairs)
+
+
 def main(argv: list[str]) -> int:
-    from feeder.config import load_study_config
+    from feeder.config import add_settings_options, study_settings
     from feeder.learn.export import add_model_option, resolve_model_dir
     from feeder.learn.predict import check_push_source, load_model, part_vector, push_inputs
 
@@ -205,6 +224,7 @@ def main(argv: list[str]) -> int:
         metavar="K",
         help="simulate the top K (adaptive design, the study's settings) and print simulated beside predicted",
     )
+    add_settings_options(parser)
     args = parser.parse_args(argv)
 
     window_probability(np.ones(1), args.target, args.tolerance)  # bad target/tolerance fail before any work
@@ -212,7 +232,7 @@ def main(argv: list[str]) -> int:
         raise FeederError(f"--top must be positive, got {args.top}")
     if args.verify < 0:
         raise FeederError(f"--verify must be 0 or more, got {args.verify}")
-    study = load_study_config()
+    study = study_settings(args)
     geom = None
     if args.verify:
         geom = verify_part(args.part)
@@ -224,12 +244,13 @@ def main(argv: list[str]) -> int:
     order = symmetry_order(args.symmetry, args.part)
     model = load_model(resolve_model_dir(args.model, "feeder recommend"))
     check_push_source(model, args.part)
-    part_raw, frame_deg = part_vector(args.part, args.features, "feeder recommend")
+    part_raw, frame_deg = part_vector(args.part, args.features, "feeder recommend", study.get("scene"))
     push_raw = analytic = None
     if model.needs_push or model.needs_analytic:
-        from feeder.sim.fences import parse_config_id
+        from feeder.lane.fences import parse_config_id
 
-        push_raw, analytic = push_inputs(model, args.part, [parse_config_id(c) for c in config_ids], frame_deg)
+        pairs = [parse_config_id(c) for c in config_ids]
+        push_raw, analytic = push_inputs(model, args.part, pairs, frame_deg, study)
     ranked = rank(model, part_raw, frame_deg, config_ids, args.target, args.tolerance, order, push_raw, analytic)
     shown = args.top
     if args.verify:

@@ -601,7 +601,9 @@ def main(argv: list[str]) -> int:
     if args.cmd == "generate":
         import pandas as pd
 
-        ids = generate(args.spec, args.out)
+        from feeder.config import project_path
+
+        ids = generate(project_path(args.spec), args.out)
         summary = diversity_summary(pd.read_csv(Path(args.out) / "catalog.csv"))
         print(json.dumps({"generated": len(ids), **summary}))
         return 0
@@ -616,7 +618,9 @@ def main(argv: list[str]) -> int:
         write_text(args.out, xyz_text(pts, g.thickness * 1000.0))
         return 0
     if args.cmd == "list":
-        print("\n".join(list_parts(args.dir, args.include if args.include else "all")))
+        from feeder.config import project_path
+
+        print("\n".join(list_parts(project_path(args.dir), args.include if args.include else "all")))
         return 0
     if args.cmd == "fig6-data":
         from feeder.io import write_npz
