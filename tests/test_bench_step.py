@@ -11,9 +11,9 @@ import pytest
 from feeder.bench import step
 from feeder.config import load_study_config
 from feeder.errors import FeederError
+from feeder.lane.fences import parse_location
 from feeder.parts.geometry import load_part
 from feeder.sim.drops import get_preset
-from feeder.sim.fences import parse_location
 
 ROOT = __import__("pathlib").Path(__file__).resolve().parents[1]
 CONFIG = load_study_config(root=ROOT)

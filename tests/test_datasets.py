@@ -12,7 +12,7 @@ from feeder.labels import convergence as C
 from feeder.labels import dataset as D
 from feeder.labels import grid as G
 from feeder.labels import metrics as L
-from feeder.sim.fences import parse_config_id
+from feeder.lane.fences import parse_config_id
 
 ROOT = Path(__file__).resolve().parents[1]
 

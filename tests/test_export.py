@@ -21,13 +21,13 @@ from feeder.config import compose_config
 from feeder.errors import FeederError
 from feeder.io import write_npz
 from feeder.labels.dataset import features_version, feeder_vector, load_dataset
+from feeder.lane.fences import parse_location
 from feeder.learn import export as E
 from feeder.learn import predict as P
 from feeder.learn import recommend as R
 from feeder.learn import train as T
 from feeder.learn.evaluate import BASELINE_MEAN, BASELINE_NEAREST, BREAKDOWN_COLUMNS, COLUMNS, TABLES
 from feeder.learn.models import SCALER_FILE, WEIGHTS_FILE, TrainedModel
-from feeder.sim.fences import parse_location
 
 ROOT = Path(__file__).resolve().parents[1]
 PARTS = ROOT / "parts"

@@ -1,7 +1,7 @@
 import pytest
 
 from feeder.errors import FeederError
-from feeder.sim.fences import Fence, config_id, parse_config_id, parse_location, parse_token
+from feeder.lane.fences import Fence, config_id, parse_config_id, parse_location, parse_token
 
 
 def test_round_trip_tokens_and_specs():

@@ -14,10 +14,11 @@ from shapely.geometry import Polygon
 from test_sim import _world  # the world of tests/test_sim.py, here with a padded scene
 
 from feeder.errors import FeederError
+from feeder.lane.fences import parse_location
 from feeder.parts.geometry import PartGeometry
 from feeder.sim import body as simbody
 from feeder.sim import drops as sim
-from feeder.sim.fences import parse_location
+from feeder.sim.scene import footprint_setting
 
 ROOT = Path(__file__).resolve().parents[1]
 CFG = yaml.safe_load((ROOT / "config" / "config.yaml").read_text())
@@ -147,13 +148,13 @@ def test_footprint_pads_refuse_bad_input():
 
 
 def test_footprint_setting_defaults_to_the_pieces_and_checks_the_pads():
-    assert simbody.footprint_setting({"belt": {}}) == ("pieces", 0, 0.0)
-    assert simbody.footprint_setting(padded(count=8, radius=0.002)) == ("pads", 8, 0.002)
+    assert footprint_setting({"belt": {}}) == ("pieces", 0, 0.0)
+    assert footprint_setting(padded(count=8, radius=0.002)) == ("pads", 8, 0.002)
     for fp in ({"model": "pads", "pads": 2, "pad_radius": 0.001}, {"model": "pads", "pads": 4, "pad_radius": 0}):
         with pytest.raises(FeederError, match="footprint"):
-            simbody.footprint_setting({"belt": {"footprint": fp}})
+            footprint_setting({"belt": {"footprint": fp}})
     with pytest.raises(FeederError, match="pieces or pads"):
-        simbody.footprint_setting({"belt": {"footprint": {"model": "hull"}}})
+        footprint_setting({"belt": {"footprint": {"model": "hull"}}})
 
 
 def test_part_model_carries_pads_in_the_principal_frame_only_when_asked():

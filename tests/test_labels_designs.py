@@ -141,9 +141,9 @@ def test_adaptive_bad_input_is_one_line_and_writes_nothing(tmp_path, capsys, arg
 def test_a_half_turn_of_a_two_fold_part_turns_its_outcome_by_a_half_turn():
     """What folding over symmetry assumes, in the simulator: f(β + 180) = f(β) + 180 for a 2:1
     rectangle (same basin; a sub-degree difference from the rotated decomposition is allowed)."""
+    from feeder.lane.fences import parse_location
+    from feeder.lane.settings import load_settings
     from feeder.parts.geometry import load_part
-    from feeder.sim.fences import parse_location
-    from feeder.sim.scene import load_settings
 
     scene, presets = load_settings()
     geom = load_part(PART)
@@ -165,9 +165,9 @@ def test_a_drops_outcome_depends_on_its_yaw_alone_in_worlds_of_its_own():
     """The sampled maps simulate batches of yaws: a yaw's outcome must not depend on what else the
     batch holds or where it sits in it. In one shared world it does (measured: 100° after a
     jammed drop ends 0.04° away from 100° alone); run_each gives every drop its own world."""
+    from feeder.lane.fences import parse_location
+    from feeder.lane.settings import load_settings
     from feeder.parts.geometry import load_part
-    from feeder.sim.fences import parse_location
-    from feeder.sim.scene import load_settings
 
     scene, presets = load_settings()
     preset = sim.get_preset(presets, "coarse")

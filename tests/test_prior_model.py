@@ -14,6 +14,7 @@ from factories import small_overrides
 from feeder.config import compose_config
 from feeder.errors import FeederError
 from feeder.labels import dataset as D
+from feeder.lane.fences import parse_config_id, parse_location
 from feeder.learn import evaluate as E
 from feeder.learn import predict as P
 from feeder.learn import prior as PR
@@ -22,7 +23,6 @@ from feeder.learn import train as T
 from feeder.learn.models import ModelSpec, TrainedModel
 from feeder.parts import push as PU
 from feeder.parts.geometry import load_outline
-from feeder.sim.fences import parse_config_id, parse_location
 
 ROOT = Path(__file__).resolve().parents[1]
 STL = ROOT / "parts" / "rect-a2.stl"

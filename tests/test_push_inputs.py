@@ -26,6 +26,7 @@ from feeder.config import compose_config
 from feeder.errors import FeederError
 from feeder.labels import dataset as D
 from feeder.labels import metrics as L
+from feeder.lane.fences import parse_config_id, parse_location
 from feeder.learn import evaluate as E
 from feeder.learn import predict as P
 from feeder.learn import recommend as R
@@ -33,7 +34,6 @@ from feeder.learn import train as T
 from feeder.learn.models import TrainedModel
 from feeder.parts import push as PU
 from feeder.parts.geometry import load_outline, stl_bytes
-from feeder.sim.fences import parse_config_id, parse_location
 
 ROOT = Path(__file__).resolve().parents[1]
 GOLDEN = Path(__file__).parent / "data" / "paper_models_golden.json"
@@ -559,10 +559,10 @@ def test_the_card_check_compares_the_version_of_the_models_own_inputs(tmp_path):
 def test_the_dataset_push_block_sees_a_parts_holes(tmp_path):
     """The plate's hole sits off-centre, so its centre of mass is not the outline's: the push block
     from its STL is that of the outline less the hole, not of the solid outline."""
+    from feeder.lane.fences import config_id, parse_location
     from feeder.parts.geometry import stl_bytes
     from feeder.parts.push import default_scene
     from feeder.parts.shapes import shape_part
-    from feeder.sim.fences import config_id, parse_location
 
     plate = shape_part("plate-60x30x10", 0.005)
     (tmp_path / "plate.stl").write_bytes(stl_bytes(plate.outline, 0.005, "plate", holes=plate.holes))

@@ -13,13 +13,15 @@ import pytest
 import yaml
 
 from feeder.errors import FeederError
+from feeder.lane import geometry as lane_geometry
+from feeder.lane.fences import Fence, parse_location
+from feeder.lane.settings import load_settings
 from feeder.parts.geometry import PartGeometry, stl_bytes
 from feeder.parts.shapes import shape_part
 from feeder.sim import body as simbody
 from feeder.sim import drops as sim
 from feeder.sim import record
 from feeder.sim import scene as sc
-from feeder.sim.fences import Fence, parse_location
 from feeder.sim.simulate import simulate
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -118,7 +120,7 @@ def test_grid_yaws_are_evenly_spaced_with_a_seeded_offset():
 
 
 def test_straight_fence_geometry_hand_values():
-    (box,) = sc.fence_geometry(SCENE, "loc1", Fence("straight", 30.0)).boxes
+    (box,) = lane_geometry.fence_geometry(SCENE, "loc1", Fence("straight", 30.0)).boxes
     cx, cy, hl, ht, yaw = box
     d = np.array([math.cos(yaw), math.sin(yaw)])
     tip = np.array([cx, cy]) + hl * d
@@ -129,11 +131,11 @@ def test_straight_fence_geometry_hand_values():
     rel = np.array([0.24, 1.0]) - np.array([cx, cy])
     assert abs(rel[0] * -d[1] + rel[1] * d[0]) < 1e-12
     # Location 2 is the mirror image on the left, at y = 0.5
-    (b2,) = sc.fence_geometry(SCENE, "loc2", Fence("straight", 30.0)).boxes
+    (b2,) = lane_geometry.fence_geometry(SCENE, "loc2", Fence("straight", 30.0)).boxes
     assert b2[0] == pytest.approx(-cx) and b2[1] == pytest.approx(cy - 0.5)
     mirrored = copy.deepcopy(SCENE)
     mirrored["mirror"] = True
-    (bm,) = sc.fence_geometry(mirrored, "loc1", Fence("straight", 30.0)).boxes
+    (bm,) = lane_geometry.fence_geometry(mirrored, "loc1", Fence("straight", 30.0)).boxes
     assert bm[0] == pytest.approx(-cx) and bm[1] == pytest.approx(cy)
 
 
@@ -142,10 +144,10 @@ def test_crossing_fences_are_trimmed_to_the_least_gap():
     traps every part. The upstream fence keeps its wall end and loses length until the gap holds;
     pairs that never come close are untouched."""
     gap = SCENE["fences"]["min_gap"]
-    up_full = sc.fence_geometry(SCENE, "loc2", Fence("straight", 15.0))
-    down = sc.fence_geometry(SCENE, "loc1", Fence("straight", 30.0))
+    up_full = lane_geometry.fence_geometry(SCENE, "loc2", Fence("straight", 15.0))
+    down = lane_geometry.fence_geometry(SCENE, "loc1", Fence("straight", 30.0))
     assert up_full.footprint().intersects(down.footprint())  # the untrimmed pair crosses
-    up, down2 = sc.scene_fences(SCENE, Fence("straight", 30.0), Fence("straight", 15.0))
+    up, down2 = lane_geometry.scene_fences(SCENE, Fence("straight", 30.0), Fence("straight", 15.0))
     assert down2.boxes == down.boxes
     dist = up.footprint().distance(down.footprint())
     assert gap <= dist < gap + 1e-3  # trimmed just enough (bisection tolerance)
@@ -155,14 +157,14 @@ def test_crossing_fences_are_trimmed_to_the_least_gap():
     wall_end = np.array([cx, cy]) - hl * np.array([math.cos(yaw), math.sin(yaw)])
     assert wall_end == pytest.approx(np.array([fx, fy]) - fhl * np.array([math.cos(fyaw), math.sin(fyaw)]))
     # far apart: unchanged; every pair of the grid keeps the gap
-    up45, _ = sc.scene_fences(SCENE, Fence("straight", 30.0), Fence("straight", 45.0))
-    assert up45.boxes == sc.fence_geometry(SCENE, "loc2", Fence("straight", 45.0)).boxes
+    up45, _ = lane_geometry.scene_fences(SCENE, Fence("straight", 30.0), Fence("straight", 45.0))
+    assert up45.boxes == lane_geometry.fence_geometry(SCENE, "loc2", Fence("straight", 45.0)).boxes
     grid = [Fence("straight", a) for a in CFG["fences"]["straight_angles"]] + [
         Fence("curved", a) for a in CFG["fences"]["curved_angles"]
     ]
     for f1 in grid:
         for f2 in grid:
-            fences = sc.scene_fences(SCENE, f1, f2)
+            fences = lane_geometry.scene_fences(SCENE, f1, f2)
             if len(fences) == 2:
                 assert fences[0].footprint().distance(fences[1].footprint()) >= gap - 1e-9
 
@@ -170,9 +172,9 @@ def test_crossing_fences_are_trimmed_to_the_least_gap():
 def test_trimmed_curved_fence_loses_tip_boxes():
     scene = copy.deepcopy(SCENE)
     scene["fences"]["min_gap"] = 0.6  # forces trimming of a curved upstream fence
-    up_full = sc.fence_geometry(scene, "loc2", Fence("curved", 30.0))
-    down = sc.fence_geometry(scene, "loc1", Fence("straight", 30.0))
-    trimmed = sc.trim_to_gap(up_full, down, 0.6)
+    up_full = lane_geometry.fence_geometry(scene, "loc2", Fence("curved", 30.0))
+    down = lane_geometry.fence_geometry(scene, "loc1", Fence("straight", 30.0))
+    trimmed = lane_geometry.trim_to_gap(up_full, down, 0.6)
     assert 0 < len(trimmed.boxes) < len(up_full.boxes)
     assert trimmed.boxes == up_full.boxes[: len(trimmed.boxes)]  # from the tip: the slot end stays
     assert trimmed.footprint().distance(down.footprint()) >= 0.6
@@ -180,13 +182,13 @@ def test_trimmed_curved_fence_loses_tip_boxes():
 
 @pytest.mark.parametrize("theta", [0.0, 30.0, 90.0])
 def test_curved_fence_centre_and_outer_face(theta):
-    pts, centre = sc.curved_polyline(theta, 1, 0.24, 1.0, 0.2, 90.0, 16)
+    pts, centre = lane_geometry.curved_polyline(theta, 1, 0.24, 1.0, 0.2, 90.0, 16)
     th = math.radians(theta)
     assert centre == pytest.approx([0.24 - 0.2 * math.sin(th), 1.0 + 0.2 * math.cos(th)])  # paper formula
     assert pts[0] == pytest.approx([0.24, 1.0])  # the arc starts at the slot
     assert np.allclose(np.hypot(*(pts - centre).T), 0.2)
     assert np.all(np.diff(pts[:, 0]) < 0)  # runs inward
-    boxes = sc.fence_geometry(SCENE, "loc1", Fence("curved", theta)).boxes
+    boxes = lane_geometry.fence_geometry(SCENE, "loc1", Fence("curved", theta)).boxes
     assert len(boxes) == 16
     # outer faces: every box's outer mid-face lies on the circle r + t/2 within the sagitta
     for cx, cy, _, ht, yaw in boxes:
@@ -238,14 +240,14 @@ def test_table1_lists_the_scene_from_config(tmp_path):
 
 
 def test_load_settings_from_a_settings_json_in_either_form():
-    assert sc.load_settings(json.dumps({"scene": SCENE, "presets": PRESETS})) == (SCENE, PRESETS)
-    assert sc.load_settings(json.dumps({"scene": SCENE, "sim": CFG["sim"]})) == (SCENE, PRESETS)
+    assert load_settings(json.dumps({"scene": SCENE, "presets": PRESETS})) == (SCENE, PRESETS)
+    assert load_settings(json.dumps({"scene": SCENE, "sim": CFG["sim"]})) == (SCENE, PRESETS)
     with pytest.raises(FeederError, match="lack the 'scene' section"):
-        sc.load_settings(json.dumps({"presets": PRESETS}))
+        load_settings(json.dumps({"presets": PRESETS}))
     with pytest.raises(FeederError, match="simulation presets"):
-        sc.load_settings(json.dumps({"scene": SCENE}))
+        load_settings(json.dumps({"scene": SCENE}))
     with pytest.raises(FeederError, match="not valid JSON"):
-        sc.load_settings("{scene")
+        load_settings("{scene")
 
 
 def test_load_settings_without_json_reads_the_study_config_of_root_or_cwd(tmp_path, monkeypatch):
@@ -256,16 +258,16 @@ def test_load_settings_without_json_reads_the_study_config_of_root_or_cwd(tmp_pa
     scene = copy.deepcopy(SCENE)
     scene["gravity"] = -1.5
     (study / "config" / "config.yaml").write_text(yaml.safe_dump({"scene": scene, "sim": {"presets": {"fast": FAST}}}))
-    assert sc.load_settings(root=study) == (scene, {"fast": FAST})
+    assert load_settings(root=study) == (scene, {"fast": FAST})
     monkeypatch.chdir(study)
-    assert sc.load_settings() == (scene, {"fast": FAST})
+    assert load_settings() == (scene, {"fast": FAST})
     monkeypatch.chdir(tmp_path)  # no config here: the repository's
-    assert sc.load_settings() == (SCENE, PRESETS)
+    assert load_settings() == (SCENE, PRESETS)
 
 
 def test_load_settings_without_a_config_is_a_one_line_error(tmp_path):
     with pytest.raises(FeederError) as err:
-        sc.load_settings(root=tmp_path)
+        load_settings(root=tmp_path)
     message = str(err.value)
     assert "\n" not in message
     assert str(tmp_path / "config" / "config.yaml") in message and "--settings" in message

@@ -21,10 +21,10 @@ import yaml
 from feeder.bench.accuracy import bootstrap_js_floor
 from feeder.bench.designs import paired_basins
 from feeder.labels import metrics as labels
+from feeder.lane.fences import parse_location
 from feeder.parts.shapes import mirror_part, mod180_dist, shape_part
 from feeder.sim import body as simbody
 from feeder.sim import drops as sim
-from feeder.sim.fences import parse_location
 from feeder.sim.simulate import simulate
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -31,7 +31,7 @@ from feeder.labels.pmf import sim_label
 from feeder.parts.geometry import load_part
 from feeder.parts.library import list_parts
 from feeder.sim.drops import drop_seed, get_preset
-from feeder.sim.fences import parse_location
+from feeder.lane.fences import parse_location
 from feeder.sim.record import SimRecord
 from feeder.sim.simulate import simulate
 

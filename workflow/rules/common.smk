@@ -7,7 +7,7 @@ from snakemake.utils import validate
 
 from feeder.bench.reference import entries as design_bench_entries
 from feeder.labels.grid import configurations, protocol_parts
-from feeder.sim.fences import parse_config_id
+from feeder.lane.fences import parse_config_id
 from feeder.parts.library import list_parts
 from feeder.workflow import (
     cli_options,

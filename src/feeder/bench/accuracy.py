@@ -39,8 +39,8 @@ from feeder.errors import FeederError
 def _run(job):
     """Worker: one (setting, seed, panel entry) simulation → yaws, statuses, CPU seconds."""
     name, preset, seed, idx, entry, scene, thickness = job
+    from feeder.lane.fences import parse_location
     from feeder.parts.shapes import shape_part
-    from feeder.sim.fences import parse_location
     from feeder.sim.simulate import simulate
 
     shape, loc1, loc2 = entry

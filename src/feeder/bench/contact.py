@@ -39,9 +39,9 @@ def footprint_scene(scene: dict, footprint: str, pad_radius: float) -> dict:
 
 def _run(job):
     part, parts_dir, config, footprint, shift, yaws, scene, preset = job
+    from feeder.lane.fences import parse_location
     from feeder.parts.geometry import load_part
     from feeder.sim.drops import run_drops
-    from feeder.sim.fences import parse_location
 
     geom = load_part(f"{parts_dir}/{part}.stl")
     loc1, loc2 = config.split("|")

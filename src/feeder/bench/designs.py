@@ -56,8 +56,8 @@ def run_adaptive(entry: dict, settings: dict) -> dict:
     """The adaptive design at every budget of ``adaptive_budgets``, simulated for real: the arrays
     of the configuration's adaptive file (one ``adaptive<budget>_*`` group each, and ``meta``)."""
     from feeder.bench.reference import entry_geometry
+    from feeder.lane.fences import parse_location
     from feeder.sim.drops import get_preset
-    from feeder.sim.fences import parse_location
     from feeder.sim.simulate import simulate
 
     db, scene = settings["sim"]["design_bench"], settings["scene"]

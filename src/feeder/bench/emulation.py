@@ -125,9 +125,9 @@ def run_entry(entry: dict, settings: dict) -> dict:
     """``real_drops`` independent random drops and the adaptive design of one configuration,
     simulated for real: the arrays of its run file (:func:`run_arrays`)."""
     from feeder.bench.reference import seed_of
+    from feeder.lane.fences import parse_location
     from feeder.parts.geometry import load_part
     from feeder.sim.drops import get_preset
-    from feeder.sim.fences import parse_location
     from feeder.sim.simulate import simulate
 
     eb, sim = bench_settings(settings), settings["sim"]

@@ -39,9 +39,9 @@ def survey_jobs(angles: dict, parts: list[str]) -> list[tuple[str, str, str]]:
 
 def _run(job):
     loc1, loc2, part, parts_dir, drops, seed, scene, preset, name = job
+    from feeder.lane.fences import parse_location
     from feeder.parts.geometry import load_part
     from feeder.sim.drops import STATUSES
-    from feeder.sim.fences import parse_location
     from feeder.sim.simulate import simulate
 
     geom = load_part(f"{parts_dir}/{part}.stl")

@@ -190,9 +190,9 @@ def run(
     """Every timing (:data:`RAW_COLUMNS`) of the parts, warm stages then cold ones."""
     import pandas as pd
 
+    from feeder.lane.fences import parse_location
     from feeder.learn.predict import load_model
     from feeder.learn.recommend import grid_configurations
-    from feeder.sim.fences import parse_location
 
     if repeats < MIN_REPEATS or cold_repeats < 0:
         raise FeederError(f"--repeats must be at least {MIN_REPEATS} and --cold-repeats at least 0")

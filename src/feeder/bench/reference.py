@@ -144,9 +144,9 @@ def run_reference(entry: dict, settings: dict, checkpoint: Path | None = None) -
     """One configuration's reference over one symmetry period and its paired drops: the arrays
     of its reference file (docs/data.md). With ``checkpoint``, progress is saved there and a
     killed run goes on from it (:func:`run_resumable`); progress is logged to stderr."""
+    from feeder.lane.fences import parse_location
     from feeder.parts.symmetry import rotational_order
     from feeder.sim.drops import get_preset, run_each
-    from feeder.sim.fences import parse_location
 
     db, scene = settings["sim"]["design_bench"], settings["scene"]
     preset = get_preset(settings["sim"]["presets"], db["preset"])

@@ -201,8 +201,8 @@ def main(argv: list[str]) -> int:
     from feeder.config import parse_settings
 
     cfg = parse_settings(args.settings, "scene", "sim", "parts")
+    from feeder.lane.fences import parse_location
     from feeder.sim.drops import drop_seed, get_preset, initial_yaws
-    from feeder.sim.fences import parse_location
 
     try:
         scene, sim_cfg, parts_dir = cfg["scene"], cfg["sim"], cfg["parts"]["dir"]

@@ -33,8 +33,8 @@ DESIGNS = ("random", "golden")
 def _run(job):
     """Worker: one (role, design, seed, panel entry) simulation → role, design, index, yaws, CPU seconds."""
     role, design, drops, seed, idx, entry, scene, preset, thickness = job
+    from feeder.lane.fences import parse_location
     from feeder.parts.shapes import shape_part
-    from feeder.sim.fences import parse_location
     from feeder.sim.simulate import simulate
 
     shape, loc1, loc2 = entry

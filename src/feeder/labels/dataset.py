@@ -27,7 +27,6 @@ from __future__ import annotations
 import argparse
 import json
 import logging
-import math
 import sys
 import time
 from dataclasses import dataclass
@@ -43,9 +42,9 @@ from feeder.labels import metrics as L
 from feeder.labels.convergence import convergence_data
 from feeder.labels.grid import SPLITS, WIDE, configurations
 from feeder.labels.pmf import check_ok_mass, level_drops, sim_label
-from feeder.parts.features import DFT, DFT_FEATURE_NAMES, FEATURES_VERSION
+from feeder.lane.fences import TYPES, Fence, parse_config_id
+from feeder.parts.features import DFT, DFT_FEATURE_NAMES, FEATURES_VERSION, load_frame_deg
 from feeder.parts.push import PUSH_FEATURE_NAMES, PUSH_FEATURES_VERSION
-from feeder.sim.fences import TYPES, Fence, parse_config_id
 from feeder.sim.record import BadData, SimRecord, load_sim
 
 log = logging.getLogger("feeder.labels.dataset")
@@ -146,25 +145,6 @@ def load_features(path) -> np.ndarray:
     if not (k.shape == mag.shape == ph.shape == (N_DFT // 3,)) or not np.isfinite(np.r_[k, mag, ph]).all():
         raise FeederError(f"feature file {path} must hold {N_DFT // 3} finite values per key")
     return np.stack([k, mag, ph], axis=1).ravel()
-
-
-def load_frame_deg(path) -> float:
-    """``frame_deg`` of a features JSON: where the part's feature frame lies in its own frame."""
-    path = Path(path)
-    try:
-        value = json.loads(path.read_text()).get("frame_deg")
-    except FileNotFoundError:
-        raise FeederError(f"feature file {path} is missing") from None
-    except OSError as err:
-        raise FeederError(f"feature file {path}: cannot read ({err.strerror})") from None
-    except (json.JSONDecodeError, UnicodeDecodeError, AttributeError) as err:
-        raise FeederError(f"feature file {path} is not a features JSON ({err})") from None
-    if value is None or not isinstance(value, (int, float)) or not math.isfinite(value):
-        raise FeederError(
-            f"feature file {path} has no frame_deg (its face cloud does not lie in the part's x-y plane, "
-            "or the file predates it: rerun `feeder features`); labels.frame: principal needs it"
-        )
-    return float(value)
 
 
 def check_label_frame(frame: str) -> str:

@@ -27,7 +27,7 @@ Configurations (``configurations(config, part_ids)``, pure and seeded by ids):
 
 Seeds derive from ``fences.seed`` and the part id, so adding a part never changes another part's
 configurations. The workflow calls :func:`configurations` at parse time: this module imports no
-more than numpy, pandas and :mod:`feeder.sim.fences`.
+more than numpy, pandas and :mod:`feeder.lane.fences`.
 """
 
 from __future__ import annotations
@@ -42,7 +42,7 @@ import numpy as np
 import pandas as pd
 
 from feeder.errors import FeederError
-from feeder.sim.fences import TYPES, Fence, config_id, parse_config_id
+from feeder.lane.fences import TYPES, Fence, config_id, parse_config_id
 
 DATASETS = ("main", "fences", "parts", "wide")
 PROTOCOL_SPLITS = ("train", "test", "fences", "parts")  # the paper's Main/Fences/Parts protocol

@@ -150,7 +150,7 @@ def check_ok_mass(label: Label, min_ok_mass: float, where: str) -> None:
 def _frame_deg(features: Path | None) -> float:
     if features is None:
         return 0.0
-    from feeder.labels.dataset import load_frame_deg
+    from feeder.parts.features import load_frame_deg
 
     return load_frame_deg(features)
 

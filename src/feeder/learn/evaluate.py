@@ -285,7 +285,7 @@ def baseline_predictions(data: dict, train_mask: np.ndarray, prior_grids=None) -
 
 def combo_label(config_id: str) -> str:
     """Fence-type combination of a configuration id: ``curved-1 + straight-2``, ``curved-2 only``."""
-    from feeder.sim.fences import parse_config_id
+    from feeder.lane.fences import parse_config_id
 
     loc1, loc2 = parse_config_id(config_id)
     present = [f"{f.type}-{i}" for i, f in ((1, loc1), (2, loc2)) if f.present]

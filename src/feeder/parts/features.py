@@ -438,6 +438,25 @@ def features_of_file(path: str | os.PathLike, settings: DFTSettings = DFT) -> di
     return out
 
 
+def load_frame_deg(path) -> float:
+    """``frame_deg`` of a features JSON: where the part's feature frame lies in its own frame."""
+    path = Path(path)
+    try:
+        value = json.loads(path.read_text()).get("frame_deg")
+    except FileNotFoundError:
+        raise FeederError(f"feature file {path} is missing") from None
+    except OSError as err:
+        raise FeederError(f"feature file {path}: cannot read ({err.strerror})") from None
+    except (json.JSONDecodeError, UnicodeDecodeError, AttributeError) as err:
+        raise FeederError(f"feature file {path} is not a features JSON ({err})") from None
+    if value is None or not isinstance(value, (int, float)) or not math.isfinite(value):
+        raise FeederError(
+            f"feature file {path} has no frame_deg (its face cloud does not lie in the part's x-y plane, "
+            "or the file predates it: rerun `feeder features`); labels.frame: principal needs it"
+        )
+    return float(value)
+
+
 def as_vector(features: dict[str, list]) -> np.ndarray:
     """The 45 raw values as triplets ``k1, |a1|, arg a1, k2, ...`` (docs/data.md)."""
     return np.column_stack([features[key] for key in TRIPLET_KEYS]).ravel()

@@ -152,8 +152,8 @@ from functools import lru_cache
 import numpy as np
 
 from feeder.errors import FeederError
+from feeder.lane.fences import Fence, parse_location
 from feeder.parts.geometry import _check_holes, clean_holes, clean_outline, profile_moments
-from feeder.sim.fences import Fence, parse_location
 
 FULL_TURN_DEG = 360.0
 HALF_TURN_DEG = 180.0
@@ -934,7 +934,7 @@ def exit_turn(part, edge: int, fence_angle_deg: float, side: int, mu: float) -> 
 @lru_cache(maxsize=1)
 def default_scene() -> dict:
     """The ``scene`` section of the study config (``config/config.yaml``), read once."""
-    from feeder.sim.scene import load_settings
+    from feeder.lane.settings import load_settings
 
     return load_settings()[0]
 
@@ -1320,7 +1320,7 @@ def push_features(
 ) -> np.ndarray:
     """The fixed-size feature block (:data:`PUSH_FEATURE_NAMES`, layout in the module doc) of a
     part (outline array, PartGeometry or PushGeometry) in a configuration (``none``,
-    ``straight:θ``, ``curved:θ`` or :class:`~feeder.sim.fences.Fence`). ``responses``: the
+    ``straight:θ``, ``curved:θ`` or :class:`~feeder.lane.fences.Fence`). ``responses``: the
     per-part memo of :func:`analytic_distribution`."""
     geom = as_geometry(part)
     scene = default_scene() if scene is None else scene

@@ -32,7 +32,8 @@ from pathlib import Path
 import numpy as np
 
 from feeder.errors import FeederError
-from feeder.sim.scene import FenceGeom, belt_contact
+from feeder.lane.geometry import FenceGeom
+from feeder.sim.scene import belt_contact, footprint_setting
 
 # Part collision filter: group bit 1 (dynamic) colliding only with static bodies (group bit 2).
 _PART_GROUP, _PART_MASK = 1, 2
@@ -44,9 +45,6 @@ _WALLS_GROUP, _BELT_GROUP, _PADS_GROUP = 2, 4, 8
 # mass so the totals stay exact. Measured: pad links carrying 1 % of the mass let the part slip on
 # the belt (2.4 mm/s at rest, turning); 50 % or 99 % ride exactly with it.
 _PAD_MASS_SHARE = 0.5
-# A part stands on its pads only when they surround its centre of mass: with 1 or 2 pads (on a line)
-# it tipped over and sank through the belt, which its pieces do not touch (measured).
-MIN_PADS = 3
 _MAX_COMPOUND = 16  # pybullet's createCollisionShapeArray silently drops shapes beyond 16
 # A part must be at least this many times as thick as the gap under the fences, or it slips
 # under them: measured (20 mm L-shape, fences 0.5 mm above the belt, 8 drops each), 0.6 mm
@@ -169,23 +167,6 @@ def footprint_pads(outline, count: int, samples_per_pad: int = 400, holes=()) ->
     pads = np.array(cells(pts, count, 0))
     c = poly.centroid
     return pads - pads.mean(axis=0) + np.array([c.x, c.y])
-
-
-def footprint_setting(scene: dict) -> tuple[str, int, float]:
-    """(model, pads, pad radius m) of ``scene.belt.footprint``; missing: the pieces (the paper's way)."""
-    fp = scene["belt"].get("footprint") or {}
-    model = fp.get("model", "pieces")
-    if model == "pieces":
-        return "pieces", 0, 0.0
-    if model != "pads":
-        raise FeederError(f"scene.belt.footprint.model: pieces or pads (got {model!r})")
-    count, radius = fp.get("pads"), fp.get("pad_radius")
-    if not isinstance(count, int) or count < MIN_PADS or radius is None or not float(radius) > 0:
-        raise FeederError(
-            f"scene.belt.footprint: pads (an integer >= {MIN_PADS}) and pad_radius (m, > 0) go with model: pads "
-            f"(got {count!r} and {radius!r})"
-        )
-    return "pads", count, float(radius)
 
 
 def quiet_pybullet():

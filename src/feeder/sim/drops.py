@@ -59,9 +59,9 @@ from typing import NamedTuple
 import numpy as np
 
 from feeder.errors import FeederError
+from feeder.lane.fences import Fence
+from feeder.lane.geometry import FenceGeom, scene_fences
 from feeder.sim.body import PartModel, Plan, World, part_model, quat_tilt_deg, quat_yaw
-from feeder.sim.fences import Fence
-from feeder.sim.scene import FenceGeom, scene_fences
 
 STATUSES = ("ok", "jammed", "fell_off", "timed_out", "flipped", "nan")
 PRESET_KEYS = ("time_step", "substeps", "solver_iterations", "lanes", "full_path", "skip_slides", "merge_tolerance")

@@ -1,29 +1,7 @@
-"""The simulated scene: its parameters (the ``scene`` config section), fence geometry, Table 1.
+"""The simulated scene beyond its fences: the belt's contact with the part, and Table 1.
 
-Coordinates (one *lane*, i.e. one belt with its walls and fences): the belt surface is the plane
-``z = 0``, parts travel along ``+y`` at ``belt.speed`` and ``x`` is across the belt, ``+x`` on the
-right-hand side of the direction of travel. Location 1 (downstream, ``y = 1.0``) is on the right,
-Location 2 (upstream, ``y = 0.5``) on the left (``scene.mirror`` swaps the sides).
-
-Fences (all sizes in the config, none in code):
-
-* **straight** at angle θ (between the fence and the direction of travel, 0 < θ < 90): a cuboid
-  whose wall end is at the slot ``(±slot_x, y0)`` (it continues into the wall, so nothing passes
-  behind it) and which runs downstream and inward at θ. Its length is chosen per angle so that its
-  free tip lies ``tip_past_centre`` beyond the belt centre line, where parts travel: every angle
-  sweeps the whole part lane (capped at ``max_length`` for tiny angles).
-* **curved** at angle θ (0 ≤ θ ≤ 90): an arc of radius ``r`` through the slot point
-  ``P0 = (±slot_x, y0)`` with centre ``C = (x0 − r·sin θ, y0 + r·cos θ)`` (the placement formula
-  of the paper, mirrored for the left side), i.e. a fixed arc rotated about ``P0`` by θ. The arc
-  leaves ``P0`` inward and spans ``span_deg``; it is built from ``segments`` boxes along the arc.
-
-With both locations in use, the upstream fence is cut back from its tip until it keeps
-``fences.min_gap`` from the downstream one (:func:`trim_to_gap`): a shallow upstream fence and a
-downstream one that both reach past the centre line would otherwise cross, and the closed V they
-form traps every part that enters it.
-
-A fence is a list of boxes ``(cx, cy, half_length, half_thickness, yaw)``; its footprint is a
-shapely polygon used to decide what a part's lane can reach.
+The fences' geometry is :mod:`feeder.lane.geometry`, the settings are read by
+:func:`feeder.lane.settings.load_settings`.
 
 ``feeder scene-table --out results/tables/table1.csv [--settings JSON]`` writes Table 1 (every
 physical parameter of the scene and of the simulation presets) from the config.
@@ -32,227 +10,17 @@ physical parameter of the scene and of the simulation presets) from the config.
 from __future__ import annotations
 
 import argparse
-import math
-import os
-from dataclasses import dataclass
-
-import numpy as np
 
 from feeder.errors import FeederError
-from feeder.sim.fences import Fence
+from feeder.lane.settings import load_settings
+
+# A part stands on its pads only when they surround its centre of mass: with 1 or 2 pads (on a line)
+# it tipped over and sank through the belt, which its pieces do not touch (measured).
+MIN_PADS = 3
 
 
 # --------------------------------------------------------------------------------------------
-# Settings
-# --------------------------------------------------------------------------------------------
-def load_settings(settings_json: str | None = None, root: str | os.PathLike | None = None):
-    """``(scene, presets)`` from a ``--settings`` JSON string or else from the study config.
-
-    The JSON holds ``{"scene": {...}, "presets": {...}}`` (or ``{"scene": ..., "sim": {"presets":
-    ...}}``: the config sections as they are). Without it, ``config/config.yaml`` of the study in
-    ``root`` is read by :func:`feeder.config.load_study_config`; ``root`` defaults to
-    :func:`feeder.config.study_root` (the working directory when it holds that file, else the
-    repository).
-    """
-    if settings_json is not None:
-        from feeder.config import parse_settings
-
-        data = parse_settings(settings_json)
-    else:
-        from feeder.config import load_study_config, study_root
-
-        data = load_study_config(root=study_root() if root is None else root)
-    presets = data.get("presets")
-    if presets is None:
-        presets = (data.get("sim") or {}).get("presets")
-    scene = data.get("scene")
-    if not isinstance(scene, dict):
-        raise FeederError("settings lack the 'scene' section")
-    if not isinstance(presets, dict) or not presets:
-        raise FeederError("settings lack the simulation presets ('presets' or 'sim.presets')")
-    return scene, presets
-
-
-# --------------------------------------------------------------------------------------------
-# Fence geometry (pure functions)
-# --------------------------------------------------------------------------------------------
-@dataclass(frozen=True)
-class FenceGeom:
-    """One built fence: boxes ``(cx, cy, half_length, half_thickness, yaw_rad)`` in lane coords."""
-
-    location: str
-    fence: Fence
-    side: int  # +1 right (x > 0), -1 left
-    boxes: tuple[tuple[float, float, float, float, float], ...]
-
-    def footprint(self):
-        """Union of the boxes' footprints (shapely)."""
-        from shapely.geometry import Polygon
-        from shapely.ops import unary_union
-
-        return unary_union([Polygon(box_corners(*b)) for b in self.boxes])
-
-    @property
-    def length(self) -> float:
-        return float(sum(2.0 * b[2] for b in self.boxes))
-
-
-def box_corners(cx, cy, hl, ht, yaw) -> np.ndarray:
-    """Corners (4, 2) CCW of a rectangle of half sizes (hl along yaw, ht across) centred at (cx, cy)."""
-    c, s = math.cos(yaw), math.sin(yaw)
-    u, v = np.array([c, s]), np.array([-s, c])
-    ctr = np.array([cx, cy])
-    return np.array([ctr - hl * u - ht * v, ctr + hl * u - ht * v, ctr + hl * u + ht * v, ctr - hl * u + ht * v])
-
-
-def segment_box(p, q, half_thickness: float, extend: float = 0.0):
-    """Box along the segment p→q (extended by ``extend`` at both ends)."""
-    p, q = np.asarray(p, float), np.asarray(q, float)
-    d = q - p
-    length = float(np.hypot(*d))
-    yaw = math.atan2(d[1], d[0])
-    mid = 0.5 * (p + q)
-    return (float(mid[0]), float(mid[1]), 0.5 * length + extend, half_thickness, yaw)
-
-
-def straight_length(theta_deg: float, slot_x: float, tip_past_centre: float, max_length: float) -> float:
-    """Length from the slot to the tip of a straight fence at θ (tip ``tip_past_centre`` past x = 0)."""
-    s = math.sin(math.radians(theta_deg))
-    return min(max_length, (slot_x + tip_past_centre) / s)
-
-
-def straight_polyline(theta_deg, side, slot_x, y0, tip_past_centre, max_length, wall_x):
-    """Centre line of a straight fence: from inside the wall (x = ±wall_x) through the slot to the tip."""
-    th = math.radians(theta_deg)
-    d = np.array([-side * math.sin(th), math.cos(th)])  # downstream and inward
-    anchor = np.array([side * slot_x, y0])
-    length = straight_length(theta_deg, slot_x, tip_past_centre, max_length)
-    back = (wall_x - slot_x) / math.sin(th)  # extend back into the wall
-    return np.array([anchor - back * d, anchor + length * d])
-
-
-def curved_polyline(theta_deg, side, slot_x, y0, radius, span_deg, segments, offset=0.0):
-    """Points along a curved fence's arc (radius ``radius``): centre per the placement formula.
-
-    Right-side frame: centre ``C = (x0 - r sin θ, y0 + r cos θ)``; the arc starts at the slot
-    point (polar angle θ - 90° seen from C) and runs clockwise (inward) over ``span_deg``. The
-    left side is the mirror image. Points lie at ``radius + offset`` from the centre (offset: the
-    outer face of a fence of that half thickness). Returns (segments + 1, 2) points and the centre.
-    """
-    th = math.radians(theta_deg)
-    cx, cy = slot_x - radius * math.sin(th), y0 + radius * math.cos(th)  # right-side frame
-    phi0 = th - math.pi / 2.0  # polar angle of the slot point seen from the centre
-    phis = phi0 - np.linspace(0.0, math.radians(span_deg), segments + 1)  # clockwise: inward
-    ro = radius + offset
-    pts = np.stack([cx + ro * np.cos(phis), cy + ro * np.sin(phis)], axis=1)
-    pts[:, 0] *= side
-    return pts, np.array([side * cx, cy])
-
-
-def arc_boxes(pts_outer: np.ndarray, centre: np.ndarray, half_thickness: float):
-    """Boxes whose outer faces are the chords of ``pts_outer`` (points on the outer circle).
-
-    Parts touch the convex (outer) side, which is then a convex chain without steps; the boxes
-    overlap only on the inner side.
-    """
-    boxes = []
-    for a, b in zip(pts_outer[:-1], pts_outer[1:]):
-        mid = 0.5 * (a + b)
-        out = mid - centre
-        out = out / np.hypot(*out)
-        cx, cy, hl, _, yaw = segment_box(a, b, half_thickness)
-        boxes.append(
-            (float(mid[0] - half_thickness * out[0]), float(mid[1] - half_thickness * out[1]), hl, half_thickness, yaw)
-        )
-    return tuple(boxes)
-
-
-def location_side(location: str, mirror: bool) -> int:
-    side = {"loc1": 1, "loc2": -1}[location]
-    return -side if mirror else side
-
-
-def fence_geometry(scene: dict, location: str, fence: Fence) -> FenceGeom | None:
-    """The boxes of the fence at ``location`` ('loc1'/'loc2'), or None for 'none'."""
-    if not fence.present:
-        return None
-    fc = scene["fences"]
-    side = location_side(location, bool(scene.get("mirror", False)))
-    y0 = float(fc["locations"][location]["y"])
-    ht = 0.5 * float(fc["thickness"])
-    if fence.type == "straight":
-        sc = fc["straight"]
-        slot_x = float(fc["slots"][sc["slot"]])
-        wall_x = float(scene["belt"]["half_width"]) + 0.5 * float(scene["walls"]["thickness"])
-        pts = straight_polyline(
-            fence.angle, side, slot_x, y0, float(sc["tip_past_centre"]), float(sc["max_length"]), wall_x
-        )
-        boxes = (segment_box(pts[0], pts[1], ht),)
-    else:
-        cc = fc["curved"]
-        slot_x = float(fc["slots"][cc["slot"]])
-        # the arc (radius r) is the fence's centre line; its outer face lies at r + thickness / 2
-        pts, centre = curved_polyline(
-            fence.angle, side, slot_x, y0, float(cc["radius"]), float(cc["span_deg"]), int(cc["segments"]), offset=ht
-        )
-        boxes = arc_boxes(pts, centre, ht)
-    return FenceGeom(location, fence, side, boxes)
-
-
-def trim_to_gap(up: FenceGeom, down: FenceGeom, gap: float, tol: float = 1e-4) -> FenceGeom:
-    """``up`` shortened from its free tip until its footprint is at least ``gap`` from ``down``.
-
-    Two fences from opposite sides that both reach past the centre line can cross (e.g. a long
-    upstream fence at 15° and a downstream one at 30°): their V is a trap that jams every part
-    entering it, which no feeder would be built with. A straight fence keeps its wall end and
-    loses length (bisection to ``tol``); a curved fence loses whole boxes from its tip.
-    """
-    target = down.footprint()
-    if up.footprint().distance(target) >= gap:
-        return up
-
-    def with_boxes(boxes):
-        return FenceGeom(up.location, up.fence, up.side, tuple(boxes))
-
-    if up.fence.type == "curved":
-        boxes = list(up.boxes)
-        while boxes and with_boxes(boxes).footprint().distance(target) < gap:
-            boxes.pop()
-        return with_boxes(boxes)
-    cx, cy, hl, ht, yaw = up.boxes[0]
-    d = np.array([math.cos(yaw), math.sin(yaw)])
-    wall_end = np.array([cx, cy]) - hl * d
-
-    def box_of(length):
-        mid = wall_end + 0.5 * length * d
-        return (float(mid[0]), float(mid[1]), 0.5 * length, ht, yaw)
-
-    lo, hi = 0.0, 2.0 * hl
-    while hi - lo > tol:
-        mid = 0.5 * (lo + hi)
-        if with_boxes([box_of(mid)]).footprint().distance(target) >= gap:
-            lo = mid
-        else:
-            hi = mid
-    return with_boxes([box_of(lo)] if lo > 0 else [])
-
-
-def scene_fences(scene: dict, loc1: Fence, loc2: Fence) -> list[FenceGeom]:
-    """Built fences, upstream first (Location 2 then Location 1).
-
-    The upstream fence is trimmed (:func:`trim_to_gap`) to keep ``fences.min_gap`` from the
-    downstream one, so that two fences never form a closed V.
-    """
-    up, down = fence_geometry(scene, "loc2", loc2), fence_geometry(scene, "loc1", loc1)
-    if up is not None and down is not None:
-        up = trim_to_gap(up, down, float(scene["fences"]["min_gap"]))
-        if not up.boxes:
-            up = None
-    return [f for f in (up, down) if f is not None]
-
-
-# --------------------------------------------------------------------------------------------
-# Table 1
+# The belt's contact with the part (read by feeder.sim.body; rows of Table 1)
 # --------------------------------------------------------------------------------------------
 def belt_contact(belt: dict) -> tuple[float, float] | None:
     """(stiffness N/m, damping N s/m) per contact point of a compliant belt, or None for a rigid one."""
@@ -265,6 +33,23 @@ def belt_contact(belt: dict) -> tuple[float, float] | None:
             f"both null = rigid contact (got {k!r} and {d!r})"
         )
     return float(k), float(d)
+
+
+def footprint_setting(scene: dict) -> tuple[str, int, float]:
+    """(model, pads, pad radius m) of ``scene.belt.footprint``; missing: the pieces (the paper's way)."""
+    fp = scene["belt"].get("footprint") or {}
+    model = fp.get("model", "pieces")
+    if model == "pieces":
+        return "pieces", 0, 0.0
+    if model != "pads":
+        raise FeederError(f"scene.belt.footprint.model: pieces or pads (got {model!r})")
+    count, radius = fp.get("pads"), fp.get("pad_radius")
+    if not isinstance(count, int) or count < MIN_PADS or radius is None or not float(radius) > 0:
+        raise FeederError(
+            f"scene.belt.footprint: pads (an integer >= {MIN_PADS}) and pad_radius (m, > 0) go with model: pads "
+            f"(got {count!r} and {radius!r})"
+        )
+    return "pads", count, float(radius)
 
 
 def belt_contact_row(belt: dict) -> tuple[str, str, str]:
@@ -287,8 +72,6 @@ def belt_contact_row(belt: dict) -> tuple[str, str, str]:
 
 def belt_footprint_row(scene: dict) -> tuple[str, str, str]:
     """Table 1 row of how the part's weight rests on the belt (``scene.belt.footprint``)."""
-    from feeder.sim.body import footprint_setting
-
     model, count, radius = footprint_setting(scene)
     if model == "pieces":
         return (

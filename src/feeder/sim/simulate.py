@@ -20,10 +20,10 @@ import numpy as np
 
 from feeder.errors import FeederError
 from feeder.labels.pushforward import DEFAULT_MIN_WIDTH_DEG, DEFAULT_N0, DEFAULT_TOLERANCE_DEG, Design, refine
+from feeder.lane.fences import Fence, config_id, parse_location
+from feeder.lane.settings import load_settings
 from feeder.parts.symmetry import check_order, rotational_order
 from feeder.sim.drops import STATUSES, YAW_SAMPLINGS, drop_seed, get_preset, initial_yaws, run_drops, run_each
-from feeder.sim.fences import Fence, config_id, parse_location
-from feeder.sim.scene import load_settings
 
 
 def symmetry_order(geom, setting) -> int:
