@@ -1,0 +1,97 @@
+"""Mark a clone's committed results current, so Snakemake reruns only what their inputs need.
+
+Git writes a checkout's files in index order, not in the order the workflow made them: in a fresh
+clone ``src/`` is written after ``results/``, so every committed table and figure looks older than
+its code, and Snakemake plans the whole study (all simulations) to redraw one figure.
+
+:func:`mark_current` gives every committed result (the tracked files under ``results/`` and
+``models/`` whose content is as committed, and their folders) one modification time: the newest
+of the checkout's unmodified tracked files. A committed output is then as new as its code, its
+configuration and its committed inputs, so Snakemake reruns nothing for it; whatever is edited
+afterwards (code, config, a committed table) is newer and reruns what depends on it, as usual. A
+file that differs from ``HEAD`` keeps its time, so a local edit is never hidden.
+
+Files that are not committed (``results/sim/``, the dataset, the trained models) are left alone:
+Snakemake builds a missing intermediate only when a job that needs it runs, so a committed table
+whose inputs are not committed (a table built from the simulations) is not rebuilt when only its
+figure is asked for. Snakemake's other rerun triggers (params, code, the set of inputs) compare
+with its own records in ``.snakemake/``, which a clone does not have; they count from a job's
+first run in the clone.
+
+Run it once after cloning or pulling: ``make fresh`` (``python -m feeder.fresh``).
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path, PurePosixPath
+
+from feeder.errors import FeederError
+
+# Where the workflow writes what the repository commits: the study's results folder (config key
+# `results`, overlays below it) and the shipped models (models.export_dir); tests/test_fresh.py
+# checks these against config/config.yaml.
+COMMITTED_OUTPUTS = ("results", "models")
+
+
+def _git_paths(root: Path, *args: str) -> list[str]:
+    """Paths (relative to ``root``) that ``git ARGS -z`` lists."""
+    try:
+        proc = subprocess.run(["git", *args, "-z"], cwd=root, capture_output=True, text=True)
+    except FileNotFoundError as exc:
+        raise FeederError("git not found on PATH: marking committed results needs a git checkout") from exc
+    if proc.returncode != 0:
+        raise FeederError(f"{root} is not a git checkout: {proc.stderr.strip().splitlines()[-1:]}")
+    return [p for p in proc.stdout.split("\0") if p]
+
+
+def clean_tracked(root: str | os.PathLike = ".") -> list[str]:
+    """The tracked files of the checkout at ``root`` whose working copy is as committed in ``HEAD``."""
+    root = Path(root)
+    changed = set(_git_paths(root, "diff", "--name-only", "HEAD"))
+    return [p for p in _git_paths(root, "ls-files") if p not in changed and os.path.lexists(root / p)]
+
+
+def in_folders(path: str, folders=COMMITTED_OUTPUTS) -> bool:
+    """Whether the relative POSIX ``path`` lies below one of ``folders``."""
+    return any(PurePosixPath(path).is_relative_to(f) for f in folders)
+
+
+def mark_current(root: str | os.PathLike = ".", folders=COMMITTED_OUTPUTS) -> tuple[list[str], float]:
+    """Give the committed outputs under ``folders`` (and their folders) the modification time of the
+    newest unmodified tracked file of the checkout at ``root``. Returns the files marked and the
+    time (seconds since the epoch)."""
+    root = Path(root)
+    clean = clean_tracked(root)
+    if not clean:
+        raise FeederError(f"{root}: no tracked file as committed")
+    stamp = max((root / p).lstat().st_mtime for p in clean)
+    marked = [p for p in clean if in_folders(p, folders) and not (root / p).is_symlink()]
+    dirs = {str(d) for p in marked for d in PurePosixPath(p).parents if in_folders(str(d), folders)}
+    for p in [*marked, *sorted(dirs)]:
+        os.utime(root / p, (stamp, stamp), follow_symlinks=False)
+    return marked, stamp
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``python -m feeder.fresh [ROOT]``: mark the committed results of the checkout at ROOT current."""
+    import argparse
+    import time
+
+    parser = argparse.ArgumentParser(prog="python -m feeder.fresh", description=__doc__.split("\n\n")[0])
+    parser.add_argument("root", nargs="?", default=".", help="the checkout (default: the current folder)")
+    args = parser.parse_args(argv)
+    try:
+        marked, stamp = mark_current(args.root)
+    except FeederError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    when = time.strftime("%Y-%m-%d %H:%M:%S", time.localtime(stamp))
+    print(f"{len(marked)} committed results under {', '.join(COMMITTED_OUTPUTS)} marked current ({when})")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
