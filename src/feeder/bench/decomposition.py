@@ -1,0 +1,562 @@
+"""Is the belt friction a property of the part, or of how it was cut? (``feeder bench-decomposition``).
+
+Issue #37, item 1. The same part is built under several valid convex decompositions (pure
+functions below: the library's own pieces, a constrained triangulation, a fan from the centroid,
+strips across the long axis, cuts through every reflex vertex along one edge or the other), each
+substituted for ``geom.convex_pieces`` and simulated exactly as given (the merge of
+:func:`feeder.sim.body.merge_pieces` is bypassed: at tolerance 0 it fuses back any pieces whose
+union is convex, e.g. a rectangle's two triangles). Each decomposition runs under each contact
+model (``pieces``: each convex piece touches the belt; ``padsK``: K footprint pads of uniform
+pressure, :func:`feeder.sim.body.footprint_pads`) with the same initial yaws (offset ``a``), one
+drop per world (:func:`feeder.sim.drops.run_each`), so drop ``i`` of two runs is paired.
+
+A model's **floor** comes from its own runs of the library decomposition: paired, the same drops
+with every initial yaw ``nudge_deg`` later (same-basin fraction, median |Δ final yaw|); by the
+label, the label of offset ``a`` against that of offset ``b``, a second seeded offset of the same
+design (sup|ΔCDF|, circular W1). A comparison **passes** when every one of its four distances is
+within ``floor_factor`` times the floor (the missed-basin share's floor is at least one drop in
+``drops``: a floor measured on a few dozen drops is itself uncertain). A model passes the
+decomposition test when every decomposition pair of every part and configuration passes; the pad
+counts are **converged** when two pad counts pass the same test against each other (each
+decomposition, floor: the larger of the two models' floors).
+
+Raw drops (``--out-raw``, one row per drop) are kept; ``--from-raw`` rebuilds the table from them
+without simulating.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import copy
+import dataclasses
+import itertools
+import math
+import re
+import sys
+import time
+from multiprocessing import get_context
+
+import numpy as np
+import pandas as pd
+
+from feeder.errors import FeederError
+
+PIECES = "pieces"
+LIBRARY = "library"
+_STRIPS = re.compile(r"^strips([2-9])$")
+NAMED = ("library", "triangles", "fan", "cut_in", "cut_out", "greedy")  # and strips2 ... strips9
+_AREA_RTOL = 1e-9  # relative area slack of the tiling check (float round-off of the cuts)
+
+
+# ----------------------------------------------------------------------------------------------
+# Decompositions (pure)
+# ----------------------------------------------------------------------------------------------
+def _polygon(outline, holes=()):
+    from shapely.geometry import Polygon
+
+    return Polygon(np.asarray(outline, np.float64), [np.asarray(h, np.float64) for h in holes])
+
+
+def _convex_parts(poly) -> list[np.ndarray]:
+    """A shapely polygon (possibly with holes) as convex pieces: itself when convex, else the
+    library's exact decomposition of it (:func:`feeder.parts.geometry.convex_decomposition`)."""
+    from shapely.geometry.polygon import orient
+
+    from feeder.parts.geometry import clean_outline, convex_decomposition, is_convex
+
+    poly = orient(poly, 1.0)
+    outline = clean_outline(np.asarray(poly.exterior.coords)[:-1], rel_tol=1e-12)
+    holes = [clean_outline(np.asarray(r.coords)[:-1], rel_tol=1e-12) for r in poly.interiors]
+    if not holes and is_convex(outline):
+        return [outline]
+    return [np.asarray(p, np.float64) for p in convex_decomposition(outline, holes)]
+
+
+def _explode(geometry) -> list:
+    """The polygons (of positive area) of a shapely geometry."""
+    if geometry.is_empty:
+        return []
+    if geometry.geom_type == "Polygon":
+        return [geometry] if geometry.area > 0 else []
+    return [g for part in getattr(geometry, "geoms", []) for g in _explode(part)]
+
+
+def cut_by_lines(outline, lines, holes=()) -> list[np.ndarray]:
+    """The region (outline less holes) cut along full lines ``(point, direction)``, then each cell
+    made convex (:func:`_convex_parts`). The cells tile the region exactly."""
+    poly = _polygon(outline, holes)
+    x0, y0, x1, y1 = poly.bounds
+    reach = 4.0 * math.hypot(x1 - x0, y1 - y0)
+    cells = [poly]
+    for point, direction in lines:
+        p, d = np.asarray(point, np.float64), np.asarray(direction, np.float64)
+        d = d / np.linalg.norm(d)
+        n = np.array([-d[1], d[0]])
+        a, b = p - reach * d, p + reach * d
+        left = _polygon([a, b, b + reach * n, a + reach * n])
+        right = _polygon([a, a - reach * n, b - reach * n, b])
+        cells = [g for c in cells for half in (left, right) for g in _explode(c.intersection(half))]
+    return [piece for c in cells for piece in _convex_parts(c)]
+
+
+def long_axis(outline, holes=()) -> float:
+    """Angle (rad) of the region's principal long axis (largest ∫x'² about the centroid)."""
+    from feeder.parts.geometry import profile_moments
+
+    _, _, (sy, sx, sxy) = profile_moments(np.asarray(outline, np.float64), [np.asarray(h) for h in holes])
+    return 0.5 * math.atan2(2.0 * sxy, sx - sy)
+
+
+def strips(outline, count: int, holes=()) -> list[np.ndarray]:
+    """``count`` strips of equal width across the long axis (cut perpendicular to it), each made
+    convex: a rectangle in ``count`` rectangles."""
+    count = int(count)
+    if count < 1:
+        raise FeederError(f"strips: need at least one strip (got {count})")
+    angle = long_axis(outline, holes)
+    axis = np.array([math.cos(angle), math.sin(angle)])
+    along = np.asarray(outline, np.float64) @ axis
+    lo, hi = float(along.min()), float(along.max())
+    normal = np.array([-axis[1], axis[0]])
+    cuts = [(axis * (lo + (hi - lo) * k / count), normal) for k in range(1, count)]
+    return cut_by_lines(outline, cuts, holes)
+
+
+def triangles(outline, holes=()) -> list[np.ndarray]:
+    """The constrained Delaunay triangles of the region (:func:`feeder.parts.geometry.triangulate`)."""
+    from feeder.parts.geometry import profile_vertices, triangulate
+
+    verts = profile_vertices(np.asarray(outline, np.float64), holes)
+    return [verts[list(t)] for t in triangulate(np.asarray(outline, np.float64), holes)]
+
+
+def fan(outline) -> list[np.ndarray]:
+    """Triangles from the area centroid to every edge of a convex outline (a rectangle in four)."""
+    from feeder.parts.geometry import is_convex, polygon_moments
+
+    outline = np.asarray(outline, np.float64)
+    if not is_convex(outline):
+        raise FeederError("fan: the outline is not convex (its centroid need not see every edge)")
+    _, c, _ = polygon_moments(outline)
+    return [np.array([c, outline[i], outline[(i + 1) % len(outline)]]) for i in range(len(outline))]
+
+
+def reflex_cuts(outline, edge: str, holes=()) -> list[np.ndarray]:
+    """Cut along a full line through every reflex vertex of the CCW outline, in the direction of
+    its incoming edge (``edge="in"``) or its outgoing one (``"out"``), then make each cell convex:
+    an L in two rectangles one way or the other."""
+    if edge not in ("in", "out"):
+        raise FeederError(f"reflex cuts: edge is 'in' or 'out' (got {edge!r})")
+    pts = np.asarray(outline, np.float64)
+    lines = []
+    for i in range(len(pts)):
+        prev, here, nxt = pts[i - 1], pts[i], pts[(i + 1) % len(pts)]
+        e_in, e_out = here - prev, nxt - here
+        if e_in[0] * e_out[1] - e_in[1] * e_out[0] < 0:  # turns clockwise: reflex
+            lines.append((here, e_in if edge == "in" else e_out))
+    if not lines:
+        raise FeederError("reflex cuts: the outline has no reflex vertex")
+    return cut_by_lines(pts, lines, holes)
+
+
+def greedy(outline, holes=()) -> list[np.ndarray]:
+    """The triangles merged pair by pair in list order while the union stays convex
+    (:func:`feeder.sim.body.merge_pieces` at tolerance 0): Hertel–Mehlhorn in another order."""
+    from feeder.sim.body import merge_pieces
+
+    return [np.asarray(p, np.float64) for p in merge_pieces(triangles(outline, holes), 0.0)]
+
+
+def decompose(geom, name: str, merge_tolerance: float) -> list[np.ndarray]:
+    """The pieces of decomposition ``name`` of a :class:`~feeder.parts.geometry.PartGeometry`:
+    ``library`` (the study's own: the library pieces merged at the preset's ``merge_tolerance``,
+    what every simulation uses), ``triangles``, ``fan``, ``stripsK``, ``cut_in``, ``cut_out``,
+    ``greedy``. Checked by :func:`check_decomposition`."""
+    from feeder.sim.body import merge_pieces
+
+    outline, holes = np.asarray(geom.outline, np.float64), list(geom.holes)
+    strip = _STRIPS.match(name)
+    if name == LIBRARY:
+        pieces = merge_pieces(geom.convex_pieces, float(merge_tolerance))
+    elif name == "triangles":
+        pieces = triangles(outline, holes)
+    elif name == "fan":
+        pieces = fan(outline) if not holes else None
+        if pieces is None:
+            raise FeederError(f"part {geom.part_id}: fan needs a part without holes")
+    elif name in ("cut_in", "cut_out"):
+        pieces = reflex_cuts(outline, name[4:], holes)
+    elif name == "greedy":
+        pieces = greedy(outline, holes)
+    elif strip:
+        pieces = strips(outline, int(strip.group(1)), holes)
+    else:
+        raise FeederError(f"decomposition {name!r}: one of {', '.join(NAMED)} or strips2 ... strips9")
+    pieces = [np.asarray(p, np.float64) for p in pieces]
+    check_decomposition(outline, pieces, holes, what=f"part {geom.part_id}, {name}")
+    return pieces
+
+
+def check_decomposition(outline, pieces, holes=(), what: str = "decomposition") -> None:
+    """FeederError unless ``pieces`` are convex polygons that tile the region: each convex and of
+    positive area, their areas summing to the region's (no overlap) and their union equal to it."""
+    from shapely.ops import unary_union
+
+    from feeder.parts.geometry import clean_outline, is_convex
+
+    region = _polygon(outline, holes)
+    polys = []
+    for k, p in enumerate(pieces):
+        poly = _polygon(p)
+        if not poly.is_valid or poly.area <= 0 or not is_convex(clean_outline(p, rel_tol=1e-12)):
+            raise FeederError(f"{what}: piece {k} is not a convex polygon with an area")
+        polys.append(poly)
+    total, union = sum(p.area for p in polys), unary_union(polys)
+    slack = _AREA_RTOL * region.area
+    if abs(total - region.area) > slack or union.symmetric_difference(region).area > slack:
+        raise FeederError(
+            f"{what}: the pieces do not tile the part (areas {total:.6g} summed, union off by "
+            f"{union.symmetric_difference(region).area:.3g}, part {region.area:.6g})"
+        )
+
+
+def with_pieces(geom, pieces):
+    """The part with ``pieces`` for its convex pieces (nothing else changes)."""
+    return dataclasses.replace(geom, convex_pieces=[np.asarray(p, np.float64) for p in pieces])
+
+
+@contextlib.contextmanager
+def pieces_as_given():
+    """Within the block, :func:`feeder.sim.body.part_model` simulates the pieces exactly as given
+    (its merge is bypassed); :func:`run_decomposition` checks that it took."""
+    import feeder.sim.body as body
+
+    saved = body.merge_pieces
+    body.merge_pieces = lambda pieces, tolerance: [np.asarray(p, np.float64) for p in pieces]
+    try:
+        yield
+    finally:
+        body.merge_pieces = saved
+
+
+# ----------------------------------------------------------------------------------------------
+# Runs (simulation)
+# ----------------------------------------------------------------------------------------------
+def model_scene(scene: dict, model: str) -> dict:
+    """The scene under contact model ``pieces`` or ``padsK`` (:func:`feeder.bench.contact.footprint_scene`)."""
+    from feeder.bench.contact import footprint_scene
+
+    if model != PIECES and not re.fullmatch(r"pads[1-9][0-9]*", model):
+        raise FeederError(f"contact model {model!r}: pieces or padsK (K pads)")
+    return footprint_scene(scene, model, float(scene["belt"]["footprint"]["pad_radius"]))
+
+
+def run_decomposition(geom, pieces, config: str, yaws, scene: dict, preset: dict) -> dict:
+    """The drops of one decomposition, one drop per world, pieces as given: final yaws, statuses,
+    process CPU seconds."""
+    from feeder.lane.fences import parse_location
+    from feeder.sim.body import part_model
+    from feeder.sim.drops import run_each
+
+    part = with_pieces(geom, pieces)
+    loc1, loc2 = config.split("|")
+    with pieces_as_given():
+        built = part_model(part, scene, float(preset["merge_tolerance"]))
+        if len(built.pieces) > len(pieces):
+            raise FeederError(f"part {geom.part_id}: the simulated part has more pieces than given")
+        start = time.process_time()
+        out = run_each(part, parse_location(loc1), parse_location(loc2), np.asarray(yaws, np.float64), scene, preset)
+        cpu = time.process_time() - start
+    return {"final_yaw_deg": out["final_yaw_deg"], "status": out["status"].astype(str), "cpu_s": cpu}
+
+
+def plan_runs(bench: dict, base_seed: int) -> list[dict]:
+    """Every run of the bench: per part, configuration and model, each decomposition at offset
+    ``a``, and the library decomposition nudged by ``nudge_deg`` and at offset ``b``."""
+    from feeder.sim.drops import drop_seed, initial_yaws
+
+    drops, sampling, nudge = int(bench["drops"]), str(bench["sampling"]), float(bench["nudge_deg"])
+    runs = []
+    for part, names in bench["parts"].items():
+        names = [LIBRARY] + [n for n in names if n != LIBRARY]
+        for config in bench["configurations"]:
+            yaws = {
+                tag: initial_yaws(drop_seed(part, config, base_seed + offset), drops, sampling)
+                for tag, offset in (("a", 0), ("b", int(bench["offset_b_seed"])))
+            }
+            for model in bench["models"]:
+                plan = [(n, "a", 0.0) for n in names] + [(LIBRARY, "a", nudge), (LIBRARY, "b", 0.0)]
+                runs += [
+                    {
+                        "part": part,
+                        "configuration": config,
+                        "model": model,
+                        "decomposition": name,
+                        "offset": tag,
+                        "yaw_shift_deg": shift,
+                        "yaws": yaws[tag] + shift,
+                    }
+                    for name, tag, shift in plan
+                ]
+    return runs
+
+
+def _job(job):
+    run, parts_dir, scene, preset = job
+    from feeder.parts.geometry import load_part
+
+    geom = load_part(f"{parts_dir}/{run['part']}.stl")
+    pieces = decompose(geom, run["decomposition"], float(preset["merge_tolerance"]))
+    out = run_decomposition(geom, pieces, run["configuration"], run["yaws"], model_scene(scene, run["model"]), preset)
+    return run, len(pieces), out
+
+
+# ----------------------------------------------------------------------------------------------
+# The table (pure: from the raw drops)
+# ----------------------------------------------------------------------------------------------
+def label_cdf(final, status, bins: int, sigma: float) -> np.ndarray | None:
+    """CDF of the label of a run's ok drops (None without one)."""
+    from feeder.labels import metrics as L
+
+    ok = np.asarray(status).astype(str) == "ok"
+    if not ok.any():
+        return None
+    return L.cdf(L.pmf_from_yaws(np.asarray(final, np.float64)[ok], bins, sigma))
+
+
+def compare(x: pd.DataFrame, y: pd.DataFrame, bins: int, sigma: float) -> dict:
+    """Two runs of the same drops: same-basin fraction and median |Δ final yaw| (paired,
+    :func:`feeder.bench.designs.paired_basins`), sup|ΔCDF| and circular W1 of their labels."""
+    from feeder.bench.designs import paired_basins
+    from feeder.labels import metrics as L
+
+    x, y = x.sort_values("drop"), y.sort_values("drop")
+    out = {}
+    if len(x) == len(y):
+        pair = paired_basins(x["final_yaw_deg"], x["status"], y["final_yaw_deg"], y["status"])
+        out |= {"same_basin": pair["same_basin"], "median_dyaw_deg": pair["median_dyaw_deg"]}
+    else:
+        out |= {"same_basin": math.nan, "median_dyaw_deg": math.nan}
+    a, b = (
+        label_cdf(x["final_yaw_deg"], x["status"], bins, sigma),
+        label_cdf(y["final_yaw_deg"], y["status"], bins, sigma),
+    )
+    if a is None or b is None:
+        out |= {"sup_cdf": math.nan, "circular_w1_deg": math.nan}
+    else:
+        out |= {"sup_cdf": float(L.ks(a, b)), "circular_w1_deg": float(L.circular_w1(a, b))}
+    return out
+
+
+METRICS = ("same_basin", "median_dyaw_deg", "sup_cdf", "circular_w1_deg")
+
+
+PAIRED, LABEL = METRICS[:2], METRICS[2:]
+
+
+def within_floor(row: dict, floor: dict, drops: int, factor: float, metrics=METRICS) -> bool:
+    """Every distance of ``metrics`` in ``row`` within ``factor`` times ``floor``'s: the missed-basin
+    share (1 - same basin; its floor at least one drop in ``drops``), median |Δyaw|, sup|ΔCDF|,
+    circular W1. A NaN distance passes only where its floor is NaN too (e.g. no ok drop in either)."""
+    checks = []
+    for k in metrics:
+        if k == "same_basin":  # in missed drops (whole numbers: no round-off at the bound)
+            missed = lambda share: float(round((1.0 - share) * drops)) if not math.isnan(share) else math.nan  # noqa: E731
+            checks.append((missed(row[k]), max(missed(floor[k]), 1.0)))
+        else:
+            checks.append((row[k], floor[k]))
+    for value, bound in checks:
+        if math.isnan(value) or math.isnan(bound):
+            if not (math.isnan(value) and math.isnan(bound)):
+                return False
+            continue
+        if value > factor * bound:
+            return False
+    return True
+
+
+def summarize(raw: pd.DataFrame, bins: int, sigma: float, factor: float) -> pd.DataFrame:
+    """The table from the raw drops: per (part, configuration, model) its floor and one row per
+    decomposition pair (``kind = decomposition``); per (part, configuration, decomposition) one row
+    per pair of pad counts (``kind = convergence``); then one ``verdict`` row per model and per pad
+    pair (``part = all``): rows passed out of rows, CPU per drop."""
+    runs = {
+        key: g for key, g in raw.groupby(["part", "configuration", "model", "decomposition", "offset", "yaw_shift_deg"])
+    }
+    floors, rows = {}, []
+    for (part, config, model), g in raw.groupby(["part", "configuration", "model"], sort=True):
+        plain = runs[(part, config, model, LIBRARY, "a", 0.0)]
+        nudged = g[(g["decomposition"] == LIBRARY) & (g["yaw_shift_deg"] != 0)]
+        other = runs[(part, config, model, LIBRARY, "b", 0.0)]
+        paired, labels = compare(plain, nudged, bins, sigma), compare(plain, other, bins, sigma)
+        floors[(part, config, model)] = floor = {
+            "same_basin": paired["same_basin"],
+            "median_dyaw_deg": paired["median_dyaw_deg"],
+            "sup_cdf": labels["sup_cdf"],
+            "circular_w1_deg": labels["circular_w1_deg"],
+        }
+        names = sorted(g.loc[g["offset"] == "a", "decomposition"].unique(), key=lambda n: (n != LIBRARY, n))
+        for x, y in itertools.combinations(names, 2):
+            rx, ry = runs[(part, config, model, x, "a", 0.0)], runs[(part, config, model, y, "a", 0.0)]
+            rows.append(_row("decomposition", part, config, model, x, y, rx, ry, floor, bins, sigma, factor))
+    pads = sorted((m for m in raw["model"].unique() if m != PIECES), key=lambda m: int(m[4:]))
+    for (part, config, name), _ in raw[raw["offset"] == "a"].groupby(["part", "configuration", "decomposition"]):
+        for m1, m2 in zip(pads, pads[1:]):
+            rx, ry = runs.get((part, config, m1, name, "a", 0.0)), runs.get((part, config, m2, name, "a", 0.0))
+            if rx is None or ry is None:
+                continue
+            f1, f2 = floors[(part, config, m1)], floors[(part, config, m2)]
+            floor = {"same_basin": min(f1["same_basin"], f2["same_basin"])} | {
+                k: float(np.nanmax([f1[k], f2[k]])) if not (math.isnan(f1[k]) and math.isnan(f2[k])) else math.nan
+                for k in METRICS[1:]
+            }
+            rows.append(_row("convergence", part, config, f"{m1}~{m2}", name, name, rx, ry, floor, bins, sigma, factor))
+    table = pd.DataFrame(rows)
+    cpu = {
+        m: 1000.0
+        * g.groupby(["part", "configuration", "decomposition", "offset", "yaw_shift_deg"])["cpu_s"].first().sum()
+        / len(g)
+        for m, g in raw.groupby("model")
+    }
+    verdicts = []
+    for (kind, model), g in table.groupby(["kind", "model"], sort=False):
+        verdicts.append(
+            {
+                "kind": "verdict",
+                "part": "all",
+                "configuration": "all",
+                "model": model,
+                "decomposition_a": kind,
+                "rows": len(g),
+                "rows_passed": int(g["passes"].sum()),
+                "rows_passed_paired": int(g["passes_paired"].sum()),
+                "rows_passed_label": int(g["passes_label"].sum()),
+                "passes_paired": bool(g["passes_paired"].all()),
+                "passes_label": bool(g["passes_label"].all()),
+                "passes": bool(g["passes"].all()),
+                "cpu_ms_per_drop": cpu.get(model, math.nan),
+            }
+            | {k: float(g[k].median()) for k in METRICS}
+            | {f"floor_{k}": float(g[f"floor_{k}"].median()) for k in METRICS}
+        )
+    return pd.concat([table, pd.DataFrame(verdicts)], ignore_index=True)
+
+
+def _row(kind, part, config, model, x, y, rx, ry, floor, bins, sigma, factor) -> dict:
+    dist = compare(rx, ry, bins, sigma)
+    drops = len(rx)
+    return {
+        "kind": kind,
+        "part": part,
+        "configuration": config,
+        "model": model,
+        "decomposition_a": x,
+        "decomposition_b": y,
+        "pieces_a": int(rx["pieces"].iloc[0]),
+        "pieces_b": int(ry["pieces"].iloc[0]),
+        "drops": drops,
+        "ok_rate_a": float(np.mean(rx["status"] == "ok")),
+        "ok_rate_b": float(np.mean(ry["status"] == "ok")),
+        **dist,
+        **{f"floor_{k}": v for k, v in floor.items()},
+        "passes_paired": within_floor(dist, floor, drops, factor, PAIRED),
+        "passes_label": within_floor(dist, floor, drops, factor, LABEL),
+        "passes": within_floor(dist, floor, drops, factor),
+    }
+
+
+# ----------------------------------------------------------------------------------------------
+# Command
+# ----------------------------------------------------------------------------------------------
+def main(argv: list[str]) -> int:
+    parser = argparse.ArgumentParser(prog="feeder bench-decomposition", description=__doc__.splitlines()[0])
+    parser.add_argument("--settings", required=True, help="JSON {scene, sim, parts, labels} config sections")
+    parser.add_argument("--out-csv", required=True)
+    parser.add_argument("--out-raw", help="every drop (CSV): initial and final yaw, status, CPU of its run")
+    parser.add_argument("--from-raw", help="rebuild the table from these raw drops (no simulation)")
+    args = parser.parse_args(argv)
+    if not (args.out_raw or args.from_raw):
+        raise FeederError("bench-decomposition: --out-raw (simulate) or --from-raw (table only)")
+    from feeder.config import parse_settings
+
+    cfg = parse_settings(args.settings, "scene", "sim", "parts", "labels")
+    from feeder.io import write_csv
+    from feeder.sim.drops import get_preset
+
+    try:
+        scene, sim_cfg, parts_dir = cfg["scene"], cfg["sim"], cfg["parts"]["dir"]
+        bench, base_seed = sim_cfg["decomposition_bench"], int(sim_cfg["base_seed"])
+        preset = get_preset(sim_cfg["presets"], bench["preset"])
+        bins, sigma = int(cfg["labels"]["bins"]), float(cfg["labels"]["sigma_bins"])
+        factor, workers = float(bench["floor_factor"]), max(1, int(bench["workers"]))
+        for model in bench["models"]:
+            model_scene(scene, model)
+    except (KeyError, TypeError, ValueError) as err:
+        raise FeederError(f"--settings lacks or mistypes {err}") from None
+    if args.from_raw:
+        raw = read_raw(args.from_raw)
+    else:
+        raw = simulate_all(bench, base_seed, parts_dir, scene, preset, workers)
+        write_csv(args.out_raw, raw)
+    table = summarize(raw, bins, sigma, factor)
+    write_csv(args.out_csv, table)
+    for _, v in table[table["kind"] == "verdict"].iterrows():
+        print(
+            f"{v['decomposition_a']:>13} {v['model']:>13}: {'passes' if v['passes'] else 'FAILS '} "
+            f"({v['rows_passed']:.0f}/{v['rows']:.0f} rows; paired {v['rows_passed_paired']:.0f}, label "
+            f"{v['rows_passed_label']:.0f}), {v['cpu_ms_per_drop']:.0f} ms/drop; median "
+            f"same basin {v['same_basin']:.2f} (floor {v['floor_same_basin']:.2f}), |dyaw| {v['median_dyaw_deg']:.2f} "
+            f"deg ({v['floor_median_dyaw_deg']:.2f}), sup|dCDF| {v['sup_cdf']:.3f} ({v['floor_sup_cdf']:.3f}), "
+            f"W1 {v['circular_w1_deg']:.2f} deg ({v['floor_circular_w1_deg']:.2f})",
+            file=sys.stderr,
+        )
+    return 0
+
+
+def read_raw(path) -> pd.DataFrame:
+    """The raw drops written by ``--out-raw`` (a status ``nan`` stays a string; an empty cell is NaN)."""
+    try:
+        return pd.read_csv(path, dtype={"status": str, "offset": str}, keep_default_na=False, na_values=[""])
+    except (OSError, pd.errors.ParserError, pd.errors.EmptyDataError) as err:
+        raise FeederError(f"--from-raw {path}: {err}") from None
+
+
+def simulate_all(bench, base_seed, parts_dir, scene, preset, workers) -> pd.DataFrame:
+    """Every run of :func:`plan_runs` (dearest first, ``workers`` processes): the raw drops."""
+    from feeder.parts.geometry import load_part
+
+    runs = plan_runs(bench, base_seed)
+    for part, names in bench["parts"].items():  # every decomposition is valid before anything runs
+        geom = load_part(f"{parts_dir}/{part}.stl")
+        for name in [LIBRARY, *names]:
+            decompose(geom, name, float(preset["merge_tolerance"]))
+    jobs = [(run, parts_dir, copy.deepcopy(scene), preset) for run in runs]
+    jobs.sort(key=lambda j: (j[0]["model"] != PIECES, j[0]["decomposition"] == LIBRARY))
+    bar = None
+    if sys.stderr.isatty():
+        from tqdm import tqdm
+
+        bar = tqdm(total=len(jobs), unit="run", file=sys.stderr)
+    records = []
+    with get_context("fork").Pool(workers) as pool:
+        for run, count, out in pool.imap_unordered(_job, jobs):
+            keys = {k: v for k, v in run.items() if k != "yaws"}
+            records += [
+                keys
+                | {
+                    "pieces": count,
+                    "drop": i,
+                    "initial_yaw_deg": float(y0),
+                    "final_yaw_deg": float(y),
+                    "status": s,
+                    "cpu_s": out["cpu_s"],
+                }
+                for i, (y0, y, s) in enumerate(zip(run["yaws"], out["final_yaw_deg"], out["status"]))
+            ]
+            if bar is not None:
+                bar.update(1)
+    if bar is not None:
+        bar.close()
+    keys = ["part", "configuration", "model", "decomposition", "offset", "yaw_shift_deg", "drop"]
+    return pd.DataFrame(records).sort_values(keys, ignore_index=True)
