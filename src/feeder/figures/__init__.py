@@ -4,7 +4,9 @@ A compute stage writes the numbers a figure shows to a data file (CSV or NPZ); t
 after the figure reads that file and draws it. The workflow gives every figure its own rule whose
 inputs are its data file(s), its module, :mod:`feeder.figures.style` and this file, so editing
 one figure's look reruns only that figure. Each module has ``draw(...) -> Figure`` (from the data)
-and ``main(argv)`` (``feeder figure <name> --data FILE --out PNG``).
+and ``main(argv)`` (``feeder figure <name> --data FILE --out PNG``). Every data file is small and
+committed with its figure (``results/tables/`` or ``results/figdata/``), so a clone redraws any
+figure from its data alone, without the simulations behind it (``make fresh``, :mod:`feeder.fresh`).
 
 =============================  ========================================  =============================================
 module (= PNG name)            figure                                    data file(s), written by
