@@ -33,6 +33,10 @@ COMMANDS: dict[str, tuple[str, str]] = {
         "feeder.bench.contact",
         "the belt footprint: each convex piece against footprint pads, the same drops paired",
     ),
+    "bench-decomposition": (
+        "feeder.bench.decomposition",
+        "is the belt friction the part's or its convex pieces'? each contact model under other decompositions",
+    ),
     "bench-step": (
         "feeder.bench.step",
         "what one simulation step costs against a bare one-box world, and what it is spent on",
