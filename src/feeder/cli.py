@@ -3,14 +3,22 @@
 Each stage module owns its subcommand through a ``main(argv: list[str]) -> int`` function, so
 ``feeder features`` never imports torch and the workflow's many small jobs start quickly.
 A :class:`feeder.errors.FeederError` is printed as one line and the process exits with status 2.
+Output into a pipe that closes early (``feeder labels pmf sim.npz | head -1``) ends quietly with
+the status of a process killed by SIGPIPE (141), as ``cat`` does. Every option's help shows its
+default (:class:`DefaultsShown`).
 """
 
 from __future__ import annotations
 
 import importlib
+import os
 import sys
 
 from feeder.errors import FeederError
+
+SIGPIPE_STATUS = 128 + 13  # the shell's status of a process ended by SIGPIPE (signal 13)
+DEFAULT_UNSET = "unset"  # how an option's help shows a default of None
+DEFAULT_OFF = "off"  # how a flag's help shows its default (False)
 
 # subcommand -> (module, one-line help)
 COMMANDS: dict[str, tuple[str, str]] = {
@@ -82,14 +90,90 @@ def _one_line_errors(self, message: str):
     self.exit(2, f"{self.prog}: error: {message} (--help for usage)\n")
 
 
-def _one_line_usage_errors() -> None:
+class DefaultsShown:
+    """A help-formatter mixin: every optional argument's help ends with its default
+    (``(default: fast)``; ``unset`` for None, ``off`` for a flag), unless the help already says
+    it (it names a default) or the option is required. An option without help gets the default
+    alone. Mixed into whatever formatter a parser chose (:func:`_formatter_class`)."""
+
+    def _get_help_string(self, action):
+        import argparse
+
+        text = action.help or ""
+        if (
+            not action.option_strings
+            or action.required
+            or action.default is argparse.SUPPRESS
+            or "default" in text.lower()
+        ):
+            return text
+        if action.default is None:
+            shown = DEFAULT_UNSET
+        elif action.default is False and action.nargs == 0:
+            shown = DEFAULT_OFF
+        else:
+            shown = "%(default)s"
+        return f"{text} (default: {shown})".strip()
+
+    def _format_action(self, action):
+        if action.option_strings and not action.help:
+            import copy
+
+            shown = self._get_help_string(action)
+            if shown:  # argparse formats no help at all for an empty one
+                action = copy.copy(action)
+                action.help = shown
+        return super()._format_action(action)
+
+
+_FORMATTERS: dict[type, type] = {}
+
+
+def _formatter_class(base: type) -> type:
+    """``base`` (a parser's formatter class) with :class:`DefaultsShown` mixed in, made once."""
+    if issubclass(base, DefaultsShown):
+        return base
+    if base not in _FORMATTERS:
+        _FORMATTERS[base] = type(f"DefaultsShown{base.__name__}", (DefaultsShown, base), {})
+    return _FORMATTERS[base]
+
+
+def _get_formatter(self):
+    return _formatter_class(self.formatter_class)(prog=self.prog)
+
+
+def _house_argparse() -> None:
+    """Every parser of the run: one-line usage errors (:func:`_one_line_errors`) and help that
+    shows each option's default (:class:`DefaultsShown`)."""
     import argparse
 
     argparse.ArgumentParser.error = _one_line_errors
+    argparse.ArgumentParser._get_formatter = _get_formatter
+
+
+def _silence_stdout() -> None:
+    """Point stdout at /dev/null, so that the interpreter's last flush of a closed pipe is quiet."""
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+    except (OSError, ValueError):  # stdout is not a file descriptor (a test's capture)
+        pass
 
 
 def main(argv: list[str] | None = None) -> int:
-    argv = list(sys.argv[1:] if argv is None else argv)
+    """Run one subcommand; its status: 0, 2 for a :class:`FeederError` or a usage error, and
+    :data:`SIGPIPE_STATUS` when the reader of stdout went away (no traceback)."""
+    try:
+        try:
+            return _run(list(sys.argv[1:] if argv is None else argv))
+        finally:  # also after argparse's --help exit: a closed pipe shows here, not at the interpreter's exit
+            sys.stdout.flush()
+    except BrokenPipeError:
+        _silence_stdout()
+        return SIGPIPE_STATUS
+
+
+def _run(argv: list[str]) -> int:
     if not argv or argv[0] in {"-h", "--help"}:
         print(_usage())
         return 0
@@ -97,7 +181,7 @@ def main(argv: list[str] | None = None) -> int:
     if name not in COMMANDS:
         print(f"feeder: unknown command {name!r} (feeder --help lists them)", file=sys.stderr)
         return 2
-    _one_line_usage_errors()
+    _house_argparse()
     module = importlib.import_module(COMMANDS[name][0])
     try:
         return int(module.main(rest) or 0)

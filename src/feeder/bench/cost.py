@@ -405,7 +405,7 @@ def check_projection(sample, sim_dir, bench_dir=None):
 def main(argv: list[str]) -> int:
     from feeder.bench.accuracy import add_config_source, config_from_args
 
-    parser = argparse.ArgumentParser(prog="feeder bench-cost", description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(prog="feeder bench-cost", description=__doc__.split("\n\n")[0])
     parser.add_argument(
         "--out-csv", required=True, help="the sampled jobs, one row each (with --check: the comparison)"
     )

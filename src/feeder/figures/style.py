@@ -96,7 +96,7 @@ def read_npz(path: str | os.PathLike, keys: list[str] | tuple[str, ...]) -> dict
 
 def parser(name: str, doc: str | None, data_help: str) -> argparse.ArgumentParser:
     """``feeder figure <name> --data FILE --out PNG`` (a module may add options)."""
-    ap = argparse.ArgumentParser(prog=f"feeder figure {name}", description=(doc or "").split("\n")[0])
+    ap = argparse.ArgumentParser(prog=f"feeder figure {name}", description=(doc or "").split("\n\n")[0])
     ap.add_argument("--data", required=True, type=Path, help=data_help)
     ap.add_argument("--out", required=True, type=Path, help="image to write (format from the suffix)")
     return ap

@@ -665,7 +665,7 @@ def _bootstrap_settings(args) -> dict:
 
 
 def main(argv: list[str]) -> int:
-    parser = argparse.ArgumentParser(prog="feeder evaluate", description=__doc__.split("\n")[0])
+    parser = argparse.ArgumentParser(prog="feeder evaluate", description=__doc__.split("\n\n")[0])
     sub = parser.add_subparsers(dest="cmd", required=True)
 
     p = sub.add_parser("tables", help="Tables 5-8 (+ .md), the Fences/Parts breakdowns and model_vs_baselines.csv")

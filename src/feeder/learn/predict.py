@@ -276,7 +276,7 @@ def main(argv: list[str]) -> int:
     from feeder.config import add_settings_options, study_settings
     from feeder.learn.export import add_model_option, resolve_model_dir
 
-    parser = argparse.ArgumentParser(prog="feeder predict", description=__doc__.split("\n")[0])
+    parser = argparse.ArgumentParser(prog="feeder predict", description=__doc__.split("\n\n")[0])
     add_model_option(parser)
     parser.add_argument("--part", type=Path, help="part geometry (.stl or .xyz)")
     parser.add_argument("--features", type=Path, help="precomputed features JSON instead of --part")

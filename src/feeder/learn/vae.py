@@ -586,7 +586,7 @@ def _read_json(path: Path) -> dict:
 
 
 def main(argv: list[str]) -> int:
-    parser = argparse.ArgumentParser(prog="feeder vae", description=__doc__.split("\n")[0])
+    parser = argparse.ArgumentParser(prog="feeder vae", description=__doc__.split("\n\n")[0])
     sub = parser.add_subparsers(dest="cmd", required=True)
     p = sub.add_parser("train", help="train the Table 9 VAE on the Main rows")
     p.add_argument("--out", type=Path, required=True, help="checkpoint (.pt)")

@@ -526,7 +526,7 @@ def study_mse(paths: list[str], max_count: int):
 def main(argv: list[str]) -> int:
     ap = argparse.ArgumentParser(
         prog="feeder features",
-        description="print the 45 raw DFT shape features of a part face (.xyz) or solid (.stl)",
+        description="Print the 45 raw DFT shape features of a part face (.xyz) or solid (.stl).",
     )
     ap.add_argument("path", help="a .xyz face point cloud (mm or m) or an extruded .stl")
     ap.add_argument("--out", help="write the JSON here (atomically) instead of stdout")
