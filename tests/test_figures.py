@@ -279,6 +279,39 @@ def _contact(path):
     pd.DataFrame(rows).to_csv(path, index=False)
 
 
+def _decomposition(path):
+    # two models, one part each way; a verdict row per model (the figure's right panel)
+    rows = [
+        {
+            "kind": "decomposition",
+            "part": p,
+            "model": m,
+            "median_dyaw_deg": d,
+            "circular_w1_deg": 2 * d,
+            "floor_median_dyaw_deg": f,
+            "floor_circular_w1_deg": 2 * f,
+            "passes": d <= 2 * f,
+            "passes_paired": d <= 2 * f,
+            "passes_label": True,
+            "cpu_ms_per_drop": None,
+        }
+        for p in ("rect", "ell")
+        for m, d, f in (("pieces", 3.0, 0.1), ("pads8", 0.1, 0.1))
+    ] + [
+        {
+            "kind": "verdict",
+            "part": "all",
+            "model": m,
+            "passes": ok,
+            "passes_paired": ok,
+            "passes_label": True,
+            "cpu_ms_per_drop": c,
+        }
+        for m, ok, c in (("pieces", False, 80.0), ("pads8", True, 95.0))
+    ]
+    pd.DataFrame(rows).to_csv(path, index=False)
+
+
 def _step(path):
     # one part: the bare world (no configuration, no fit) and two configurations' drops
     rows = [
@@ -323,6 +356,7 @@ CASES = {
     "yaw_sampling": ("yaws.csv", _yaws, []),
     "sim_cost": ("sim_cost.csv", _sim_cost, []),
     "contact_model": ("contact.csv", _contact, []),
+    "contact_decomposition": ("decomposition.csv", _decomposition, []),
 }
 
 
@@ -811,6 +845,24 @@ def test_contact_model_plots_each_footprints_mean_cost_and_agreement_against_pie
     _assert_line(_lines_by_label(agree)["32 pads"], [9, 36], [0.75, 0.75])
     _assert_line(_lines_by_label(agree)["each convex piece"], [9, 36], [0.6, 0.6])
     assert cost.get_yscale() == "log"
+
+
+def test_contact_decomposition_plots_each_models_distances_beside_its_floor_and_its_cost(tmp_path):
+    from feeder.figures import contact_decomposition
+
+    _decomposition(tmp_path / "d.csv")
+    paired, label, cost = contact_decomposition.draw(pd.read_csv(tmp_path / "d.csv")).axes
+    assert [t.get_text() for t in cost.get_xticklabels()] == ["pieces", "pads8"]  # pieces first
+    assert [p.get_height() for p in cost.patches] == [80.0, 95.0]
+    assert "paired fail" in cost.texts[0].get_text() and "paired pass" in cost.texts[1].get_text()
+    filled = sorted(
+        float(y)
+        for ln in paired.get_lines()
+        if ln.get_marker() == "o" and ln.get_markerfacecolor() != "none"
+        for y in ln.get_ydata()
+    )
+    assert filled == [0.1, 0.1, 3.0, 3.0]
+    assert paired.get_yscale() == label.get_yscale() == "log"
 
 
 def test_step_cost_plots_each_worlds_cost_with_its_interval_and_the_fitted_contact_lines(tmp_path):

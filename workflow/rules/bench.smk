@@ -8,6 +8,7 @@
 #   results/tables/sim_cost.csv, sim_cost_sample.csv (+ figure)  the stage's projected cost
 #   results/tables/label_emulation*.csv       (+ figure)  emulated i.i.d. drops against real ones
 #   results/tables/contact_model.csv          (+ figure)  the belt footprint: pieces against pads
+#   results/tables/contact_decomposition.csv  (+ figure)  each contact model under other convex decompositions
 #   results/tables/step_cost.csv              (+ figure)  CPU of one step against a bare one-box world
 
 from feeder.bench.emulation import entries as emulation_bench_entries, run_settings as emulation_run_settings
@@ -30,6 +31,8 @@ BENCH_TARGETS = [
     f"{RESULTS}/figures/label_emulation.png",
     f"{RESULTS}/tables/contact_model.csv",
     f"{RESULTS}/figures/contact_model.png",
+    f"{RESULTS}/tables/contact_decomposition.csv",
+    f"{RESULTS}/figures/contact_decomposition.png",
     f"{RESULTS}/tables/step_cost.csv",
     f"{RESULTS}/figures/step_cost.png",
 ]
@@ -123,6 +126,42 @@ rule bench_contact:
         parts=",".join(CONTACT_PARTS),
     shell:
         "feeder bench-contact --settings '{params.settings}' --parts '{params.parts}'"
+        " --out-csv {output.table} --out-raw {output.raw} > {log} 2>&1"
+
+
+rule bench_decomposition:
+    """Each contact model's labels under other convex decompositions of a part, against its own floor (feeder bench-decomposition)."""
+    input:
+        code("bench-decomposition"),
+        parts=expand(
+            "{dir}/{part}.stl", dir=config["parts"]["dir"], part=list(config["sim"]["decomposition_bench"]["parts"])
+        ),
+    output:
+        table=report(
+            f"{RESULTS}/tables/contact_decomposition.csv",
+            caption="../report/contact_decomposition.rst",
+            category="Simulation",
+        ),
+        raw=f"{RESULTS}/bench/decomposition/decomposition_drops.csv",
+    log:
+        f"{LOGS}/bench_decomposition/bench_decomposition.log",
+    benchmark:
+        f"{BENCHMARKS}/bench_decomposition/bench_decomposition.tsv"
+    conda:
+        "../envs/feeder.yaml"
+    threads: config["sim"]["decomposition_bench"]["workers"]
+    params:
+        settings=settings_json(
+            "scene",
+            "sim.presets",
+            "sim.decomposition_bench",
+            "sim.base_seed",
+            "parts.dir",
+            "labels.bins",
+            "labels.sigma_bins",
+        ),
+    shell:
+        "feeder bench-decomposition --settings '{params.settings}'"
         " --out-csv {output.table} --out-raw {output.raw} > {log} 2>&1"
 
 

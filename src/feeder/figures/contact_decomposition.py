@@ -1,0 +1,95 @@
+"""The decomposition test: how far each contact model's labels move with the part's convex pieces.
+
+Data: ``results/tables/contact_decomposition.csv`` (``feeder bench-decomposition``): one row per
+part, configuration, contact model and pair of decompositions (``kind = decomposition``) with the
+paired median |Δ final yaw| and the labels' circular W1, each beside the model's floor
+(``floor_*``), and one ``verdict`` row per model with its CPU per drop. Left: median |Δyaw| between
+decompositions (filled) and the floor (open), per model, log scale. Middle: the same for the
+labels' circular W1. Right: CPU per drop of each model, with the verdict on top.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from feeder.figures import style
+
+COLUMNS = (
+    "kind",
+    "part",
+    "model",
+    "median_dyaw_deg",
+    "circular_w1_deg",
+    "floor_median_dyaw_deg",
+    "floor_circular_w1_deg",
+    "passes",
+    "passes_paired",
+    "passes_label",
+    "cpu_ms_per_drop",
+)
+_FLOOR_AT_LEAST = 1e-4  # deg: where a floor or a distance of zero is drawn on the log axes
+
+
+def model_order(name: str) -> tuple[int, int]:
+    return (0, 0) if name == "pieces" else (1, int(name[4:]))
+
+
+def _truthy(value) -> bool:
+    return str(value).strip().lower() in ("true", "1", "1.0")
+
+
+def draw(table):
+    rows = table[table["kind"] == "decomposition"]
+    verdicts = table[(table["kind"] == "verdict") & (table["model"].isin(rows["model"].unique()))]
+    models = sorted(rows["model"].unique(), key=model_order)
+    parts = sorted(rows["part"].unique())
+    colours = dict(
+        zip(parts, ["tab:blue", "tab:orange", "tab:green", "tab:purple", "tab:brown", "tab:olive"] * 4, strict=False)
+    )
+    fig, (paired, label, cost) = style.subplots(1, 3, figsize=(13, 3.9))
+    rng = np.random.default_rng(0)  # horizontal jitter only
+    for ax, col, title in (
+        (paired, "median_dyaw_deg", "Paired: median |Δ final yaw|"),
+        (label, "circular_w1_deg", "Label: circular W1"),
+    ):
+        for k, model in enumerate(models):
+            sub = rows[rows["model"] == model]
+            for part in parts:
+                p = sub[sub["part"] == part]
+                if p.empty:
+                    continue
+                x = k + rng.uniform(-0.08, 0.08, len(p))
+                cross = np.maximum(p[col].to_numpy(float), _FLOOR_AT_LEAST)
+                floor = np.maximum(p[f"floor_{col}"].to_numpy(float), _FLOOR_AT_LEAST)
+                ax.plot([x - 0.15, x + 0.15], [cross, floor], "-", color=colours[part], lw=0.5, alpha=0.5)
+                ax.plot(x - 0.15, cross, "o", color=colours[part], ms=4, label=part if k == 0 else None)
+                ax.plot(x + 0.15, floor, "o", mfc="none", color=colours[part], ms=5)
+        ax.set_yscale("log")
+        ax.set_xticks(range(len(models)), models)
+        ax.set_ylabel("degrees: filled across decompositions,\nopen the model's floor", fontsize=8)
+        ax.set_title(title)
+        ax.grid(True, axis="y")
+    paired.legend(fontsize=7, loc="lower left")
+    by_model = {v["model"]: v for _, v in verdicts.iterrows()}
+    heights = [float(by_model[m]["cpu_ms_per_drop"]) if m in by_model else np.nan for m in models]
+    bars = cost.bar(range(len(models)), heights, color=style.PALETTE["neutral"])
+    for k, (bar, model) in enumerate(zip(bars, models)):
+        v = by_model.get(model)
+        if v is None:
+            continue
+        text = "paired " + ("pass" if _truthy(v["passes_paired"]) else "fail")
+        text += "\nlabel " + ("pass" if _truthy(v["passes_label"]) else "fail")
+        cost.text(k, bar.get_height(), text, ha="center", va="bottom", fontsize=7)
+    cost.set_xticks(range(len(models)), models)
+    cost.set_ylabel("CPU per drop (ms)")
+    cost.set_title("Cost, and the verdict across decompositions")
+    cost.margins(y=0.25)
+    return fig
+
+
+def main(argv: list[str]) -> int:
+    args = style.parser(
+        "contact_decomposition", __doc__, "the decomposition test (contact_decomposition.csv)"
+    ).parse_args(argv)
+    style.save(draw(style.read_csv(args.data, COLUMNS)), args.out)
+    return 0
