@@ -36,6 +36,13 @@ onstart:
     # measurable CPU on ~1,250 simulation jobs, and of no use on one machine.
     if not config["scheduling"]["local_rate_limit"]:
         drop_local_job_rate_limit(workflow, log=logger.info)
+    # simulations are not committed: a run that needs them says so before the hours start
+    notice = simulations_notice(
+        workflow.dag.needrun_jobs(),
+        workflow.dag.targetfiles or {rule.name for rule in workflow.dag.targetrules},
+    )
+    if notice:
+        logger.warning(notice)
 
 
 rule all:

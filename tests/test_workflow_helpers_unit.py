@@ -155,6 +155,21 @@ def test_job_rate_limit_is_dropped_only_for_local_runs():
     assert len(said) == 1
 
 
+def test_a_run_that_simulates_says_how_many_and_for_what():
+    from types import SimpleNamespace
+
+    from feeder.workflow import simulations_notice
+
+    def jobs(*rules):
+        return [SimpleNamespace(rule=SimpleNamespace(name=r)) for r in rules]
+
+    assert simulations_notice(jobs("draw_fig9_example_pmfs", "bench_designs")) is None
+    said = simulations_notice(jobs("simulate", "simulate", "datasets_build"), {"results/tables/table4.csv"})
+    assert "simulates 2 configurations for results/tables/table4.csv" in said
+    assert "make fresh" in said and "never committed" in said
+    assert "for" not in simulations_notice(jobs("simulate")).split("configurations")[1][:5]
+
+
 def test_config_overlays_merge_nested_sections_and_replace_lists(tmp_path):
     import pytest
 

@@ -133,6 +133,23 @@ def drop_local_job_rate_limit(workflow, log=print) -> bool:
     return True
 
 
+def simulations_notice(jobs, targets=(), rule: str = "simulate") -> str | None:
+    """What a run that is about to simulate says first (call from ``onstart`` with the DAG's
+    needrun jobs and the requested files), or None when it simulates nothing. The simulations are
+    not committed, so in a clone any table built from them (the dataset, the models, Tables 4-10)
+    needs all of them again: say so before the hours start, not after."""
+    n = sum(1 for job in jobs if job.rule.name == rule)
+    if not n:
+        return None
+    wanted = f" for {', '.join(sorted(map(str, targets)))}" if targets else ""
+    return (
+        f"feeder: this run simulates {n} configurations{wanted}. Simulations are never committed, "
+        "and what is built from them (the dataset, the models, their tables and figure data) needs "
+        "every one (Ctrl-C stops the run). To redraw a committed figure or table instead: `make fresh` "
+        "once after cloning, then `snakemake -n -r TARGET` shows which jobs would run and why."
+    )
+
+
 # What a workflow run reads from a study directory (the package itself is installed; src/ is
 # there because rules declare its modules as inputs).
 STUDY_FILES = ("Snakefile", "workflow", "profiles", "config", "parts", "src")

@@ -15,6 +15,7 @@ from feeder.workflow import (
     drop_local_job_rate_limit,
     put_interpreter_on_path,
     select_settings,
+    simulations_notice,
 )
 
 validate(config, schema="../schemas/config.schema.yaml")
