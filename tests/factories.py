@@ -38,10 +38,10 @@ def add_push_block(arrays: dict, seed: int = 0) -> dict:
     """A synthetic analytic push block for a regression dataset's rows (in place, returned):
     ``pmf_analytic`` the label turned by a random whole number of degrees (up to
     ``PUSH_MAX_SHIFT_DEG``) and blurred, a rough but informative analytic prediction; ``push_raw``
-    its Fourier coefficients (the block's layout: :data:`feeder.parts.push.PUSH_FEATURE_NAMES`)
+    its Fourier coefficients (the block's layout: :data:`feeder.mechanics.features.PUSH_FEATURE_NAMES`)
     and noise for the other features. Its own random stream: the paper arrays do not change."""
-    from feeder.labels.metrics import wrapped_gaussian_smooth
-    from feeder.parts.push import FOURIER_K, PUSH_FEATURE_NAMES, fourier_coefficients
+    from feeder.circular import wrapped_gaussian_smooth
+    from feeder.mechanics.features import FOURIER_K, PUSH_FEATURE_NAMES, fourier_coefficients
 
     rng = np.random.default_rng(seed + PUSH_SEED_OFFSET)
     pmf = arrays["pmf"]

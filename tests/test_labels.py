@@ -3,6 +3,7 @@ import math
 import numpy as np
 import pytest
 
+from feeder import circular as C
 from feeder.errors import FeederError
 from feeder.labels import metrics as L
 from feeder.labels import pmf as pmf_cli
@@ -15,11 +16,11 @@ E1, E2, E3 = math.exp(-0.5), math.exp(-2.0), math.exp(-4.5)
 def test_normalize_yaw_hand_values():
     beta = np.array([-180.0, -0.5, 0.0, 359.5, 360.0, 720.25, -400.0, 179.999])
     expect = np.array([180.0, 359.5, 0.0, 359.5, 0.0, 0.25, 320.0, 179.999])
-    np.testing.assert_allclose(L.normalize_yaw(beta), expect, atol=1e-12)
+    np.testing.assert_allclose(C.normalize_yaw(beta), expect, atol=1e-12)
 
 
 def test_normalize_yaw_never_returns_360_and_keeps_nan():
-    out = L.normalize_yaw([-1e-20, -360 - 1e-15, -1e-13, np.nan, np.inf])
+    out = C.normalize_yaw([-1e-20, -360 - 1e-15, -1e-13, np.nan, np.inf])
     assert (out[:3] >= 0).all() and (out[:3] < 360).all()
     assert np.isnan(out[3:]).all()
 
@@ -34,12 +35,12 @@ def test_histogram_wraparound_bins():
 
 
 def test_kernel_hand_values():
-    k = L.wrapped_gaussian_kernel(360, 1.0)
+    k = C.wrapped_gaussian_kernel(360, 1.0)
     assert k.sum() == pytest.approx(1.0)
     assert k[0] == pytest.approx(1 / Z)
     assert k[1] == pytest.approx(E1 / Z) and k[359] == pytest.approx(E1 / Z)
     assert k[2] == pytest.approx(E2 / Z) and k[358] == pytest.approx(E2 / Z)
-    np.testing.assert_array_equal(L.wrapped_gaussian_kernel(8, 0.0), [1, 0, 0, 0, 0, 0, 0, 0])
+    np.testing.assert_array_equal(C.wrapped_gaussian_kernel(8, 0.0), [1, 0, 0, 0, 0, 0, 0, 0])
 
 
 def test_all_mass_in_one_bin_spreads_to_both_neighbours():
@@ -63,14 +64,14 @@ def test_wraparound_mass_at_359_5_and_0_5():
 
 
 def test_uniform_stays_uniform_and_cdf_is_linear():
-    pmf = L.wrapped_gaussian_smooth(np.ones(360), 1.0)
+    pmf = C.wrapped_gaussian_smooth(np.ones(360), 1.0)
     np.testing.assert_allclose(pmf, 1 / 360)
     np.testing.assert_allclose(L.cdf(pmf), np.arange(1, 361) / 360)
 
 
 def test_zeros_are_errors_not_nan():
     with pytest.raises(FeederError):
-        L.wrapped_gaussian_smooth(np.zeros(360), 1.0)
+        C.wrapped_gaussian_smooth(np.zeros(360), 1.0)
     with pytest.raises(FeederError):
         L.pmf_from_yaws([], 360, 1.0)
 
@@ -79,7 +80,7 @@ def test_smoothing_is_vectorised_over_rows():
     rows = np.zeros((2, 360))
     rows[0, 10] = 3
     rows[1, 200] = 1
-    out = L.wrapped_gaussian_smooth(rows, 1.0)
+    out = C.wrapped_gaussian_smooth(rows, 1.0)
     np.testing.assert_allclose(out.sum(axis=1), 1.0)
     assert out[0, 10] == pytest.approx(1 / Z) and out[1, 201] == pytest.approx(E1 / Z)
 
@@ -197,7 +198,7 @@ def test_shift_pmf_matches_shifting_the_yaws_and_conserves_mass():
     p = L.pmf_from_yaws(yaws, 360, 1.0)
     for delta in (17.0, -123.0, 359.0, 720.0):
         np.testing.assert_allclose(
-            L.shift_pmf(p, delta), L.pmf_from_yaws(L.normalize_yaw(yaws + delta), 360, 1.0), atol=1e-12
+            L.shift_pmf(p, delta), L.pmf_from_yaws(C.normalize_yaw(yaws + delta), 360, 1.0), atol=1e-12
         )
     batch = rng.dirichlet(np.ones(360), size=4)
     for delta in (0.3, 200.7, -45.9):

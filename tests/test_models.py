@@ -121,7 +121,7 @@ def test_branched_branches_see_their_features_only():
 
 
 def test_push_inputs_widen_the_input_and_reach_the_feeder_branch():
-    from feeder.parts.push import PUSH_FEATURE_NAMES
+    from feeder.mechanics.features import PUSH_FEATURE_NAMES
 
     n_push = len(PUSH_FEATURE_NAMES)
     std = spec(inputs="paper+push")

@@ -21,7 +21,8 @@ from feeder.learn import prior as PR
 from feeder.learn import recommend as R
 from feeder.learn import train as T
 from feeder.learn.models import ModelSpec, TrainedModel
-from feeder.parts import push as PU
+from feeder.mechanics.features import push_block
+from feeder.mechanics.fence import default_scene
 from feeder.parts.geometry import load_outline
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -167,12 +168,12 @@ def test_predict_and_recommend_with_a_prior_model_read_the_parts_analytic_pmf(pr
     out = tmp_path / "pmf.csv"
     argv = ["--model", str(model_dir), "--part", str(STL), "--loc1", "straight:30", "--loc2", "curved:40"]
     assert P.main([*argv, "--out", str(out)]) == 0
-    scene = PU.default_scene()
+    scene = default_scene()
     smooth = D.label_smooth_deg(360, float(load_study_config()["labels"]["sigma_bins"]))
     outline = load_outline(STL, "auto")
 
     def direct(loc1, loc2):
-        push, analytic = PU.push_block(outline, loc1, loc2, scene, pmf_smooth_deg=smooth)
+        push, analytic = push_block(outline, loc1, loc2, scene, pmf_smooth_deg=smooth)
         feeder = D.feeder_vector(
             parse_location(loc1) if isinstance(loc1, str) else loc1,
             parse_location(loc2) if isinstance(loc2, str) else loc2,

@@ -1,4 +1,4 @@
-"""Analytic fence response (feeder.parts.push) against hand-computed values."""
+"""Analytic fence response (feeder.mechanics) against hand-computed values."""
 
 from __future__ import annotations
 
@@ -9,7 +9,20 @@ import pytest
 
 from feeder.errors import FeederError
 from feeder.labels import metrics as L
-from feeder.parts import push as P
+from feeder.mechanics.distribution import YAW_SAMPLES, analytic_distribution, fence_response
+from feeder.mechanics.exitturn import exit_turn
+from feeder.mechanics.features import PUSH_FEATURE_NAMES, fourier_coefficients, push_features
+from feeder.mechanics.fence import (
+    default_scene,
+    fence_models,
+    fence_mu,
+    fence_normal_deg,
+    friction_margin_deg,
+    resting_yaw,
+)
+from feeder.mechanics.hull import as_geometry, push_geometry, radius_function
+from feeder.mechanics.pmf import DEFAULT_SMOOTH_DEG, PMF_BINS, analytic_pmf
+from feeder.mechanics.pushfunction import push_function, rolling_density
 
 MU = 0.4  # the scene's part-fence friction, 0.8 x 0.5
 
@@ -26,7 +39,7 @@ def rotate(outline, deg, about=(0.0, 0.0)):
 
 TRIANGLE = np.array([(0.0, 0.0), (0.03, 0.0), (0.015, 0.015 * math.sqrt(3.0))])
 L_SHAPE = np.array([(0, 0), (0.04, 0), (0.04, 0.01), (0.01, 0.01), (0.01, 0.03), (0, 0.03)], dtype=float)
-SCENE = P.default_scene()
+SCENE = default_scene()
 
 
 def basin_of(push, normal_deg):
@@ -40,21 +53,21 @@ def basin_of(push, normal_deg):
 # geometry
 # --------------------------------------------------------------------------------------------
 def test_radius_function_of_a_rectangle_about_its_centroid():
-    g = P.push_geometry(rect(0.04, 0.02))
+    g = push_geometry(rect(0.04, 0.02))
     assert g.area == pytest.approx(0.04 * 0.02)
     np.testing.assert_allclose(g.centroid, [0.02, 0.01])
-    np.testing.assert_allclose(P.radius_function(g, [0.0, 90.0, 180.0, 270.0]), [0.02, 0.01, 0.02, 0.01])
+    np.testing.assert_allclose(radius_function(g, [0.0, 90.0, 180.0, 270.0]), [0.02, 0.01, 0.02, 0.01])
     corner = math.degrees(math.atan2(0.01, 0.02))
-    assert float(P.radius_function(g, corner)) == pytest.approx(math.hypot(0.02, 0.01))
+    assert float(radius_function(g, corner)) == pytest.approx(math.hypot(0.02, 0.01))
 
 
 def test_limit_surface_radius_of_a_square_is_its_mean_distance_from_the_centre():
-    g = P.push_geometry(rect(1.0, 1.0))
+    g = push_geometry(rect(1.0, 1.0))
     assert g.limit_radius == pytest.approx((math.sqrt(2.0) + math.log(1.0 + math.sqrt(2.0))) / 6.0, rel=1e-12)
 
 
 def test_concave_outline_uses_its_hull_about_the_outline_centroid():
-    g = P.push_geometry(L_SHAPE)
+    g = push_geometry(L_SHAPE)
     assert len(g.hull) == 5  # the reflex corner (0.01, 0.01) is not a hull vertex
     reflex = np.array([0.01, 0.01]) - g.centroid
     assert not np.any(np.all(np.isclose(g.hull, reflex), axis=1))
@@ -76,9 +89,9 @@ def test_concave_outline_uses_its_hull_about_the_outline_centroid():
 )
 def test_degenerate_outline_is_a_feeder_error(outline):
     with pytest.raises(FeederError):
-        P.push_geometry(outline)
+        push_geometry(outline)
     with pytest.raises(FeederError):
-        P.push_features(outline, "straight:30", "none", SCENE)
+        push_features(outline, "straight:30", "none", SCENE)
 
 
 # --------------------------------------------------------------------------------------------
@@ -86,7 +99,7 @@ def test_degenerate_outline_is_a_feeder_error(outline):
 # --------------------------------------------------------------------------------------------
 @pytest.mark.parametrize("mu,side", [(0.0, 1), (MU, 1), (MU, -1)])
 def test_two_to_one_rectangle_long_edges_take_two_atan2_over_pi(mu, side):
-    push = P.push_function(rect(0.04, 0.02), mu, side)
+    push = push_function(rect(0.04, 0.02), mu, side)
     assert sorted(push.normals_deg.tolist()) == pytest.approx([0.0, 90.0, 180.0, 270.0])
     long_edges = basin_of(push, 90.0) + basin_of(push, 270.0)
     assert long_edges == pytest.approx(2.0 * math.atan(2.0) / math.pi, abs=1e-12)  # 0.7048
@@ -94,7 +107,7 @@ def test_two_to_one_rectangle_long_edges_take_two_atan2_over_pi(mu, side):
 
 
 def test_frictionless_rectangle_basins_end_at_the_corner_directions():
-    push = P.push_function(rect(0.04, 0.02))
+    push = push_function(rect(0.04, 0.02))
     corner = math.degrees(math.atan(0.5))
     lo, hi = push.lower_deg[push.normals_deg == 90.0][0], push.upper_deg[push.normals_deg == 90.0][0]
     assert (lo, hi) == pytest.approx((corner, 180.0 - corner))
@@ -102,20 +115,20 @@ def test_frictionless_rectangle_basins_end_at_the_corner_directions():
 
 def test_square_has_four_equal_basins():
     for mu in (0.0, MU):
-        push = P.push_function(rect(0.02, 0.02), mu)
+        push = push_function(rect(0.02, 0.02), mu)
         assert len(push.edges) == 4
         np.testing.assert_allclose(push.measures, 0.25)
 
 
 def test_equilateral_triangle_has_three_equal_basins():
     for mu, side in ((0.0, 1), (MU, 1), (MU, -1)):
-        push = P.push_function(TRIANGLE, mu, side)
+        push = push_function(TRIANGLE, mu, side)
         assert len(push.edges) == 3
         np.testing.assert_allclose(push.measures, 1.0 / 3.0)
 
 
 def test_friction_turns_every_basin_boundary_by_atan_mu_against_the_side():
-    f0, fr, fl = (P.push_function(rect(0.04, 0.02), mu, side) for mu, side in ((0.0, 1), (MU, 1), (MU, -1)))
+    f0, fr, fl = (push_function(rect(0.04, 0.02), mu, side) for mu, side in ((0.0, 1), (MU, 1), (MU, -1)))
     lam = math.degrees(math.atan(MU))
     np.testing.assert_allclose(fr.upper_deg, f0.upper_deg - lam)
     np.testing.assert_allclose(fl.upper_deg, f0.upper_deg + lam)
@@ -123,8 +136,8 @@ def test_friction_turns_every_basin_boundary_by_atan_mu_against_the_side():
 
 def test_friction_makes_the_short_edges_of_a_thin_rectangle_unstable():
     # 3:1: the foot shifted by mu * d = 0.4 * 30 mm lies beyond the 10 mm half edge
-    assert len(P.push_function(rect(0.06, 0.02)).edges) == 4
-    push = P.push_function(rect(0.06, 0.02), MU, 1)
+    assert len(push_function(rect(0.06, 0.02)).edges) == 4
+    push = push_function(rect(0.06, 0.02), MU, 1)
     assert sorted(push.normals_deg.tolist()) == [90.0, 270.0]
     np.testing.assert_allclose(push.measures, 0.5)
 
@@ -134,29 +147,29 @@ def test_frictionless_stable_normals_are_minima_and_basin_ends_maxima_of_r():
     angles = np.sort(rng.uniform(0.0, 2 * np.pi, 9))
     blob = np.column_stack([np.cos(angles), np.sin(angles)]) * rng.uniform(0.01, 0.03, (9, 1))
     for outline in (L_SHAPE, TRIANGLE, blob):
-        g = P.push_geometry(outline)
-        push = P.push_function(g)
+        g = push_geometry(outline)
+        push = push_function(g)
         eps = 1e-3
         for n, lo, hi in zip(push.normals_deg, push.lower_deg, push.upper_deg):
-            r = P.radius_function(g, [n - eps, n, n + eps])
+            r = radius_function(g, [n - eps, n, n + eps])
             assert r[1] < r[0] and r[1] < r[2]  # a local minimum at the stable normal
             for b in (lo, hi):
-                rb = P.radius_function(g, [b - eps, b, b + eps])
+                rb = radius_function(g, [b - eps, b, b + eps])
                 assert rb[1] >= rb[0] and rb[1] >= rb[2]  # a local maximum at each basin end
         assert push.measures.sum() == pytest.approx(1.0)
 
 
 def test_push_function_wraps_around_zero():
-    push = P.push_function(rect(0.04, 0.02))  # the edge of normal 0 has the basin (-26.6, 26.6)
+    push = push_function(rect(0.04, 0.02))  # the edge of normal 0 has the basin (-26.6, 26.6)
     assert float(push(359.9)) == float(push(0.1)) == 0.0
     assert float(push(-0.1)) == float(push(720.1)) == 0.0
     np.testing.assert_array_equal(push([350.0, 10.0, 100.0, 190.0, 280.0]), [0.0, 0.0, 90.0, 180.0, 270.0])
 
 
 def test_a_reflex_vertex_never_becomes_a_stable_edge():
-    g = P.push_geometry(L_SHAPE)
+    g = push_geometry(L_SHAPE)
     for mu, side in ((0.0, 1), (MU, 1), (MU, -1)):
-        push = P.push_function(g, mu, side)
+        push = push_function(g, mu, side)
         for k in push.edges:  # every stable edge is a hull edge, whose ends are convex outline vertices
             for v in (g.hull[k], g.hull[(k + 1) % len(g.hull)]):
                 i = int(np.argmin(np.hypot(*(g.outline - v).T)))
@@ -168,9 +181,9 @@ def test_a_roundish_part_rolls_with_friction():
     circle = np.column_stack(
         [np.cos(np.linspace(0, 2 * np.pi, 48, endpoint=False)), np.sin(np.linspace(0, 2 * np.pi, 48, endpoint=False))]
     )
-    push = P.push_function(0.02 * circle, MU, 1)
+    push = push_function(0.02 * circle, MU, 1)
     assert push.rolls
-    w = P.rolling_density(0.02 * circle, MU, 1, np.arange(360.0))
+    w = rolling_density(0.02 * circle, MU, 1, np.arange(360.0))
     assert w.sum() == pytest.approx(1.0) and (w > 0).all()
 
 
@@ -179,14 +192,14 @@ def test_a_roundish_part_rolls_with_friction():
 # --------------------------------------------------------------------------------------------
 def test_flush_edge_normal_points_at_the_fence():
     # right side (Location 1) at 45: the fence runs along 135 and the edge normal points along 45
-    assert float(P.fence_normal_deg(45.0, 1)) == pytest.approx(45.0)
-    assert float(P.fence_normal_deg(60.0, -1)) == pytest.approx(120.0)
+    assert float(fence_normal_deg(45.0, 1)) == pytest.approx(45.0)
+    assert float(fence_normal_deg(60.0, -1)) == pytest.approx(120.0)
     # a 2:1 rectangle flush on its long edge (normal 270 in the file frame) has its long axis along the fence
-    assert float(P.resting_yaw(270.0, 45.0, 1)) == pytest.approx(135.0)
+    assert float(resting_yaw(270.0, 45.0, 1)) == pytest.approx(135.0)
 
 
 def test_fence_models_follow_the_simulator_geometry():
-    up, down = P.fence_models("curved:45", "straight:30", SCENE)
+    up, down = fence_models("curved:45", "straight:30", SCENE)
     assert (up.location, up.side, down.location, down.side) == ("loc2", -1, "loc1", 1)
     assert up.exit_deg == pytest.approx(30.0) and not up.curved
     segments = int(SCENE["fences"]["curved"]["segments"])
@@ -194,23 +207,23 @@ def test_fence_models_follow_the_simulator_geometry():
 
 
 def test_friction_margin():
-    assert float(P.friction_margin_deg(30.0, MU)) == pytest.approx(90.0 - math.degrees(math.atan(MU)) - 30.0)
-    assert float(P.friction_margin_deg(75.0, MU)) < 0.0  # tests/test_sim_physics.py: a jam at 75
+    assert float(friction_margin_deg(30.0, MU)) == pytest.approx(90.0 - math.degrees(math.atan(MU)) - 30.0)
+    assert float(friction_margin_deg(75.0, MU)) < 0.0  # tests/test_sim_physics.py: a jam at 75
 
 
 # --------------------------------------------------------------------------------------------
 # exit turn
 # --------------------------------------------------------------------------------------------
 def test_rectangle_turns_towards_the_travel_direction_after_the_tip():
-    g = P.push_geometry(rect(0.04, 0.02))
-    push = P.push_function(g, MU, 1)
+    g = push_geometry(rect(0.04, 0.02))
+    push = push_function(g, MU, 1)
     k = int(push.edges[push.normals_deg == 270.0][0])
-    turn = P.exit_turn(g, k, 45.0, 1, MU)
+    turn = exit_turn(g, k, 45.0, 1, MU)
     # flush at 135 (long axis along the fence), then turned clockwise towards 90: the design
     # bench's 2,880-yaw reference (results/bench/designs) peaks at 100
     assert turn.reason == "released"
     assert -45.0 < turn.delta_deg < -25.0
-    left = P.exit_turn(g, int(P.push_function(g, MU, -1).edges[0]), 45.0, -1, MU)
+    left = exit_turn(g, int(push_function(g, MU, -1).edges[0]), 45.0, -1, MU)
     assert left.delta_deg > 0.0  # mirrored on the left
 
 
@@ -218,93 +231,93 @@ def test_rectangle_turns_towards_the_travel_direction_after_the_tip():
 # analytic PMF
 # --------------------------------------------------------------------------------------------
 def test_no_fence_is_uniform():
-    pmf = P.analytic_pmf(rect(0.04, 0.02), "none", "none", SCENE, smooth_deg=0.0)
-    np.testing.assert_allclose(pmf, 1.0 / P.PMF_BINS)
+    pmf = analytic_pmf(rect(0.04, 0.02), "none", "none", SCENE, smooth_deg=0.0)
+    np.testing.assert_allclose(pmf, 1.0 / PMF_BINS)
 
 
 @pytest.mark.parametrize("config", [("straight:30", "none"), ("none", "curved:40"), ("curved:20", "straight:45")])
 def test_analytic_pmf_is_a_pmf(config):
-    for smooth in (0.0, P.DEFAULT_SMOOTH_DEG):
-        pmf = P.analytic_pmf(L_SHAPE, *config, SCENE, smooth_deg=smooth)
-        assert pmf.shape == (P.PMF_BINS,)
+    for smooth in (0.0, DEFAULT_SMOOTH_DEG):
+        pmf = analytic_pmf(L_SHAPE, *config, SCENE, smooth_deg=smooth)
+        assert pmf.shape == (PMF_BINS,)
         assert (pmf >= 0).all() and pmf.sum() == pytest.approx(1.0)
 
 
 def test_rectangle_on_one_straight_fence_rests_exactly_at_the_predicted_yaws():
     outline = rect(0.04, 0.02)
-    pmf = P.analytic_pmf(outline, "straight:30", "none", SCENE, smooth_deg=0.0, exit_turns=False)
-    push = P.push_function(outline, MU, 1)
-    rest = P.resting_yaw(push.normals_deg, 30.0, 1)  # psi = 30 minus the normals 0, 90, 180, 270
+    pmf = analytic_pmf(outline, "straight:30", "none", SCENE, smooth_deg=0.0, exit_turns=False)
+    push = push_function(outline, MU, 1)
+    rest = resting_yaw(push.normals_deg, 30.0, 1)  # psi = 30 minus the normals 0, 90, 180, 270
     np.testing.assert_allclose(np.sort(rest), [30.0, 120.0, 210.0, 300.0])
-    expected = np.zeros(P.PMF_BINS)
+    expected = np.zeros(PMF_BINS)
     np.add.at(expected, np.round(rest).astype(int), push.measures)  # bin i holds [i, i + 1)
-    np.testing.assert_allclose(pmf, expected, atol=2.0 / P.YAW_SAMPLES)
+    np.testing.assert_allclose(pmf, expected, atol=2.0 / YAW_SAMPLES)
     assert pmf[np.round(rest).astype(int)].sum() == pytest.approx(1.0)
     # with the exit turn the mass still sits at one yaw per stable edge
-    turned = P.analytic_distribution(outline, "straight:30", "none", SCENE)
+    turned = analytic_distribution(outline, "straight:30", "none", SCENE)
     assert np.unique(np.round(turned.yaws, 9)).size == 4
 
 
 def test_pmf_follows_a_rotation_of_the_outline_in_its_file_frame():
     outline = L_SHAPE
-    base = P.analytic_pmf(outline, "straight:35", "curved:30", SCENE, smooth_deg=0.0)
+    base = analytic_pmf(outline, "straight:35", "curved:30", SCENE, smooth_deg=0.0)
     turned = rotate(outline, 40.0, about=(0.3, -0.2))
     # the same body: its file-frame yaws are 40 less; in a label frame that follows it, identical
-    same = P.analytic_pmf(turned, "straight:35", "curved:30", SCENE, smooth_deg=0.0, frame_deg=40.0)
+    same = analytic_pmf(turned, "straight:35", "curved:30", SCENE, smooth_deg=0.0, frame_deg=40.0)
     np.testing.assert_allclose(same, base, atol=2e-3)
-    shifted = P.analytic_pmf(turned, "straight:35", "curved:30", SCENE, smooth_deg=0.0)
+    shifted = analytic_pmf(turned, "straight:35", "curved:30", SCENE, smooth_deg=0.0)
     np.testing.assert_allclose(L.shift_pmf(shifted, 40.0), base, atol=2e-3)
 
 
 def test_two_identical_fences_give_the_same_pmf_as_one():
     outline = rect(0.04, 0.02)
-    (fence,) = P.fence_models("straight:30", "none", SCENE)
-    one = P.analytic_distribution(outline, None, None, SCENE, exit_turns=False, fences=[fence])
-    two = P.analytic_distribution(outline, None, None, SCENE, exit_turns=False, fences=[fence, fence])
-    p1 = P.analytic_pmf(outline, None, None, SCENE, smooth_deg=0.0, distribution=one)
-    p2 = P.analytic_pmf(outline, None, None, SCENE, smooth_deg=0.0, distribution=two)
+    (fence,) = fence_models("straight:30", "none", SCENE)
+    one = analytic_distribution(outline, None, None, SCENE, exit_turns=False, fences=[fence])
+    two = analytic_distribution(outline, None, None, SCENE, exit_turns=False, fences=[fence, fence])
+    p1 = analytic_pmf(outline, None, None, SCENE, smooth_deg=0.0, distribution=one)
+    p2 = analytic_pmf(outline, None, None, SCENE, smooth_deg=0.0, distribution=two)
     np.testing.assert_allclose(p1, p2, atol=1e-12)
 
 
 def test_composition_feeds_the_first_fence_s_resting_yaws_to_the_second():
     outline = rect(0.04, 0.02)
-    first, second = P.fence_models("straight:45", "straight:30", SCENE)  # Location 2 is met first
-    dist = P.analytic_distribution(outline, "straight:45", "straight:30", SCENE)
-    r1 = P.fence_response(outline, first, MU)
-    r2 = P.fence_response(outline, second, MU)
-    phi = P.fence_normal_deg(second.exit_deg, second.side) - r1.exit_deg  # inputs to the second fence
+    first, second = fence_models("straight:45", "straight:30", SCENE)  # Location 2 is met first
+    dist = analytic_distribution(outline, "straight:45", "straight:30", SCENE)
+    r1 = fence_response(outline, first, MU)
+    r2 = fence_response(outline, second, MU)
+    phi = fence_normal_deg(second.exit_deg, second.side) - r1.exit_deg  # inputs to the second fence
     expected = r2.exit_deg[r2.push.basin_index(phi)]
     np.testing.assert_allclose(np.sort(np.unique(np.round(dist.yaws, 9))), np.sort(np.unique(np.round(expected, 9))))
 
 
 def test_curved_fence_at_zero_does_not_reach_a_small_part():
     small = rect(0.01, 0.008)  # reaches 6 mm from its centroid; the curved:0 tip is 35 mm out
-    dist = P.analytic_distribution(small, "curved:0", "none", SCENE, samples=720)
+    dist = analytic_distribution(small, "curved:0", "none", SCENE, samples=720)
     assert dist.touch["loc1"] == 0.0
-    np.testing.assert_allclose(P.analytic_pmf(small, "curved:0", "none", SCENE, smooth_deg=0.0), 1.0 / P.PMF_BINS)
+    np.testing.assert_allclose(analytic_pmf(small, "curved:0", "none", SCENE, smooth_deg=0.0), 1.0 / PMF_BINS)
 
 
 def test_steep_curved_fences_jam_in_the_friction_cone():
-    dist = P.analytic_distribution(rect(0.04, 0.02), "curved:70", "none", SCENE, samples=720)
+    dist = analytic_distribution(rect(0.04, 0.02), "curved:70", "none", SCENE, samples=720)
     assert dist.jam["loc1"] > 0.5 and dist.margin["loc1"] < 0.0
-    assert P.analytic_distribution(rect(0.04, 0.02), "straight:30", "none", SCENE, samples=720).jam["loc1"] == 0.0
+    assert analytic_distribution(rect(0.04, 0.02), "straight:30", "none", SCENE, samples=720).jam["loc1"] == 0.0
 
 
 # --------------------------------------------------------------------------------------------
 # feature block
 # --------------------------------------------------------------------------------------------
 def test_feature_block_layout():
-    vec = P.push_features(L_SHAPE, "straight:30", "curved:40", SCENE)
-    names = P.PUSH_FEATURE_NAMES
+    vec = push_features(L_SHAPE, "straight:30", "curved:40", SCENE)
+    names = PUSH_FEATURE_NAMES
     assert vec.shape == (len(names),) and len(set(names)) == len(names)
     assert np.isfinite(vec).all()
     f = dict(zip(names, vec))
     assert f["loc1_present"] == 1.0 and f["loc2_present"] == 1.0
     assert 0.0 <= f["ok_mass"] <= 1.0 and 0.0 < f["peak_mass"] <= 1.0
-    pmf = P.analytic_pmf(L_SHAPE, "straight:30", "curved:40", SCENE)
-    c = P.fourier_coefficients(pmf)
+    pmf = analytic_pmf(L_SHAPE, "straight:30", "curved:40", SCENE)
+    c = fourier_coefficients(pmf)
     assert (f["re_c1"], f["im_c1"]) == pytest.approx((c[0].real, c[0].imag))
-    empty = dict(zip(names, P.push_features(L_SHAPE, "none", "none", SCENE)))
+    empty = dict(zip(names, push_features(L_SHAPE, "none", "none", SCENE)))
     assert empty["loc1_present"] == 0.0 and empty["ok_mass"] == 1.0
     assert abs(complex(empty["re_c1"], empty["im_c1"])) < 1e-12
 
@@ -316,8 +329,8 @@ def test_a_part_with_holes_pushes_about_the_regions_centroid_with_the_outlines_h
 
     square = np.array([(-0.01, -0.01), (0.01, -0.01), (0.01, 0.01), (-0.01, 0.01)])
     hole = 0.5 * square  # centred: the centroid stays at the origin
-    solid, ring = P.push_geometry(square), P.push_geometry(square, [hole])
-    inner = P.push_geometry(hole)
+    solid, ring = push_geometry(square), push_geometry(square, [hole])
+    inner = push_geometry(hole)
     assert ring.area == pytest.approx(0.0004 - 0.0001)
     np.testing.assert_allclose(ring.centroid, [0.0, 0.0], atol=1e-15)
     want = (solid.limit_radius * solid.area - inner.limit_radius * inner.area) / ring.area
@@ -325,12 +338,12 @@ def test_a_part_with_holes_pushes_about_the_regions_centroid_with_the_outlines_h
     assert ring.limit_radius > solid.limit_radius  # the material left is farther out
     np.testing.assert_array_equal(ring.hull, solid.hull)
     # off-centre: a 10 x 10 mm hole centred at x = +4 mm moves the centroid to -4/3 mm
-    off = P.push_geometry(square, [hole + [0.004, 0.0]])
+    off = push_geometry(square, [hole + [0.004, 0.0]])
     np.testing.assert_allclose(off.centroid, [-0.004 / 3.0, 0.0], atol=1e-15)
     geom = PartGeometry.from_polygon("ring", square, 0.003, [hole + [0.004, 0.0]])
-    np.testing.assert_allclose(P.as_geometry(geom).centroid, off.centroid)  # a PartGeometry's holes count
+    np.testing.assert_allclose(as_geometry(geom).centroid, off.centroid)  # a PartGeometry's holes count
     with pytest.raises(FeederError, match="holes are not inside the outline"):
-        P.push_geometry(square, [hole + [0.01, 0.0]])  # reaches the outline
+        push_geometry(square, [hole + [0.01, 0.0]])  # reaches the outline
 
 
 def test_a_fence_that_no_drop_reaches_gives_finite_features():
@@ -343,9 +356,9 @@ def test_a_fence_that_no_drop_reaches_gives_finite_features():
     from feeder.parts.geometry import load_part
 
     part = load_part(Path(__file__).resolve().parents[1] / "parts" / "randblob-15.stl")
-    dist = P.analytic_distribution(part, "straight:25", "curved:50")
-    mu = P.fence_mu(P.default_scene())
-    assert dist.margin["loc1"] == pytest.approx(float(P.friction_margin_deg(25.0, mu)))
+    dist = analytic_distribution(part, "straight:25", "curved:50")
+    mu = fence_mu(default_scene())
+    assert dist.margin["loc1"] == pytest.approx(float(friction_margin_deg(25.0, mu)))
     assert dist.jam["loc2"] == 1.0 and dist.ok_mass == 0.0
     assert dist.touch["loc1"] == 0.0 and dist.jam["loc1"] == 0.0
-    assert np.isfinite(P.push_features(part, "straight:25", "curved:50")).all()
+    assert np.isfinite(push_features(part, "straight:25", "curved:50")).all()

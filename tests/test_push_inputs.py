@@ -32,15 +32,19 @@ from feeder.learn import predict as P
 from feeder.learn import recommend as R
 from feeder.learn import train as T
 from feeder.learn.models import TrainedModel
-from feeder.parts import push as PU
+from feeder.mechanics.distribution import analytic_distribution
+from feeder.mechanics.features import PUSH_FEATURE_NAMES, push_block, push_features
+from feeder.mechanics.fence import default_scene
+from feeder.mechanics.hull import push_geometry
+from feeder.mechanics.pmf import YAW_SNAP_DEG, analytic_pmf
 from feeder.parts.geometry import load_outline, stl_bytes
 
 ROOT = Path(__file__).resolve().parents[1]
 GOLDEN = Path(__file__).parent / "data" / "paper_models_golden.json"
-SCENE = PU.default_scene()
+SCENE = default_scene()
 RECT_FRAME_DEG = 30.0  # the rectangle's file outline is turned by this: its principal frame is here
 THICKNESS = 0.005
-N_PUSH = len(PU.PUSH_FEATURE_NAMES)
+N_PUSH = len(PUSH_FEATURE_NAMES)
 
 
 def rect(w, h):
@@ -139,15 +143,15 @@ def test_dataset_push_block_equals_direct_calls_of_the_push_module(world):
     _, _, ds, _ = world
     n = len(ds["part"])
     assert ds["push_raw"].shape == (n, N_PUSH) and ds["pmf_analytic"].shape == (n, 360)
-    assert tuple(ds["push_feature_names"]) == PU.PUSH_FEATURE_NAMES
+    assert tuple(ds["push_feature_names"]) == PUSH_FEATURE_NAMES
     np.testing.assert_allclose(ds["pmf_analytic"].sum(axis=1), 1.0)
     smooth = 1.0 * 360.0 / 360  # labels.sigma_bins in degrees
     for i in (0, 5, n - 1):
         part, (loc1, loc2) = ds["part"][i], parse_config_id(ds["config_id"][i])
         outline = load_outline(world[0] / "parts" / f"{part}.stl", "auto")
         frame = FRAMES[part]
-        np.testing.assert_array_equal(ds["push_raw"][i], PU.push_features(outline, loc1, loc2, SCENE, frame_deg=frame))
-        want = PU.analytic_pmf(outline, loc1, loc2, SCENE, frame_deg=frame, smooth_deg=smooth)
+        np.testing.assert_array_equal(ds["push_raw"][i], push_features(outline, loc1, loc2, SCENE, frame_deg=frame))
+        want = analytic_pmf(outline, loc1, loc2, SCENE, frame_deg=frame, smooth_deg=smooth)
         np.testing.assert_array_equal(ds["pmf_analytic"][i], want)
 
 
@@ -160,13 +164,13 @@ def test_analytic_pmf_is_in_the_label_frame_of_the_row(world):
     for cid in ("straight30_none", "none_straight45", "curved40_straight20"):
         i = int(np.flatnonzero((ds["part"] == "rect") & (ds["config_id"] == cid))[0])
         loc1, loc2 = parse_config_id(cid)
-        unturned = PU.analytic_pmf(RECT, loc1, loc2, SCENE, smooth_deg=1.0)
+        unturned = analytic_pmf(RECT, loc1, loc2, SCENE, smooth_deg=1.0)
         np.testing.assert_allclose(ds["pmf_analytic"][i], unturned, atol=2e-3)
         assert np.argmax(ds["pmf_analytic"][i]) == np.argmax(unturned)
         # by hand: the part-frame yaws of the drops, through label_yaws, in 1-degree bins (snapped to
         # the push module's yaw grid first: 59.999999999 is 60) and smoothed like the labels
-        dist = PU.analytic_distribution(load_outline(world[0] / "parts" / "rect.stl", "auto"), loc1, loc2, SCENE)
-        yaws = D.label_yaws(np.round(dist.yaws / PU.YAW_SNAP_DEG) * PU.YAW_SNAP_DEG, "principal", RECT_FRAME_DEG)
+        dist = analytic_distribution(load_outline(world[0] / "parts" / "rect.stl", "auto"), loc1, loc2, SCENE)
+        yaws = D.label_yaws(np.round(dist.yaws / YAW_SNAP_DEG) * YAW_SNAP_DEG, "principal", RECT_FRAME_DEG)
         hist = np.bincount(np.floor(yaws).astype(int) % 360, weights=dist.weights, minlength=360)
         np.testing.assert_allclose(ds["pmf_analytic"][i], L.wrapped_gaussian_smooth(hist, 1.0), atol=1e-9)
     # the part-frame dataset holds the same PMFs turned back by frame_deg, like its labels
@@ -200,9 +204,9 @@ def test_push_block_time_and_memo(world):
     memo: dict = {}
     for cid in ("curved40_straight20", "straight30_none", "curved40_straight20"):
         loc1, loc2 = parse_config_id(cid)
-        feats, pmf = PU.push_block(outline, loc1, loc2, SCENE, frame_deg=12.0, pmf_smooth_deg=1.0, responses=memo)
-        np.testing.assert_array_equal(feats, PU.push_features(outline, loc1, loc2, SCENE, frame_deg=12.0))
-        np.testing.assert_array_equal(pmf, PU.analytic_pmf(outline, loc1, loc2, SCENE, frame_deg=12.0, smooth_deg=1.0))
+        feats, pmf = push_block(outline, loc1, loc2, SCENE, frame_deg=12.0, pmf_smooth_deg=1.0, responses=memo)
+        np.testing.assert_array_equal(feats, push_features(outline, loc1, loc2, SCENE, frame_deg=12.0))
+        np.testing.assert_array_equal(pmf, analytic_pmf(outline, loc1, loc2, SCENE, frame_deg=12.0, smooth_deg=1.0))
     assert len(memo) == 3  # curved40 at loc1, straight20 at loc2, straight30 at loc1: the repeat adds none
     parts, cids = np.array(["ell", "ell"]), np.array(["straight30_none", "straight30_none"])
     raw, pmf, secs = D.push_arrays(parts, cids, {"ell": outline}, {"ell": 0.0}, SCENE, 360, 1.0)
@@ -237,7 +241,7 @@ def test_a_dataset_with_other_push_features_is_refused(push_regression_dataset, 
 # ---------------------------------------------------------------------------------------------
 def test_input_names_and_features_version():
     assert D.input_names() == D.INPUT_NAMES and len(D.input_names("paper+push")) == 53 + N_PUSH
-    assert D.input_names("paper+push")[53:] == tuple("push_" + n for n in PU.PUSH_FEATURE_NAMES)
+    assert D.input_names("paper+push")[53:] == tuple("push_" + n for n in PUSH_FEATURE_NAMES)
     # the paper's version is the one its models always had: the same content, hashed the same way
     blob = json.dumps(
         {"version": D.FEATURES_VERSION, "inputs": list(D.INPUT_NAMES), "dft": dataclasses.asdict(D.DFT)}, sort_keys=True
@@ -406,7 +410,7 @@ def test_paper_push_models_train_save_load_and_predict(push_models):
 
 def test_a_push_model_of_other_push_features_is_refused(push_models, tmp_path, monkeypatch):
     root, _ = push_models
-    monkeypatch.setattr(PU, "PUSH_FEATURE_NAMES", PU.PUSH_FEATURE_NAMES + ("extra",))
+    monkeypatch.setattr("feeder.mechanics.features.PUSH_FEATURE_NAMES", PUSH_FEATURE_NAMES + ("extra",))
     with pytest.raises(FeederError, match="retrain") as err:
         TrainedModel.load(root / "m3")
     assert "\n" not in str(err.value)
@@ -487,7 +491,7 @@ def test_predict_with_a_push_model_computes_the_push_block_of_the_stl(push_model
     got = pd.read_csv(out)
     tm = TrainedModel.load(root / "m4")
     assert tm.label_frame == "part"  # the synthetic dataset: push features in the part frame
-    push = PU.push_features(load_outline(STL, "auto"), "straight:30", "curved:40", SCENE)
+    push = push_features(load_outline(STL, "auto"), "straight:30", "curved:40", SCENE)
     feeder = D.feeder_vector(parse_location("straight:30"), parse_location("curved:40"))
     pmf, _ = tm.predict(as_vector(features_of_file(STL)), feeder, push)
     np.testing.assert_allclose(got.pmf, pmf[0], atol=1e-12)
@@ -530,7 +534,7 @@ def test_recommend_with_a_push_model_ranks_with_each_configurations_push_block(p
     outline = load_outline(STL, "auto")
     for cid in configs:
         loc1, loc2 = parse_config_id(cid)
-        push = PU.push_features(outline, loc1, loc2, SCENE)
+        push = push_features(outline, loc1, loc2, SCENE)
         pmf, _ = tm.predict(as_vector(features_of_file(STL)), D.feeder_vector(loc1, loc2), push)
         assert ranked.loc[cid, "probability"] == pytest.approx(R.window_probability(pmf[0], 90.0, 10.0)[()])
 
@@ -560,8 +564,8 @@ def test_the_dataset_push_block_sees_a_parts_holes(tmp_path):
     """The plate's hole sits off-centre, so its centre of mass is not the outline's: the push block
     from its STL is that of the outline less the hole, not of the solid outline."""
     from feeder.lane.fences import config_id, parse_location
+    from feeder.mechanics.fence import default_scene
     from feeder.parts.geometry import stl_bytes
-    from feeder.parts.push import default_scene
     from feeder.parts.shapes import shape_part
 
     plate = shape_part("plate-60x30x10", 0.005)
@@ -574,8 +578,8 @@ def test_the_dataset_push_block_sees_a_parts_holes(tmp_path):
     rest = ({"plate": 0.0}, default_scene(), 360, 2.0)
     holed, _, _ = D.push_arrays(*args, profiles, *rest)
     solid, _, _ = D.push_arrays(*args, {"plate": outline}, *rest)
-    direct = PU.push_features(
-        PU.push_geometry(outline, holes),
+    direct = push_features(
+        push_geometry(outline, holes),
         *(parse_location(s) for s in ("straight:30", "none")),
         default_scene(),
         frame_deg=0.0,

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from feeder import circular as C
 from feeder.errors import FeederError
 from feeder.labels import metrics as L
 from feeder.labels import pushforward as P
@@ -32,7 +33,7 @@ def ramp_map(beta):
 
 
 def wrap_map(beta):
-    return all_ok(L.normalize_yaw(355.0 + beta / 36.0))
+    return all_ok(C.normalize_yaw(355.0 + beta / 36.0))
 
 
 def jam_map(beta):
@@ -67,7 +68,7 @@ def symmetric_map(beta):
     b = beta - 90.0 * k
     final = np.where(b < 40.0, 20.0 + 0.02 * b, 70.0 + 0.02 * b) + 90.0 * k
     jammed = (b >= 80.0) & (b < 85.0)
-    return np.where(jammed, np.nan, L.normalize_yaw(final)), np.where(jammed, "jammed", "ok")
+    return np.where(jammed, np.nan, C.normalize_yaw(final)), np.where(jammed, "jammed", "ok")
 
 
 class Counting:
@@ -188,7 +189,7 @@ def test_linear_ramp_is_uniform_and_exact():
     assert sup_cdf(pmf, ref) <= d.label_bound + NUMERIC
     # smoothing as the workflow's labels: both sides smoothed alike, the bound still holds
     smooth, _ = P.pushforward_pmf(d, BINS, 1.0)
-    assert sup_cdf(smooth, L.wrapped_gaussian_smooth(ref, 1.0)) <= d.label_bound + NUMERIC
+    assert sup_cdf(smooth, C.wrapped_gaussian_smooth(ref, 1.0)) <= d.label_bound + NUMERIC
 
 
 def test_wraparound_basin_is_interpolated_the_short_way():
@@ -212,7 +213,7 @@ def test_jam_arc_mass():
     ref, ref_masses = dense_reference(jam_map)
     assert ref_masses["jammed"] == pytest.approx(100 / 360, abs=1e-5)
     bound = P.label_cdf_bound(d, masses["ok"])
-    assert sup_cdf(pmf, L.wrapped_gaussian_smooth(ref, 1.0)) <= bound + NUMERIC
+    assert sup_cdf(pmf, C.wrapped_gaussian_smooth(ref, 1.0)) <= bound + NUMERIC
     # the ok basin maps [90, 350) to [49.5, 62.5): the unsmoothed label lives there
     raw, _ = P.pushforward_pmf(d, BINS, 0.0)
     assert raw[:49].sum() < 1e-12 and raw[63:].sum() < 1e-12  # FFT round-off of sigma = 0
@@ -252,7 +253,7 @@ def test_chaotic_band_terminates_and_is_bounded():
     assert (d.unresolved[:, 1] - d.unresolved[:, 0] <= d.min_width_deg).all()
     assert sup_cdf(pmf, exact) <= P.label_cdf_bound(d, masses["ok"]) + NUMERIC
     smooth, _ = P.pushforward_pmf(d, BINS, 1.0)
-    assert sup_cdf(smooth, L.wrapped_gaussian_smooth(exact, 1.0)) <= d.label_bound + NUMERIC
+    assert sup_cdf(smooth, C.wrapped_gaussian_smooth(exact, 1.0)) <= d.label_bound + NUMERIC
     # the band's mass is split about evenly
     assert pmf[10] == pytest.approx(band_mass / 2, abs=d.label_bound / 2)
 

@@ -137,7 +137,7 @@ def paired_basins(final_a, status_a, final_b, status_b, tolerance_deg: float = S
     over the same pairs, in [-180, 180) (``median_signed_dyaw_deg``): a small systematic turn of
     every drop, which barely moves the median |Δ| above the floor, shows there. Pooled
     distributions hide a drop that flips basin while another flips back; this counts it."""
-    from feeder.labels.pushforward import wrap180
+    from feeder.circular import wrap180
 
     final_a, final_b = np.asarray(final_a, dtype=np.float64), np.asarray(final_b, dtype=np.float64)
     status_a, status_b = np.asarray(status_a).astype(str), np.asarray(status_b).astype(str)

@@ -6,7 +6,7 @@ input scaler, ``dataset.npz`` (docs/data.md) and Table 4; and the ``feeder datas
   ``dataset.npz``: labels (PMF, CDF, partial-level PMFs) in the label frame, the raw 45 + 8
   inputs, the leave-parts-out fold of every row and the excluded configurations. Given the part
   files (``--parts-dir``, default ``parts.dir`` of the settings), also the analytic push block of
-  every row (:func:`push_arrays`): ``push_raw`` (the :data:`feeder.parts.push.PUSH_FEATURE_NAMES`
+  every row (:func:`push_arrays`): ``push_raw`` (the :data:`feeder.mechanics.features.PUSH_FEATURE_NAMES`
   features, named in ``push_feature_names``) and ``pmf_analytic`` (the analytic PMF, in the label
   frame and with the labels' smoothing). Datasets without them still load; models that need
   them say so (:func:`raw_inputs`).
@@ -43,8 +43,8 @@ from feeder.labels.convergence import convergence_data
 from feeder.labels.grid import SPLITS, WIDE, configurations
 from feeder.labels.pmf import check_ok_mass, level_drops, sim_label
 from feeder.lane.fences import TYPES, Fence, parse_config_id
+from feeder.mechanics.features import PUSH_FEATURE_NAMES, PUSH_FEATURES_VERSION
 from feeder.parts.features import DFT, DFT_FEATURE_NAMES, FEATURES_VERSION, load_frame_deg
-from feeder.parts.push import PUSH_FEATURE_NAMES, PUSH_FEATURES_VERSION
 from feeder.sim.record import BadData, SimRecord, load_sim
 
 log = logging.getLogger("feeder.labels.dataset")
@@ -90,7 +90,7 @@ def uses_push(inputs: str) -> bool:
 def input_names(inputs: str = PAPER_INPUTS) -> tuple[str, ...]:
     """The raw model inputs of ``model.inputs`` in network order: :data:`INPUT_NAMES` (without the
     DFT values for ``fence+push``), then, but for ``paper``, the push block (``push_`` +
-    :data:`feeder.parts.push.PUSH_FEATURE_NAMES`)."""
+    :data:`feeder.mechanics.features.PUSH_FEATURE_NAMES`)."""
     names = INPUT_NAMES if uses_dft(inputs) else FEEDER_FEATURE_NAMES
     if not uses_push(inputs):
         return names
@@ -102,13 +102,15 @@ def features_version(inputs: str = PAPER_INPUTS) -> str:
     the hand-bumped :data:`feeder.parts.features.FEATURES_VERSION` and a short sha256 of it, the
     ordered :data:`INPUT_NAMES` and the DFT settings (:data:`feeder.parts.features.DFT`); for
     inputs with the push block also its names, its hand-bumped
-    :data:`feeder.parts.push.PUSH_FEATURES_VERSION` and settings, and for ``fence+push`` that the
+    :data:`feeder.mechanics.features.PUSH_FEATURES_VERSION` and settings, and for ``fence+push`` that the
     DFT values are left out (the ``paper`` version is the one the paper's models always had). A
     model card records it; a model whose inputs were computed otherwise gets a different one."""
     import dataclasses
     import hashlib
 
-    from feeder.parts import push
+    from feeder.mechanics.distribution import YAW_SAMPLES
+    from feeder.mechanics.features import FOURIER_K
+    from feeder.mechanics.pmf import DEFAULT_SMOOTH_DEG
 
     if len(INPUT_NAMES) != N_DFT + N_FEEDER:
         raise FeederError(f"INPUT_NAMES lists {len(INPUT_NAMES)} inputs, the models take {N_DFT + N_FEEDER}")
@@ -119,9 +121,9 @@ def features_version(inputs: str = PAPER_INPUTS) -> str:
         content["push"] = {
             "version": PUSH_FEATURES_VERSION,
             "names": list(PUSH_FEATURE_NAMES),
-            "smooth_deg": push.DEFAULT_SMOOTH_DEG,
-            "fourier_k": push.FOURIER_K,
-            "yaw_samples": push.YAW_SAMPLES,
+            "smooth_deg": DEFAULT_SMOOTH_DEG,
+            "fourier_k": FOURIER_K,
+            "yaw_samples": YAW_SAMPLES,
         }
     blob = json.dumps(content, sort_keys=True)
     return f"{FEATURES_VERSION}-{hashlib.sha256(blob.encode()).hexdigest()[:FEATURES_DIGEST_CHARS]}"
@@ -392,13 +394,14 @@ def push_arrays(
     bins: int,
     smooth_deg: float,
 ) -> tuple[np.ndarray, np.ndarray, float]:
-    """Per row: the push features and the analytic PMF (:func:`feeder.parts.push.push_block`) of
+    """Per row: the push features and the analytic PMF (:func:`feeder.mechanics.features.push_block`) of
     the row's part outline in its fence configuration, both in the label frame (``frame_deg`` of
     the part: the PMF of ``yaw + frame_deg``, as :func:`label_yaws`), the PMF smoothed by
     ``smooth_deg``. Each part's geometry is built once and its fence responses are shared by its
     rows; a repeated (part, configuration) is computed once. Returns ``(push_raw, pmf_analytic,
     seconds)``."""
-    from feeder.parts.push import push_block, push_geometry
+    from feeder.mechanics.features import push_block
+    from feeder.mechanics.hull import push_geometry
 
     t0 = time.perf_counter()
     geoms: dict[str, object] = {}
@@ -519,7 +522,7 @@ def build_dataset(configs: pd.DataFrame, features_dir, sim_dir, settings: dict, 
     if outlines is None:
         log.warning("no part files (--parts-dir or parts.dir): the dataset has no analytic push block")
     else:
-        from feeder.parts.push import default_scene
+        from feeder.mechanics.fence import default_scene
 
         scene = settings["scene"] if "scene" in settings else default_scene()
         push_raw, pmf_analytic, secs = push_arrays(

@@ -26,77 +26,24 @@ import math
 
 import numpy as np
 
+from feeder.circular import FULL_TURN_DEG, check_bins, normalize_yaw, wrapped_gaussian_smooth
 from feeder.errors import FeederError
 
-FULL_TURN_DEG = 360.0
 LABEL_FRAMES = ("principal", "part")  # labels.frame: the feature frame or the part file's own frame
 
 
 # ----------------------------------------------------------------------------------------------
 # PMF construction
 # ----------------------------------------------------------------------------------------------
-def normalize_yaw(beta) -> np.ndarray:
-    """Map yaw angles (degrees, any real value) to ``[0, 360)``: θ = (β + 360) mod 360.
-
-    Non-finite inputs stay NaN. The result is strictly below 360 even where floating-point
-    rounding of a tiny negative angle would give 360.
-    """
-    beta = np.asarray(beta, dtype=np.float64)
-    finite = np.isfinite(beta)
-    theta = np.mod(np.where(finite, beta, 0.0) + FULL_TURN_DEG, FULL_TURN_DEG)
-    theta = np.where(theta >= FULL_TURN_DEG, 0.0, theta)
-    return np.where(finite, theta, np.nan)
-
-
-def _check_bins(bins: int) -> int:
-    if int(bins) != bins or bins < 1:
-        raise FeederError(f"bins must be a positive integer, got {bins!r}")
-    return int(bins)
-
-
 def histogram(yaws, bins: int) -> np.ndarray:
     """Counts of yaws (degrees, normalised to [0, 360) first) in ``bins`` equal bins (float64)."""
-    bins = _check_bins(bins)
+    bins = check_bins(bins)
     theta = normalize_yaw(np.ravel(yaws))
     if np.isnan(theta).any():
         raise FeederError("histogram: yaw angles must be finite (drop non-ok drops first)")
     idx = np.floor(theta * (bins / FULL_TURN_DEG)).astype(np.int64)
     idx = np.clip(idx, 0, bins - 1)  # guards θ·bins/360 rounding up to ``bins``
     return np.bincount(idx, minlength=bins).astype(np.float64)
-
-
-def wrapped_gaussian_kernel(bins: int, sigma: float) -> np.ndarray:
-    """Circular Gaussian kernel indexed by offset 0..bins-1 (offset ``bins-1`` is −1), sums to 1."""
-    bins = _check_bins(bins)
-    if not (sigma >= 0 and math.isfinite(sigma)):
-        raise FeederError(f"sigma must be a finite non-negative number of bins, got {sigma!r}")
-    kernel = np.zeros(bins)
-    if sigma == 0:
-        kernel[0] = 1.0
-        return kernel
-    offsets = np.arange(bins, dtype=np.float64)
-    # Sum every image of the Gaussian that is not negligible (at least ±8σ, at least one turn).
-    turns = int(math.ceil(8 * sigma / bins)) + 1
-    for t in range(-turns, turns + 1):
-        kernel += np.exp(-0.5 * ((offsets + t * bins) / sigma) ** 2)
-    return kernel / kernel.sum()
-
-
-def wrapped_gaussian_smooth(hist, sigma: float) -> np.ndarray:
-    """Circular convolution of histogram rows (last axis = bins) with the wrapped Gaussian,
-    renormalised so every row sums to 1. An all-zero row is an error (no mass to spread)."""
-    hist = np.asarray(hist, dtype=np.float64)
-    if hist.ndim == 0 or hist.shape[-1] < 1:
-        raise FeederError("wrapped_gaussian_smooth: need at least one bin")
-    if (hist < 0).any() or not np.isfinite(hist).all():
-        raise FeederError("wrapped_gaussian_smooth: histogram values must be finite and >= 0")
-    bins = hist.shape[-1]
-    kernel = wrapped_gaussian_kernel(bins, sigma)
-    out = np.fft.irfft(np.fft.rfft(hist, axis=-1) * np.fft.rfft(kernel), n=bins, axis=-1)
-    if (hist.sum(axis=-1) <= 0).any():
-        raise FeederError("wrapped_gaussian_smooth: a histogram row has no mass")
-    out = np.clip(out, 0.0, None)  # FFT round-off can give -1e-18 in empty bins
-    return out / out.sum(axis=-1, keepdims=True)
 
 
 def pmf_from_yaws(yaws, bins: int, sigma: float) -> np.ndarray:
@@ -157,7 +104,7 @@ def partial_pmfs(yaws_in_drop_order, levels_pct, bins: int, sigma: float, ok=Non
         raise FeederError("partial_pmfs: ok mask and yaws differ in length")
     if not np.isfinite(yaws[ok]).all():
         raise FeederError("partial_pmfs: an ok drop has a non-finite yaw")
-    bins = _check_bins(bins)
+    bins = check_bins(bins)
     counts = level_drop_counts(yaws.size, levels_pct)
     theta = normalize_yaw(np.where(ok, yaws, 0.0))
     idx = np.clip(np.floor(theta * (bins / FULL_TURN_DEG)).astype(np.int64), 0, bins - 1)

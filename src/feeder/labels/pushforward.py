@@ -57,8 +57,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from feeder.circular import FULL_TURN_DEG, circular_distance, normalize_yaw, wrap180, wrapped_gaussian_smooth
 from feeder.errors import FeederError
-from feeder.labels.metrics import FULL_TURN_DEG, normalize_yaw, wrapped_gaussian_smooth
 
 OK = "ok"  # the status of a drop that made it (feeder.sim.drops.STATUSES[0]); kept here: no pybullet import
 
@@ -84,19 +84,6 @@ _WIDTH_SLACK = 1e-9  # relative: a width within round-off of a threshold is not 
 
 
 Evaluate = Callable[[np.ndarray], "tuple[np.ndarray, np.ndarray]"]
-
-
-# ----------------------------------------------------------------------------------------------
-# Small circular helpers
-# ----------------------------------------------------------------------------------------------
-def wrap180(x) -> np.ndarray:
-    """Angle differences (degrees) reduced to ``[-180, 180)``."""
-    return np.mod(np.asarray(x, dtype=np.float64) + 180.0, FULL_TURN_DEG) - 180.0
-
-
-def circular_distance(a, b) -> np.ndarray:
-    """Circular distance of yaws in degrees, in [0, 180]; NaN if either is NaN."""
-    return np.abs(wrap180(np.asarray(a, dtype=np.float64) - np.asarray(b, dtype=np.float64)))
 
 
 def _turns(period_deg: float) -> int:

@@ -16,7 +16,7 @@ analytic push block (:func:`baseline_names`):
   input space (Euclidean; the scaler is fit on the training rows). A training row is never its
   own neighbour (leave-one-out), so the Train table shows an honest baseline;
 * ``baseline_analytic_pmf``: the analytic PMF of the configuration itself (the dataset's
-  ``pmf_analytic``: quasi-static pushing of the part's outline, :mod:`feeder.parts.push`, in the
+  ``pmf_analytic``: quasi-static pushing of the part's outline, :mod:`feeder.mechanics`, in the
   label frame with the labels' smoothing), no training row read. Only with ``pmf_analytic``;
 * ``baseline_analytic_prior``: the analytic PMF widened and blended with the training-mean PMF,
   ``λ · widen(analytic, σ) + (1 − λ) · mean`` (:mod:`feeder.learn.prior`), with (σ, λ) chosen on

@@ -8,7 +8,7 @@ A model is described by its Hydra node ``model`` (``config/hydra/model/m1.yaml``
   ``part_hidden``, 8 feeder features → ``feeder_hidden``, concatenated → ``shared_hidden`` → out);
 * ``inputs``: ``paper`` (the paper's 53 inputs; the default, and what a model saved without the
   key has) or ``paper+push``: the 53 and the analytic push block
-  (:data:`feeder.parts.push.PUSH_FEATURE_NAMES`, z-scored like the DFT values), appended after
+  (:data:`feeder.mechanics.features.PUSH_FEATURE_NAMES`, z-scored like the DFT values), appended after
   them. A branched network feeds the push block to its feeder branch (8 + P → ``feeder_hidden``):
   the block describes how the fences act on the part, the configuration-specific side of the
   input; the part branch keeps the 45 shape features alone. ``fence+push`` leaves the DFT out:
@@ -22,7 +22,7 @@ A model is described by its Hydra node ``model`` (``config/hydra/model/m1.yaml``
   weights as buffers with the training-mean PMF). The softmax logits are the network's output plus
   log(prior), so the network learns a per-configuration correction of the prior, and with the
   output layer at zero it predicts the prior itself. Such a model needs the configuration's
-  analytic PMF (the dataset's ``pmf_analytic``; for a new part :func:`feeder.parts.push.push_block`).
+  analytic PMF (the dataset's ``pmf_analytic``; for a new part :func:`feeder.mechanics.features.push_block`).
 
 The network's forward pass returns the *raw* distribution in 360-bin space (PCA outputs are
 reconstructed with the stored training mean and loadings inside the graph, so the losses of
@@ -244,7 +244,7 @@ class ModelSpec:
         """Width of the push block in the network input (0 for the paper's inputs)."""
         if self.inputs == "paper":
             return 0
-        from feeder.parts.push import PUSH_FEATURE_NAMES
+        from feeder.mechanics.features import PUSH_FEATURE_NAMES
 
         return len(PUSH_FEATURE_NAMES)
 
@@ -548,7 +548,7 @@ class TrainedModel:
             "state_dict": self.net.state_dict(),
         }
         if self.needs_push:
-            from feeder.parts.push import PUSH_FEATURE_NAMES
+            from feeder.mechanics.features import PUSH_FEATURE_NAMES
 
             blob["push_features"] = list(PUSH_FEATURE_NAMES)
         torch.save(blob, buf)
@@ -558,7 +558,7 @@ class TrainedModel:
     @classmethod
     def load(cls, model_dir) -> TrainedModel:
         """The model saved in ``model_dir``; one whose push features are not the ones this code
-        computes (another :data:`feeder.parts.push.PUSH_FEATURE_NAMES`) is a one-line FeederError."""
+        computes (another :data:`feeder.mechanics.features.PUSH_FEATURE_NAMES`) is a one-line FeederError."""
         from pathlib import Path
 
         from feeder.errors import FeederError
@@ -574,7 +574,7 @@ class TrainedModel:
         except ValueError as err:
             raise FeederError(f"{weights}: {err}") from None
         if spec.push_dim:
-            from feeder.parts.push import PUSH_FEATURE_NAMES
+            from feeder.mechanics.features import PUSH_FEATURE_NAMES
 
             if tuple(blob.get("push_features") or ()) != PUSH_FEATURE_NAMES:
                 raise FeederError(

@@ -18,11 +18,11 @@ CSV goes to stdout. The time spent on features and on the network is printed to 
 milliseconds.
 
 A model with ``model.inputs: paper+push`` also reads the analytic push block of the part in the
-configuration (:func:`push_inputs`: :func:`feeder.parts.push.push_features` of the STL's outline, in
+configuration (:func:`push_inputs`: :func:`feeder.mechanics.features.push_features` of the STL's outline, in
 the study config's scene and the model's label frame, as ``feeder datasets build`` computes it):
 it needs ``--part`` as an STL (``--features`` and ``.xyz`` files hold no outline). So does a model
 that starts from the analytic prior (``model.base: prior``): it reads the configuration's analytic
-PMF, from the same pass (:func:`push_inputs`, :func:`feeder.parts.push.push_block`), smoothed as
+PMF, from the same pass (:func:`push_inputs`, :func:`feeder.mechanics.features.push_block`), smoothed as
 the study config's labels are (``labels.sigma_bins``).
 """
 
@@ -142,8 +142,10 @@ def push_inputs(
     check_push_source(model, part)
     from feeder.config import load_study_config, study_root
     from feeder.labels.dataset import label_smooth_deg
+    from feeder.mechanics.features import push_block
+    from feeder.mechanics.fence import default_scene
+    from feeder.mechanics.hull import push_geometry
     from feeder.parts.geometry import load_profile
-    from feeder.parts.push import default_scene, push_block, push_geometry
 
     frame = 0.0
     if model.label_frame == "principal":

@@ -1,13 +1,13 @@
 """A prior for unseen parts: the analytic PMF blended with the training-mean PMF (issue #20).
 
-The analytic PMF (:mod:`feeder.parts.push`, the dataset's ``pmf_analytic``) puts the mass within a
+The analytic PMF (:mod:`feeder.mechanics`, the dataset's ``pmf_analytic``) puts the mass within a
 few degrees where the quasi-static theory holds and far off where it does not (jams, two fences,
 a part that leaves the fence before it settles); the training-mean PMF is never sharp and never
 far off. Their blend
 
     prior = λ · widen(analytic, σ) + (1 − λ) · mean_pmf,
 
-with ``widen`` a wrapped Gaussian of σ bins (:func:`feeder.labels.metrics.wrapped_gaussian_smooth`;
+with ``widen`` a wrapped Gaussian of σ bins (:func:`feeder.circular.wrapped_gaussian_smooth`;
 σ = 0 leaves it alone), keeps the analytic peaks and hedges them. σ and λ are chosen on training
 rows only, from given grids, by the mean CDF R² (:func:`fit_blend`). Measured on the default run's
 dataset (docs/results.md, "Unseen parts"): every GroupKFold fold chose σ = 4, λ = 0.6.
@@ -70,7 +70,7 @@ def _check_pmfs(name: str, pmf) -> np.ndarray:
 
 def widen(analytic, sigma_bins: float) -> np.ndarray:
     """Rows of ``analytic`` convolved with a wrapped Gaussian of ``sigma_bins`` (0: unchanged)."""
-    from feeder.labels.metrics import wrapped_gaussian_smooth
+    from feeder.circular import wrapped_gaussian_smooth
 
     analytic = _check_pmfs("analytic PMF", analytic)
     if sigma_bins == 0:

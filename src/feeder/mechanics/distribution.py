@@ -1,0 +1,205 @@
+"""A configuration: evenly spaced drops of a part pushed through its fences.
+
+Configurations (:func:`analytic_distribution`)
+    The initial yaw is uniform, sampled at ``YAW_SAMPLES`` evenly spaced yaws, each a drop of
+    equal weight with the part centred (x = 0), as in ``feeder.sim.drops``. The fences act in the
+    order a part meets them (Location 2, then Location 1): a drop's yaw after the first fence,
+    exit turn included, is its input to the second. A fence acts on a drop only if the part
+    reaches it laterally (its support towards the fence beyond the fence's innermost point, from
+    the drop's lateral position, which the exit from an upstream fence moves): curved fences at
+    small angles miss the centre line. A straight fence pushes with the push function at ``θ``. A
+    curved fence is taken as the straight fence of its last chord (an approximation: the part
+    rides the arc, turning with it, and leaves along that chord); the local angle where a disc of
+    the part's support radius first meets the arc (*entry*) only decides whether the part jams
+    (using the push function at the entry angle to choose the basin did worse on the simulated
+    two-fence configurations). A part whose disc would meet the circle beyond the tip only
+    grazes the tip corner and is left unchanged (an approximation: on ``curved:80`` the
+    simulator turns such parts).
+    A fence turns a part only as far as it pushes it: pushed sideways by the overlap ``o``
+    between the part and the fence's innermost point, a part turns by at most ``o / (2c)``
+    radians (a unit push at moment arm ``a`` turns it by ``a / (c² + a²) ≤ 1 / (2c)`` on the
+    limit surface), so a part that would need more (a shallow curved fence reaching only its
+    edge: ``curved:0``) turns that far towards its stable edge and leaves unaligned.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from feeder.circular import FULL_TURN_DEG, HALF_TURN_DEG, wrap360
+from feeder.errors import FeederError
+from feeder.mechanics.exitturn import exit_turn
+from feeder.mechanics.fence import (
+    FenceModel,
+    default_scene,
+    fence_models,
+    fence_mu,
+    fence_normal_deg,
+    friction_margin_deg,
+    resting_yaw,
+)
+from feeder.mechanics.hull import PushGeometry, as_geometry, radius_function
+from feeder.mechanics.pushfunction import PushFunction, push_function, rolling_density
+
+YAW_SAMPLES = 7200  # evenly spaced initial yaws (0.05° apart): a basin's mass is off by < 1/7200
+# Contact normals at which a rolling part (no stable edge) may leave a fence: 0.5° apart.
+ROLL_SAMPLES = 720
+
+
+@dataclass(frozen=True)
+class FenceResponse:
+    """What one fence does to a part arriving at any yaw: its push function (at the fence's
+    friction and side), the yaw each stable edge rests at on the exit face, and its exit turn."""
+
+    model: FenceModel
+    push: PushFunction
+    rest_deg: np.ndarray  # (S,) yaw flush on the exit face
+    exit_deg: np.ndarray  # (S,) yaw after the exit turn
+    exit_offset: np.ndarray  # (S, 2) centroid relative to the tip corner when released
+
+
+def fence_response(part, model: FenceModel, mu: float, exit_turns: bool = True) -> FenceResponse:
+    """The push function and resting/exit yaws of each stable edge on ``model``."""
+    geom = as_geometry(part)
+    push = push_function(geom, mu, model.side)
+    rest = resting_yaw(push.normals_deg, model.exit_deg, model.side)
+    # no exit turn where the exit face holds the part (in the friction cone): it jams there
+    turning = exit_turns and float(friction_margin_deg(model.exit_deg, mu)) > 0.0
+    turns = [exit_turn(geom, int(k), model.exit_deg, model.side, mu) if turning else None for k in push.edges]
+    delta = np.array([t.delta_deg if t else 0.0 for t in turns])
+    if turning:
+        offset = np.array([t.offset for t in turns])
+    else:  # flush at the tip: the centroid sits at its height from the face, over the foot
+        normal = np.radians(fence_normal_deg(model.exit_deg, model.side))
+        offset = -np.outer(geom.heights[push.edges], [math.cos(normal), math.sin(normal)])
+    return FenceResponse(model, push, rest, wrap360(rest + delta), offset)
+
+
+@dataclass(frozen=True)
+class Distribution:
+    """Final yaws of the sampled drops (part frame, degrees) with their weights (jammed drops
+    removed), and per fence met: the share of arriving drops that touched it and that jammed, and
+    its friction margin (degrees)."""
+
+    yaws: np.ndarray
+    weights: np.ndarray
+    ok_mass: float
+    touch: dict
+    jam: dict
+    margin: dict
+
+
+def _support_towards(geom: PushGeometry, yaw_deg: np.ndarray, side: int) -> np.ndarray:
+    """The part's extent from its centroid towards world direction ``side · x`` at each yaw."""
+    world = 0.0 if side > 0 else HALF_TURN_DEG
+    return radius_function(geom, world - yaw_deg)
+
+
+def _apply(geom, resp: FenceResponse, mu: float, yaw, x, w, jams: bool = True):
+    """One fence on the drops (yaws, lateral centroid positions, weights); returns the new
+    arrays and (touch share, jam share, mean entry margin) of the arriving weight. The margin is
+    over the drops that touch, else over all arriving drops, else (nothing arrives: an upstream
+    fence jammed every drop) the margin at the fence's exit angle."""
+    m = resp.model
+    side = m.side
+    reach = _support_towards(geom, yaw, side)
+    touch = side * x + reach > m.inner
+    entry = np.full(yaw.shape, m.exit_deg)
+    if m.curved:
+        # a disc of the part's support radius meets the arc's face at local angle acos(...)
+        cos_a = side * (m.centre[0] - x) / (m.outer_radius + reach)
+        entry = np.degrees(np.arccos(np.clip(cos_a, -1.0, 1.0)))
+        graze = entry < m.exit_deg  # would meet the circle beyond the tip: the corner only
+        touch &= ~graze
+        entry = np.minimum(entry, m.slot_deg)
+    margin = friction_margin_deg(entry, mu)
+    jam = touch & (margin < 0.0) if jams else np.zeros(yaw.shape, dtype=bool)
+    push = touch & ~jam
+    total = float(w.sum())
+    if w[touch].sum() > 0:
+        mean_margin = np.average(margin[touch], weights=w[touch])
+    elif margin.size:
+        mean_margin = margin.mean()
+    else:  # nothing arrives: an upstream fence jammed every drop
+        mean_margin = friction_margin_deg(m.exit_deg, mu)
+    stats = (
+        float(w[touch].sum()) / total if total > 0 else 0.0,
+        float(w[jam].sum()) / total if total > 0 else 0.0,
+        float(mean_margin),
+    )
+    if push.any() and resp.push.rolls:  # every pushed drop leaves at the rolling density
+        phi = (np.arange(ROLL_SAMPLES) + 0.5) * (FULL_TURN_DEG / ROLL_SAMPLES)
+        normal = float(fence_normal_deg(m.exit_deg, side))
+        keep = ~(jam | push)
+        yaw = np.concatenate([yaw[keep], wrap360(normal - phi)])
+        x = np.concatenate([x[keep], m.tip[0] - radius_function(geom, phi) * math.cos(math.radians(normal))])
+        w = np.concatenate([w[keep], float(w[push].sum()) * rolling_density(geom, mu, side, phi)])
+        return yaw, x, w, stats
+    if push.any():
+        # the exit face decides the basin (its push function at the entry angle did worse on the
+        # simulated two-fence configurations: the disc estimate of the entry is rough)
+        phi = fence_normal_deg(m.exit_deg, side) - yaw[push]
+        idx = resp.push.basin_index(phi)
+        # the turn the fence can give: a sideways push by the overlap turns the part by at most
+        # overlap / (2c) (unit push at moment arm a turns it by a / (c² + a²) <= 1 / (2c))
+        overlap = side * x[push] + reach[push] - m.inner
+        budget = np.degrees(overlap / (2.0 * geom.limit_radius))
+        need = np.mod(resp.push.normals_deg[idx] - phi + HALF_TURN_DEG, FULL_TURN_DEG) - HALF_TURN_DEG
+        full = np.abs(need) <= budget
+        new_yaw = np.where(full, resp.exit_deg[idx], yaw[push] - np.sign(need) * budget)
+        new_x = np.where(full, m.tip[0] + resp.exit_offset[idx, 0], x[push] - side * overlap)
+        yaw = yaw.copy()
+        x = x.copy()
+        yaw[push], x[push] = new_yaw, new_x
+    keep = ~jam
+    return yaw[keep], x[keep], w[keep], stats
+
+
+def analytic_distribution(
+    part,
+    loc1,
+    loc2,
+    scene: dict | None = None,
+    *,
+    mu: float | None = None,
+    exit_turns: bool = True,
+    samples: int = YAW_SAMPLES,
+    fences: list[FenceModel] | None = None,
+    jams: bool = True,
+    responses: dict | None = None,
+) -> Distribution:
+    """Push ``samples`` evenly spaced initial yaws (centred parts) through the configuration.
+
+    ``mu``: part–fence friction (default :func:`fence_mu` of ``scene``); ``exit_turns``: apply the
+    exit turn (False: parts leave a fence flush with it); ``fences``: an explicit list of fence
+    models in the order met (overrides loc1/loc2); ``jams``: False pushes drops in the friction
+    cone as if they slid (their jam share is still reported); ``responses``: a memo of
+    :func:`fence_response` for this one part, filled and reused across calls (the exit-turn
+    integration is most of the cost, and configurations of a part share fences): give each part
+    its own dict."""
+    geom = as_geometry(part)
+    scene = default_scene() if scene is None else scene
+    mu = fence_mu(scene) if mu is None else float(mu)
+    if fences is None:
+        fences = fence_models(loc1, loc2, scene)
+    n = int(samples)
+    if n < 1:
+        raise FeederError(f"samples must be a positive integer, got {samples!r}")
+    yaw = (np.arange(n) + 0.5) * (FULL_TURN_DEG / n)
+    x = np.zeros(n)
+    w = np.full(n, 1.0 / n)
+    touch, jam, margin = {}, {}, {}
+    for m in fences:
+        key = (m, mu, bool(exit_turns))
+        resp = None if responses is None else responses.get(key)
+        if resp is None:
+            resp = fence_response(geom, m, mu, exit_turns)
+            if responses is not None:
+                responses[key] = resp
+        yaw, x, w, (t, j, mg) = _apply(geom, resp, mu, yaw, x, w, jams)
+        touch[m.location], jam[m.location], margin[m.location] = t, j, mg
+    ok = float(w.sum())
+    return Distribution(wrap360(yaw), w, ok, touch, jam, margin)
