@@ -9,6 +9,7 @@ from feeder import circular as C
 from feeder.errors import FeederError
 from feeder.labels import metrics as L
 from feeder.labels import pushforward as P
+from feeder.sim import adaptive as A
 
 BINS = 360
 NUMERIC = 1e-4  # sup|ΔCDF| slack for the dense-sampling reference (≈ 1/DENSE per jump)
@@ -105,18 +106,18 @@ def sup_cdf(p, q):
 # Tests
 # ----------------------------------------------------------------------------------------------
 def test_grid_yaws():
-    np.testing.assert_allclose(P.grid_yaws(4, 0.0), [0, 90, 180, 270])
-    np.testing.assert_allclose(P.grid_yaws(4, 300.0), [300, 30, 120, 210])
-    np.testing.assert_allclose(P.grid_yaws(3, 10.0, 90.0), [10, 40, 70])
+    np.testing.assert_allclose(A.grid_yaws(4, 0.0), [0, 90, 180, 270])
+    np.testing.assert_allclose(A.grid_yaws(4, 300.0), [300, 30, 120, 210])
+    np.testing.assert_allclose(A.grid_yaws(3, 10.0, 90.0), [10, 40, 70])
     with pytest.raises(FeederError):
-        P.grid_yaws(0, 0.0)
+        A.grid_yaws(0, 0.0)
     with pytest.raises(FeederError):
-        P.grid_yaws(4, 0.0, 50.0)
+        A.grid_yaws(4, 0.0, 50.0)
 
 
 def test_step_map_two_basins_exact_masses():
     ev = Counting(step_map)
-    d = P.refine(ev)
+    d = A.refine(ev)
     pmf, masses = P.pushforward_pmf(d, BINS, 0.0)
     jumps = 2  # at 120° and at 360°/0°
     assert d.label_bound <= jumps * d.min_width_deg / 360.0
@@ -139,10 +140,10 @@ def test_step_map_two_basins_exact_masses():
 
 
 def test_step_map_without_checks_is_pure_bisection():
-    d = P.refine(step_map, max_width_deg=360.0 / 16, edge_check_deg=0.0)
+    d = A.refine(step_map, max_width_deg=360.0 / 16, edge_check_deg=0.0)
     assert d.evaluations == 16 + 6 * 2  # 22.5° → 0.35° is six bisections per jump
     assert d.label_bound <= 2 * d.min_width_deg / 360.0
-    with_checks = P.refine(step_map, max_width_deg=360.0 / 16)
+    with_checks = A.refine(step_map, max_width_deg=360.0 / 16)
     assert d.evaluations < with_checks.evaluations <= d.evaluations + 2 * 8
     assert with_checks.label_bound == pytest.approx(d.label_bound)
 
@@ -153,7 +154,7 @@ def test_narrow_basin_is_counted_as_a_band():
     def narrow(beta):
         return all_ok(np.where((beta >= 168.3) & (beta < 169.3), 300.0, 30.0))
 
-    d = P.refine(narrow, budget=200)
+    d = A.refine(narrow, budget=200)
     pmf, _ = P.pushforward_pmf(d, BINS, 0.0)
     assert pmf[300] == pytest.approx(1 / 360, abs=d.label_bound)
     assert d.label_bound >= 1 / 360  # the basin's inside is in the bound
@@ -168,16 +169,16 @@ def test_a_basin_between_samples_is_missed_and_unchecked_lists_what_the_budget_s
     def hidden(beta):
         return all_ok(np.where((beta >= 150.0) & (beta < 151.0), 300.0, 30.0))
 
-    d = P.refine(hidden)
+    d = A.refine(hidden)
     assert d.label_bound == 0 and d.evaluations == 32 and d.unchecked.size == 0
     # a budget below n0 + the checks leaves agreeing intervals wider than max_width unchecked
-    d = P.refine(hidden, budget=20)
+    d = A.refine(hidden, budget=20)
     assert d.unchecked.shape == (12, 2)
     np.testing.assert_allclose(d.unchecked[:, 1] - d.unchecked[:, 0], 22.5)
 
 
 def test_linear_ramp_is_uniform_and_exact():
-    d = P.refine(ramp_map, tolerance_deg=8.0)
+    d = A.refine(ramp_map, tolerance_deg=8.0)
     pmf, _ = P.pushforward_pmf(d, BINS, 0.0)
     exact = np.zeros(BINS)
     exact[10:190] = 1 / 180
@@ -193,7 +194,7 @@ def test_linear_ramp_is_uniform_and_exact():
 
 
 def test_wraparound_basin_is_interpolated_the_short_way():
-    d = P.refine(wrap_map)
+    d = A.refine(wrap_map)
     pmf, _ = P.pushforward_pmf(d, BINS, 0.0)
     exact = np.zeros(BINS)
     exact[355:] = 0.1
@@ -204,7 +205,7 @@ def test_wraparound_basin_is_interpolated_the_short_way():
 
 
 def test_jam_arc_mass():
-    d = P.refine(jam_map)
+    d = A.refine(jam_map)
     pmf, masses = P.pushforward_pmf(d, BINS, 1.0)
     assert set(masses) == {"ok", "jammed"}
     assert sum(masses.values()) == pytest.approx(1.0)
@@ -220,7 +221,7 @@ def test_jam_arc_mass():
 
 
 def test_no_ok_mass_raises():
-    d = P.refine(lambda b: (np.full(b.shape, np.nan), np.full(b.shape, "fell_off")), budget=20)
+    d = A.refine(lambda b: (np.full(b.shape, np.nan), np.full(b.shape, "fell_off")), budget=20)
     assert d.evaluations == 20 and d.label_bound == 0  # 4 midpoint checks of the widest intervals
     with pytest.raises(FeederError, match="no ok"):
         P.pushforward_pmf(d, BINS, 1.0)
@@ -242,7 +243,7 @@ def test_chaotic_band_terminates_and_is_bounded():
     band_mass = (BAND[1] - BAND[0]) / 360.0
     exact = chaotic_exact()
     ev = Counting(chaotic_map)
-    d = P.refine(ev, budget=200)
+    d = A.refine(ev, budget=200)
     assert d.evaluations < 200 and sum(ev.sizes) == d.evaluations  # ended by itself
     pmf, masses = P.pushforward_pmf(d, BINS, 0.0)
     # the unresolved set is the band, to within a bisected interval at either end
@@ -260,7 +261,7 @@ def test_chaotic_band_terminates_and_is_bounded():
 
 @pytest.mark.parametrize("offset", np.arange(0.0, 11.25, 1.25))
 def test_chaotic_band_found_from_any_grid_offset(offset):
-    d = P.refine(chaotic_map, budget=200, offset_deg=offset)
+    d = A.refine(chaotic_map, budget=200, offset_deg=offset)
     pmf, masses = P.pushforward_pmf(d, BINS, 0.0)
     assert d.label_bound >= 0.9 * (BAND[1] - BAND[0]) / 360.0
     assert sup_cdf(pmf, chaotic_exact()) <= P.label_cdf_bound(d, masses["ok"]) + NUMERIC
@@ -269,7 +270,7 @@ def test_chaotic_band_found_from_any_grid_offset(offset):
 @pytest.mark.parametrize("budget", [16, 40, 48, 64])
 def test_chaotic_band_with_a_small_budget_terminates(budget):
     ev = Counting(chaotic_map)
-    d = P.refine(ev, budget=budget)
+    d = A.refine(ev, budget=budget)
     assert d.evaluations == budget == sum(ev.sizes)
     assert 0 < d.label_bound < 1
     P.pushforward_pmf(d, BINS, 1.0)
@@ -277,11 +278,11 @@ def test_chaotic_band_with_a_small_budget_terminates(budget):
 
 def test_fourfold_symmetry_unfolds_to_the_full_circle():
     kw = dict(tolerance_deg=2.0, min_width_deg=0.5, max_width_deg=5.0)
-    one = P.refine(symmetric_map, n0=4, budget=200, period_deg=90.0, **kw)
-    full = P.refine(symmetric_map, n0=16, budget=800, period_deg=360.0, **kw)
+    one = A.refine(symmetric_map, n0=4, budget=200, period_deg=90.0, **kw)
+    full = A.refine(symmetric_map, n0=16, budget=800, period_deg=360.0, **kw)
     assert one.evaluations < 200 and full.evaluations < 800  # budgets did not bind
     assert full.evaluations == 4 * one.evaluations
-    un = P.unfold(one, 4)
+    un = A.unfold(one, 4)
     np.testing.assert_allclose(un.yaws, full.yaws, atol=1e-9)
     np.testing.assert_array_equal(un.status, full.status)
     np.testing.assert_allclose(un.final, full.final, atol=1e-9)
@@ -297,14 +298,14 @@ def test_fourfold_symmetry_unfolds_to_the_full_circle():
     assert m1["jammed"] == pytest.approx(ref_masses["jammed"], abs=one.label_bound + 1e-5)
     assert sup_cdf(p1, ref) <= P.label_cdf_bound(one, m1["ok"]) + NUMERIC
     with pytest.raises(FeederError):
-        P.unfold(one, 3)
+        A.unfold(one, 3)
 
 
 @pytest.mark.parametrize("fmap", [step_map, ramp_map, wrap_map, jam_map, chaotic_map, symmetric_map])
 @pytest.mark.parametrize("budget", [16, 17, 20, 31, 33, 40, 64, 101])
 def test_budget_never_exceeded_and_batched(fmap, budget):
     ev = Counting(fmap)
-    d = P.refine(ev, n0=16, budget=budget, offset_deg=3.7)
+    d = A.refine(ev, n0=16, budget=budget, offset_deg=3.7)
     assert d.evaluations <= budget
     assert d.evaluations == d.yaws.size == sum(ev.sizes)
     assert d.calls == ev.calls
@@ -324,18 +325,18 @@ def test_budget_never_exceeded_and_batched(fmap, budget):
 def test_widest_first_when_the_budget_binds():
     # 16 grid intervals of 22.5°, two disagree; a budget of 18 bisects exactly those two first
     ev = Counting(step_map)
-    P.refine(ev, budget=18)
+    A.refine(ev, budget=18)
     assert ev.sizes == [16, 2]
     np.testing.assert_allclose(np.sort(ev.seen[1]), [123.75, 348.75])
     # budget 20: the two disagreeing intervals come before the agreeing checks of equal width
     ev = Counting(step_map)
-    P.refine(ev, budget=20)
+    A.refine(ev, budget=20)
     assert ev.sizes == [16, 4]
     assert {123.75, 348.75} <= set(np.round(ev.seen[1], 9))
 
 
 def test_offset_and_wrapping_interval():
-    d = P.refine(step_map, offset_deg=-10.0)
+    d = A.refine(step_map, offset_deg=-10.0)
     assert d.offset_deg == pytest.approx(350.0)
     assert d.yaws.min() >= 350.0 and d.yaws.max() < 710.0
     pmf, _ = P.pushforward_pmf(d, BINS, 0.0)
@@ -363,17 +364,17 @@ def test_offset_and_wrapping_interval():
 )
 def test_bad_inputs_raise(kwargs, match):
     with pytest.raises(FeederError, match=match):
-        P.refine(step_map, **kwargs)
+        A.refine(step_map, **kwargs)
 
 
 def test_bad_evaluations_raise():
     with pytest.raises(FeederError, match="returned"):
-        P.refine(lambda b: (b[:-1], np.full(b.size - 1, "ok")))
+        A.refine(lambda b: (b[:-1], np.full(b.size - 1, "ok")))
     with pytest.raises(FeederError, match="non-finite"):
-        P.refine(lambda b: (np.full(b.shape, np.nan), np.full(b.shape, "ok")))
+        A.refine(lambda b: (np.full(b.shape, np.nan), np.full(b.shape, "ok")))
     with pytest.raises(FeederError):
-        P.refine(lambda b: b)
-    d = P.refine(step_map)
+        A.refine(lambda b: b)
+    d = A.refine(step_map)
     with pytest.raises(FeederError):
         P.pushforward_pmf(d, 0, 1.0)
     with pytest.raises(FeederError):
@@ -384,7 +385,7 @@ def test_bad_evaluations_raise():
 
 @pytest.mark.parametrize("fmap", [jam_map, chaotic_map, wrap_map])
 def test_emulated_drops_match_the_pushforward(fmap):
-    d = P.refine(fmap, budget=100)
+    d = A.refine(fmap, budget=100)
     pmf, masses = P.pushforward_pmf(d, BINS, 0.0)
     final, status = P.emulate_drops(d, 100_000, seed=7)
     ok = status == "ok"
@@ -402,7 +403,7 @@ def test_emulated_drops_match_the_pushforward(fmap):
 
 
 def test_emulated_drops_unfold_symmetric_designs():
-    d = P.refine(symmetric_map, n0=4, budget=60, period_deg=90.0, max_width_deg=5.0)
+    d = A.refine(symmetric_map, n0=4, budget=60, period_deg=90.0, max_width_deg=5.0)
     pmf, masses = P.pushforward_pmf(d, BINS, 0.0)
     final, status = P.emulate_drops(d, 100_000, seed=1)
     ok = status == "ok"
@@ -420,12 +421,12 @@ def test_a_steep_smooth_map_is_resolved_not_bisected_as_jumps():
         calls.append(len(yaws))
         return np.asarray(yaws, dtype=float) % 360.0, np.full(len(yaws), "ok")
 
-    design = P.refine(identity, n0=16, budget=64, offset_deg=3.0)
+    design = A.refine(identity, n0=16, budget=64, offset_deg=3.0)
     assert design.label_bound == 0.0 and design.evaluations == 32
     pmf, masses = P.pushforward_pmf(design, 360, 0.0)
     np.testing.assert_allclose(pmf, np.full(360, 1.0 / 360.0), atol=1e-12)
     # a jump inside a steep map is still a jump: identity with a 90° step at 200°
-    stepped = P.refine(
+    stepped = A.refine(
         lambda y: ((np.asarray(y) + 90.0 * (np.asarray(y) >= 200.0)) % 360.0, np.full(len(y), "ok")),
         n0=16,
         budget=96,
@@ -440,7 +441,7 @@ def test_two_basins_half_a_turn_apart_alternating_are_never_a_slope():
     the under-90° guard refuses. They must stay jumps."""
     yaws = np.arange(12) * 30.0
     final = np.mod(10.0 - 179.8 * np.arange(12), 360.0)
-    design = P.design_from_samples(
+    design = A.design_from_samples(
         yaws,
         final,
         np.full(12, "ok"),
@@ -461,7 +462,7 @@ def test_a_slope_from_a_narrow_noisy_neighbour_does_not_hide_a_jump():
     so only the neighbour-width guard keeps the interval unresolved."""
     yaws = np.array([0.0, 0.35, 11.6, 11.95, 300.0, 300.25])
     final = np.array([10.0, 10.3, 20.0, 20.3, 20.3, 10.0])
-    design = P.design_from_samples(
+    design = A.design_from_samples(
         yaws,
         final,
         np.full(6, "ok"),

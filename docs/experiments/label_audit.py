@@ -39,17 +39,9 @@ import pandas as pd
 
 from feeder.bench.designs import _load, distances, emulated_label, reference_design
 from feeder.bench.reference import seed_of
-from feeder.labels.metrics import normalize_yaw, wrapped_gaussian_smooth
-from feeder.labels.pushforward import (
-    OK,
-    _classify,
-    _intervals,
-    _segment_hist,
-    circular_distance,
-    map_yaws,
-    pushforward_pmf,
-    wrap180,
-)
+from feeder.circular import circular_distance, normalize_yaw, wrap180, wrapped_gaussian_smooth
+from feeder.labels.pushforward import _segment_hist, map_yaws, pushforward_pmf
+from feeder.sim.adaptive import OK, _classify, intervals
 from feeder.sim.simulate import run_design
 
 REFERENCES = Path("results/bench/designs/fast-2880/reference")
@@ -64,7 +56,7 @@ def material(f, s, fh, sh):
 
 def where_error_sits(design, ref, period):
     """Reference mass the design gets materially wrong, inside resolved and unresolved intervals."""
-    iv = _intervals(design.yaws, design.final, design.status, period, design.tolerance_deg)
+    iv = intervals(design.yaws, design.final, design.status, period, design.tolerance_deg)
     bad = _classify(iv, design.min_width_deg, design.max_width_deg, design.band_gap_deg).unresolved
     beta = np.mod(ref.yaws - design.offset_deg, period) + design.offset_deg
     k = np.clip(np.searchsorted(design.yaws, beta, side="right") - 1, 0, design.yaws.size - 1)
@@ -108,7 +100,7 @@ def bands(evaluate, seed, order, b1=40, kmax=400):
     """Stratified draws over the unresolved stretches only (see the module docstring)."""
     period = 360.0 / order
     design = run_design(evaluate, seed, b1, ADAPTIVE, order)
-    iv = _intervals(design.yaws, design.final, design.status, period, design.tolerance_deg)
+    iv = intervals(design.yaws, design.final, design.status, period, design.tolerance_deg)
     bad = _classify(iv, design.min_width_deg, design.max_width_deg, design.band_gap_deg).unresolved
     width, shifts = iv.width[bad], period * np.arange(order)
     u = float(width.sum())

@@ -94,7 +94,7 @@ def run_adaptive(entry: dict, settings: dict) -> dict:
 # The table (pure: reads the per-configuration files)
 # ----------------------------------------------------------------------------------------------
 def reference_design(z, tolerance_deg: float):
-    from feeder.labels.pushforward import design_from_samples
+    from feeder.sim.adaptive import design_from_samples
 
     meta = json.loads(str(z["meta"]))
     spacing = meta["period_deg"] / z["ref_initial"].size

@@ -31,16 +31,8 @@ from pathlib import Path
 import numpy as np
 
 from feeder.labels import metrics as L
-from feeder.labels.pushforward import (
-    DEFAULT_BINS,
-    DEFAULT_SIGMA,
-    DEFAULT_TOLERANCE_DEG,
-    Design,
-    design_from_samples,
-    emulate_drops,
-    label_cdf_bound,
-    pushforward_pmf,
-)
+from feeder.labels.pushforward import DEFAULT_BINS, DEFAULT_SIGMA, emulate_drops, label_cdf_bound, pushforward_pmf
+from feeder.sim.adaptive import DEFAULT_TOLERANCE_DEG, Design, design_from_samples
 from feeder.sim.record import BadData, SimRecord, load_sim
 
 DRAWN_DESIGNS = ("random", "golden")  # drops are samples: the label is their histogram

@@ -120,7 +120,7 @@ def verify_settings(study: dict) -> dict:
     ``sim.base_seed``, the adaptive design's settings (``sim.adaptive``) and budget (``sim.drops``
     when the study's design is adaptive, else the adaptive default), and the labels' bins and
     smoothing."""
-    from feeder.labels.pushforward import DEFAULT_BUDGET
+    from feeder.sim.adaptive import DEFAULT_BUDGET
     from feeder.sim.drops import get_preset
 
     sim = study["sim"]

@@ -3,8 +3,8 @@
 A part with n-fold rotational symmetry is the same body after a turn of 360/n about its area
 centroid, so the drop map satisfies ``f(β + 360/n) = f(β) + 360/n`` (statuses repeat) whatever
 the fences: they need not be symmetric, the part is. Only rotations count — a mirror symmetry
-does not give this relation. See :func:`feeder.labels.pushforward.refine` (``period_deg``) and
-:func:`feeder.labels.pushforward.unfold`.
+does not give this relation. See :func:`feeder.sim.adaptive.refine` (``period_deg``) and
+:func:`feeder.sim.adaptive.unfold`.
 
 Conventions: an outline is a closed simple polygon, (k, 2) vertices in any frame and unit, CW or
 CCW, with or without the closing duplicate; through-holes (``holes``) are polygons inside it, and

@@ -3,7 +3,7 @@
 :func:`simulate` runs the drops of one part through one fence configuration
 (:func:`feeder.sim.drops.run_drops`) for the drawn designs (``random``, ``golden``, ``grid``:
 :func:`feeder.sim.drops.initial_yaws`) or the ``adaptive`` design, which chooses its initial yaws
-as it goes (:func:`feeder.labels.pushforward.refine`), folded over the part's rotational symmetry
+as it goes (:func:`feeder.sim.adaptive.refine`), folded over the part's rotational symmetry
 (:mod:`feeder.parts.symmetry`). The result is what :mod:`feeder.sim.record` writes (docs/data.md).
 """
 
@@ -19,10 +19,10 @@ from pathlib import Path
 import numpy as np
 
 from feeder.errors import FeederError
-from feeder.labels.pushforward import DEFAULT_MIN_WIDTH_DEG, DEFAULT_N0, DEFAULT_TOLERANCE_DEG, Design, refine
 from feeder.lane.fences import Fence, config_id, parse_location
 from feeder.lane.settings import load_settings
 from feeder.parts.symmetry import check_order, rotational_order
+from feeder.sim.adaptive import DEFAULT_MIN_WIDTH_DEG, DEFAULT_N0, DEFAULT_TOLERANCE_DEG, Design, refine
 from feeder.sim.drops import STATUSES, YAW_SAMPLINGS, drop_seed, get_preset, initial_yaws, run_drops, run_each
 
 
@@ -46,7 +46,7 @@ def symmetry_order(geom, setting) -> int:
 def run_design(evaluate, seed: int, budget: int, adaptive: dict, order: int) -> Design:
     """The adaptive design: evenly spaced ``n0`` yaws over one symmetry period with a random
     offset from ``seed``, refined where the drop map jumps, at most ``budget`` simulations
-    (:func:`feeder.labels.pushforward.refine`). ``adaptive``: ``n0``, ``tolerance_deg``,
+    (:func:`feeder.sim.adaptive.refine`). ``adaptive``: ``n0``, ``tolerance_deg``,
     ``min_width_deg`` (``sim.adaptive``)."""
     period = 360.0 / order
     n0 = int(adaptive["n0"])
