@@ -251,3 +251,39 @@ def test_cli_rebuilds_the_table_from_raw_drops(tmp_path, capsys):
 
 
 D_PLAN = [("library", "a", 0.0), ("library", "a", 0.01), ("library", "b", 0.0), ("fan", "a", 0.0)]
+
+
+@pytest.fixture(scope="module")
+def study():
+    from feeder.config import load_study_config
+    from feeder.sim.drops import get_preset
+
+    cfg = load_study_config("config/config.yaml")
+    return cfg["scene"], get_preset(cfg["sim"]["presets"], "fast"), cfg["labels"]
+
+
+@pytest.mark.parametrize(
+    ("part", "other", "config", "pieces_label"),
+    [("rect-a3", "strips3", "straight:30|none", False), ("lshape-a", "cut_in", "straight:45|none", True)],
+)
+def test_verdicts_on_two_small_parts(study, part, other, config, pieces_label):
+    """The same drops under two decompositions: the pieces move every drop by 1.7-3.5 degrees, 20 x
+    and more their nudged floor, and on the rectangle (cut in three strips) the label too; pads
+    move the drops by 0.08-0.17 degrees through the pieces' fence contacts, above their floor of
+    0.003 degrees or less (the paired test fails), but not the label. With six drops the L's label
+    floor (a second offset) is 14 degrees of W1, which the pieces' 2 degrees pass."""
+    scene, preset, labels = study
+    bench = _bench(part, [other], config)
+    raw = D.simulate_all(bench, 0, "parts", scene, preset, 1)
+    table = D.summarize(raw, int(labels["bins"]), float(labels["sigma_bins"]), 2.0)
+    rows = table[table["kind"] == "decomposition"].set_index("model")
+    assert len(rows) == 2 and (rows["decomposition_b"] == other).all()
+    pieces, pads = rows.loc["pieces"], rows.loc["pads8"]
+    assert (pieces["same_basin"], pads["same_basin"]) == (1.0, 1.0)
+    assert pieces["median_dyaw_deg"] > 20 * pieces["floor_median_dyaw_deg"]
+    assert pieces["median_dyaw_deg"] > 1.0 and pieces["median_dyaw_deg"] > 10 * pads["median_dyaw_deg"]
+    assert pads["median_dyaw_deg"] > 2 * pads["floor_median_dyaw_deg"]
+    assert not pieces["passes_paired"] and not pads["passes_paired"]
+    assert bool(pieces["passes_label"]) is pieces_label and pads["passes_label"]
+    verdict = table[table["kind"] == "verdict"].set_index("model")
+    assert not verdict.loc["pieces", "passes"] and not verdict.loc["pads8", "passes"]
