@@ -317,6 +317,35 @@ def _refine_settings(
     return n0, budget, period, offset, max_width, band_gap, edge_check
 
 
+def _next_midpoints(
+    iv: Intervals, min_width, max_width, band_gap, edge_check, room: int, offset: float, period: float
+) -> np.ndarray:
+    """The initial yaws of :func:`refine`'s next round: the midpoints of the intervals that need
+    one (jumps, bands and their surroundings bisected down to ``min_width``; agreeing intervals
+    wider than ``max_width`` checked), widest first (ties: disagreeing before agreeing, then by
+    position), at most ``room``, inside ``[offset, offset + period)``. Empty when none needs one."""
+    fine = _classify(iv, min_width, max_width, band_gap, edge_check).fine
+    width = iv.width
+    mid = 0.5 * (iv.start + iv.end)
+    inside = (mid > iv.start) & (mid < iv.end)  # float guard for absurdly narrow intervals
+    limit = np.where(fine, min_width, max_width) * (1.0 + _WIDTH_SLACK)
+    want = inside & (width > limit)
+    if not want.any():
+        return np.empty(0)
+    idx = np.flatnonzero(want)
+    ranked = -np.round(width[idx], _WIDTH_DECIMALS)
+    order = np.lexsort((iv.start[idx], iv.agree[idx], ranked))  # last key is primary
+    new = mid[idx[order[:room]]]
+    return np.where(new >= offset + period, new - period, new)
+
+
+def _merge_samples(samples: tuple, new: tuple) -> tuple:
+    """``(yaws, final, status)`` with a round's samples added, sorted by initial yaw."""
+    yaws, final, status = (np.concatenate([old, more]) for old, more in zip(samples, new))
+    perm = np.argsort(yaws, kind="stable")
+    return yaws[perm], final[perm], status[perm]
+
+
 def refine(
     evaluate: Evaluate,
     n0: int = DEFAULT_N0,
@@ -387,28 +416,13 @@ def refine(
 
     while evaluations < budget:
         iv = intervals(yaws, final, status, period, tolerance_deg)
-        fine = _classify(iv, min_width_deg, max_width, band_gap, edge_check).fine
-        width = iv.width
-        mid = 0.5 * (iv.start + iv.end)
-        inside = (mid > iv.start) & (mid < iv.end)  # float guard for absurdly narrow intervals
-        limit = np.where(fine, min_width_deg, max_width) * (1.0 + _WIDTH_SLACK)
-        want = inside & (width > limit)
-        if not want.any():
+        new = _next_midpoints(iv, min_width_deg, max_width, band_gap, edge_check, budget - evaluations, offset, period)
+        if new.size == 0:
             break
-        idx = np.flatnonzero(want)
-        ranked = -np.round(width[idx], _WIDTH_DECIMALS)
-        order = np.lexsort((iv.start[idx], iv.agree[idx], ranked))  # last key is primary
-        take = idx[order[: budget - evaluations]]
-        new = mid[take]
-        new = np.where(new >= offset + period, new - period, new)
         f_new, s_new = _check_evaluation(new, evaluate(normalize_yaw(new)))
         evaluations += new.size
         calls += 1
-        yaws = np.concatenate([yaws, new])
-        final = np.concatenate([final, f_new])
-        status = np.concatenate([status, s_new])
-        perm = np.argsort(yaws, kind="stable")
-        yaws, final, status = yaws[perm], final[perm], status[perm]
+        yaws, final, status = _merge_samples((yaws, final, status), (new, f_new, s_new))
 
     return _finish(
         yaws,

@@ -110,6 +110,43 @@ def simulate_adaptive(run, geom, seed: int, budget: int, preset: dict, adaptive:
     return design.yaws, out, arrays, summary
 
 
+def run_yaw_design(
+    geom, loc1, loc2, drops, seed, scene, preset, progress, probe_x, check_fences, prune, yaw_sampling, adaptive
+):
+    """The drops of one configuration by its initial-yaw design (``seed``: the configuration's
+    own, :func:`feeder.sim.drops.drop_seed`): the initial yaws, :func:`run_drops`'s result, and
+    for ``adaptive`` the design's arrays and summary (else empty and None)."""
+    extra, design_meta = {}, None
+    if yaw_sampling == "adaptive":
+        run = functools.partial(
+            run_each,
+            geom,
+            loc1,
+            loc2,
+            scene=scene,
+            preset=preset,
+            probe_x=probe_x,
+            check_fences=check_fences,
+            prune=prune,
+        )
+        y0, out, extra, design_meta = simulate_adaptive(run, geom, seed, int(drops), preset, adaptive)
+    else:
+        y0 = initial_yaws(seed, int(drops), yaw_sampling)
+        # a sampled map (grid) needs each drop's outcome to depend on its yaw alone: a world each
+        out = (run_each if yaw_sampling == "grid" else functools.partial(run_drops, progress=progress))(
+            geom,
+            loc1,
+            loc2,
+            y0,
+            scene,
+            preset,
+            probe_x=probe_x,
+            check_fences=check_fences,
+            prune=prune,
+        )
+    return y0, out, extra, design_meta
+
+
 def simulate(
     geom,
     loc1: Fence,
@@ -141,34 +178,9 @@ def simulate(
     cfg = config_id(loc1, loc2)
     s = drop_seed(geom.part_id, cfg, seed)
     t0, c0 = time.perf_counter(), time.process_time()
-    extra, design_meta = {}, None
-    if yaw_sampling == "adaptive":
-        run = functools.partial(
-            run_each,
-            geom,
-            loc1,
-            loc2,
-            scene=scene,
-            preset=preset,
-            probe_x=probe_x,
-            check_fences=check_fences,
-            prune=prune,
-        )
-        y0, out, extra, design_meta = simulate_adaptive(run, geom, s, int(drops), preset, adaptive)
-    else:
-        y0 = initial_yaws(s, int(drops), yaw_sampling)
-        # a sampled map (grid) needs each drop's outcome to depend on its yaw alone: a world each
-        out = (run_each if yaw_sampling == "grid" else functools.partial(run_drops, progress=progress))(
-            geom,
-            loc1,
-            loc2,
-            y0,
-            scene,
-            preset,
-            probe_x=probe_x,
-            check_fences=check_fences,
-            prune=prune,
-        )
+    y0, out, extra, design_meta = run_yaw_design(
+        geom, loc1, loc2, drops, s, scene, preset, progress, probe_x, check_fences, prune, yaw_sampling, adaptive
+    )
     wall, cpu = time.perf_counter() - t0, time.process_time() - c0
     meta = {
         "part": geom.part_id,
