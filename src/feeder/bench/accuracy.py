@@ -213,87 +213,120 @@ def run_bench(scene, presets, labels_cfg, bench, progress=False):
     return out
 
 
-def summarize(results, settings, panel, seeds, ref_name, drops, bench, labels_cfg):
+# The columns of the accuracy table, in order.
+SUMMARY_COLUMNS = (
+    "setting",
+    "drops",
+    "config",
+    "time_step",
+    "substeps",
+    "internal_step_ms",
+    "solver_iterations",
+    "lanes",
+    "full_path",
+    "skip_slides",
+    "merge_tolerance",
+    "ms_per_drop",
+    "speedup_vs_reference",
+    "js",
+    "js_floor",
+    "js_floor_boot",
+    "w1_deg",
+    "w1_floor_deg",
+    "r2_cdf",
+    "r2_floor",
+    "below_two_seed_floor",
+    "js_excess",
+    "js_excess_p",
+    "w1_excess_deg",
+    "w1_excess_p",
+    "within_floor",
+    "configs_within_boot_floor",
+    "ok_rate",
+    "ref_ok_rate",
+)
+
+
+def _config_row(results, name, seed, k, i, entry, seeds, ref_name, drops, bins, sigma, bench) -> dict:
+    """One configuration's row at the first ``k`` drops: its distance from the reference (seed
+    ``s0``) against the reference's own second seed (``s1``), and its bootstrap floor."""
+    s0, s1 = seeds
+    yaws, status, cpu = results[(name, seed, i)]
+    ref_yaws = results[(ref_name, s0, i)][0]
+    floor_yaws = results[(ref_name, s1, i)][0]
+    js, w1, r2 = _metrics(yaws[:k], ref_yaws, bins, sigma)
+    fjs, fw1, fr2 = _metrics(floor_yaws[:k], ref_yaws, bins, sigma)
+    bjs = bootstrap_js_floor(
+        ref_yaws,
+        floor_yaws,
+        k,
+        bins,
+        sigma,
+        int(bench["boot_resamples"]),
+        float(bench["boot_quantile"]),
+        seed=i,
+    )
+    ok = float(np.mean(status[:k] == "ok"))
+    ref_ok = float(np.mean(results[(ref_name, s0, i)][1] == "ok"))
+    return dict(
+        setting=name,
+        drops=k,
+        config=f"{entry[0]}|{entry[1]}|{entry[2]}",
+        ms_per_drop=cpu * 1e3 / drops,
+        js=js,
+        w1_deg=w1,
+        r2_cdf=r2,
+        js_floor=fjs,
+        js_floor_boot=bjs,
+        w1_floor_deg=fw1,
+        r2_floor=fr2,
+        ok_rate=ok,
+        ref_ok_rate=ref_ok,
+    )
+
+
+def _mean_row(per, results, name, seed, k, npanel, seeds, ref_name, ref_ms, bins, sigma, bench) -> dict:
+    """A setting's mean row at ``k`` drops over its configuration rows ``per``, with its speed-up,
+    the paired test against the reference's second seed and the count within the bootstrap floor."""
     import pandas as pd
 
-    bins, sigma = int(labels_cfg["bins"]), float(labels_cfg["sigma_bins"])
-    levels = sorted({int(k) for k in bench["drop_levels"] if int(k) <= drops} | {drops})
     s0, s1 = seeds
-    rows = []
-    ref_ms = np.mean([results[(ref_name, s, i)][2] for s in seeds for i in range(len(panel))]) * 1e3 / drops
-    for name in settings:
-        seed = s1
-        for k in levels:
-            per = []
-            for i, entry in enumerate(panel):
-                yaws, status, cpu = results[(name, seed, i)]
-                ref_yaws = results[(ref_name, s0, i)][0]
-                floor_yaws = results[(ref_name, s1, i)][0]
-                js, w1, r2 = _metrics(yaws[:k], ref_yaws, bins, sigma)
-                fjs, fw1, fr2 = _metrics(floor_yaws[:k], ref_yaws, bins, sigma)
-                bjs = bootstrap_js_floor(
-                    ref_yaws,
-                    floor_yaws,
-                    k,
-                    bins,
-                    sigma,
-                    int(bench["boot_resamples"]),
-                    float(bench["boot_quantile"]),
-                    seed=i,
-                )
-                ok = float(np.mean(status[:k] == "ok"))
-                ref_ok = float(np.mean(results[(ref_name, s0, i)][1] == "ok"))
-                per.append(
-                    dict(
-                        setting=name,
-                        drops=k,
-                        config=f"{entry[0]}|{entry[1]}|{entry[2]}",
-                        ms_per_drop=cpu * 1e3 / drops,
-                        js=js,
-                        w1_deg=w1,
-                        r2_cdf=r2,
-                        js_floor=fjs,
-                        js_floor_boot=bjs,
-                        w1_floor_deg=fw1,
-                        r2_floor=fr2,
-                        ok_rate=ok,
-                        ref_ok_rate=ref_ok,
-                    )
-                )
-            rows += per
-            df = pd.DataFrame(per)
-            ms = float(df["ms_per_drop"].mean())
-            agg = dict(
-                setting=name,
-                drops=k,
-                config="mean",
-                ms_per_drop=ms,
-                js=df["js"].mean(),
-                w1_deg=df["w1_deg"].mean(),
-                r2_cdf=df["r2_cdf"].mean(),
-                js_floor=df["js_floor"].mean(),
-                js_floor_boot=df["js_floor_boot"].mean(),
-                w1_floor_deg=df["w1_floor_deg"].mean(),
-                r2_floor=df["r2_floor"].mean(),
-                ok_rate=df["ok_rate"].mean(),
-                ref_ok_rate=df["ref_ok_rate"].mean(),
-            )
-            agg["speedup_vs_reference"] = ref_ms / ms if ms > 0 else np.nan
-            agg["below_two_seed_floor"] = bool(agg["js"] <= agg["js_floor"] and agg["w1_deg"] <= agg["w1_floor_deg"])
-            # paired test: farther from the reference than its own second seed, beyond sampling?
-            triples = [
-                (results[(name, seed, i)][0][:k], results[(ref_name, s1, i)][0][:k], results[(ref_name, s0, i)][0])
-                for i in range(len(panel))
-            ]
-            test = paired_excess(triples, bins, sigma, int(bench["boot_resamples"]), seed=k)
-            alpha = 1.0 - float(bench["boot_quantile"])
-            agg["js_excess"], agg["js_excess_p"] = test["js"]
-            agg["w1_excess_deg"], agg["w1_excess_p"] = test["w1"]
-            agg["within_floor"] = bool(test["js"][1] >= alpha and test["w1"][1] >= alpha)
-            # per configuration against its bootstrap floor (95 % of sampling-only JS values)
-            agg["configs_within_boot_floor"] = int((df["js"] <= df["js_floor_boot"]).sum())
-            rows.append(agg)
-    out = pd.DataFrame(rows)
+    df = pd.DataFrame(per)
+    ms = float(df["ms_per_drop"].mean())
+    agg = dict(
+        setting=name,
+        drops=k,
+        config="mean",
+        ms_per_drop=ms,
+        js=df["js"].mean(),
+        w1_deg=df["w1_deg"].mean(),
+        r2_cdf=df["r2_cdf"].mean(),
+        js_floor=df["js_floor"].mean(),
+        js_floor_boot=df["js_floor_boot"].mean(),
+        w1_floor_deg=df["w1_floor_deg"].mean(),
+        r2_floor=df["r2_floor"].mean(),
+        ok_rate=df["ok_rate"].mean(),
+        ref_ok_rate=df["ref_ok_rate"].mean(),
+    )
+    agg["speedup_vs_reference"] = ref_ms / ms if ms > 0 else np.nan
+    agg["below_two_seed_floor"] = bool(agg["js"] <= agg["js_floor"] and agg["w1_deg"] <= agg["w1_floor_deg"])
+    # paired test: farther from the reference than its own second seed, beyond sampling?
+    triples = [
+        (results[(name, seed, i)][0][:k], results[(ref_name, s1, i)][0][:k], results[(ref_name, s0, i)][0])
+        for i in range(npanel)
+    ]
+    test = paired_excess(triples, bins, sigma, int(bench["boot_resamples"]), seed=k)
+    alpha = 1.0 - float(bench["boot_quantile"])
+    agg["js_excess"], agg["js_excess_p"] = test["js"]
+    agg["w1_excess_deg"], agg["w1_excess_p"] = test["w1"]
+    agg["within_floor"] = bool(test["js"][1] >= alpha and test["w1"][1] >= alpha)
+    # per configuration against its bootstrap floor (95 % of sampling-only JS values)
+    agg["configs_within_boot_floor"] = int((df["js"] <= df["js_floor_boot"]).sum())
+    return agg
+
+
+def _add_preset_columns(out, settings) -> None:
+    """The preset values of each setting's rows, in place."""
     for name, preset in settings.items():
         m = out["setting"] == name
         out.loc[m, "time_step"] = preset["time_step"]
@@ -304,38 +337,29 @@ def summarize(results, settings, panel, seeds, ref_name, drops, bench, labels_cf
         out.loc[m, "full_path"] = bool(preset["full_path"])
         out.loc[m, "skip_slides"] = bool(preset["skip_slides"])
         out.loc[m, "merge_tolerance"] = float(preset.get("merge_tolerance", 0.0))
-    first = [
-        "setting",
-        "drops",
-        "config",
-        "time_step",
-        "substeps",
-        "internal_step_ms",
-        "solver_iterations",
-        "lanes",
-        "full_path",
-        "skip_slides",
-        "merge_tolerance",
-        "ms_per_drop",
-        "speedup_vs_reference",
-        "js",
-        "js_floor",
-        "js_floor_boot",
-        "w1_deg",
-        "w1_floor_deg",
-        "r2_cdf",
-        "r2_floor",
-        "below_two_seed_floor",
-        "js_excess",
-        "js_excess_p",
-        "w1_excess_deg",
-        "w1_excess_p",
-        "within_floor",
-        "configs_within_boot_floor",
-        "ok_rate",
-        "ref_ok_rate",
-    ]
-    return out[first]
+
+
+def summarize(results, settings, panel, seeds, ref_name, drops, bench, labels_cfg):
+    """The accuracy table (:data:`SUMMARY_COLUMNS`): per setting and drop level, a row per panel
+    configuration (:func:`_config_row`) and their mean (:func:`_mean_row`)."""
+    import pandas as pd
+
+    bins, sigma = int(labels_cfg["bins"]), float(labels_cfg["sigma_bins"])
+    levels = sorted({int(k) for k in bench["drop_levels"] if int(k) <= drops} | {drops})
+    rows = []
+    ref_ms = np.mean([results[(ref_name, s, i)][2] for s in seeds for i in range(len(panel))]) * 1e3 / drops
+    for name in settings:
+        seed = seeds[1]
+        for k in levels:
+            per = [
+                _config_row(results, name, seed, k, i, entry, seeds, ref_name, drops, bins, sigma, bench)
+                for i, entry in enumerate(panel)
+            ]
+            rows += per
+            rows.append(_mean_row(per, results, name, seed, k, len(panel), seeds, ref_name, ref_ms, bins, sigma, bench))
+    out = pd.DataFrame(rows)
+    _add_preset_columns(out, settings)
+    return out[list(SUMMARY_COLUMNS)]
 
 
 def add_config_source(parser: argparse.ArgumentParser, sections: str) -> None:
