@@ -247,7 +247,6 @@ def test_window_probability_by_hand_with_wrap_around_and_symmetry():
 
 def test_recommend_ranks_configurations_by_the_models_own_predictions(model_dir, tmp_path, capsys):
     from feeder.learn import recommend as R
-    from feeder.learn.models import TrainedModel
 
     ids = ["straight30_none", "curved45_straight20", "none_curved10"]
     out = tmp_path / "rank.csv"
@@ -256,7 +255,7 @@ def test_recommend_ranks_configurations_by_the_models_own_predictions(model_dir,
     assert R.main([*argv, "--out", str(out), "--top", "2"]) == 0
     ranked = pd.read_csv(out)
     assert sorted(ranked.config_id) == sorted(ids) and ranked.probability.is_monotonic_decreasing
-    model = TrainedModel.load(model_dir / "m3")
+    model = P.load_model(model_dir / "m3")  # what recommend answers with: the network in numpy
     data = load_dataset(model_dir / "ds.npz")
     for _, row in ranked.iterrows():
         frame = P.predict_frame(model, data["part_raw"][0], row.loc1, row.loc2)

@@ -164,7 +164,7 @@ def test_predict_and_recommend_with_a_prior_model_read_the_parts_analytic_pmf(pr
     from feeder.parts.features import as_vector, features_of_file
 
     model_dir, _ = prior_model
-    tm = TrainedModel.load(model_dir)
+    tm = P.load_model(model_dir)  # what the commands answer with: the network in numpy
     out = tmp_path / "pmf.csv"
     argv = ["--model", str(model_dir), "--part", str(STL), "--loc1", "straight:30", "--loc2", "curved:40"]
     assert P.main([*argv, "--out", str(out)]) == 0

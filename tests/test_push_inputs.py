@@ -489,7 +489,7 @@ def test_predict_with_a_push_model_computes_the_push_block_of_the_stl(push_model
     assert P.main([*argv, "--out", str(out)]) == 0
     assert "push features" in capsys.readouterr().err
     got = pd.read_csv(out)
-    tm = TrainedModel.load(root / "m4")
+    tm = P.load_model(root / "m4")  # what predict answers with: the network in numpy
     assert tm.label_frame == "part"  # the synthetic dataset: push features in the part frame
     push = push_features(load_outline(STL, "auto"), "straight:30", "curved:40", SCENE)
     feeder = D.feeder_vector(parse_location("straight:30"), parse_location("curved:40"))

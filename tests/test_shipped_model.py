@@ -62,8 +62,10 @@ def test_predict_answers_a_users_part_without_a_model_option(own_part, tmp_path)
     got = pd.read_csv(out)
     assert list(got.columns) == ["angle_deg", "pmf", "cdf"] and len(got) == 360
     part_raw, frame_deg = P.part_vector(own_part, None)
-    want = P.predict_frame(TrainedModel.load(SHIPPED), part_raw, "straight:30", "none", frame_deg)
+    want = P.predict_frame(P.load_model(SHIPPED), part_raw, "straight:30", "none", frame_deg)
     np.testing.assert_allclose(got.pmf, want.pmf, atol=1e-12)
+    torch_net = P.predict_frame(TrainedModel.load(SHIPPED), part_raw, "straight:30", "none", frame_deg)
+    np.testing.assert_allclose(got.pmf, torch_net.pmf, rtol=1e-4)  # torch's float32 pass
     np.testing.assert_allclose(got.cdf, np.cumsum(got.pmf), atol=1e-9)
     assert got.pmf.min() >= 0.0 and got.cdf.iloc[-1] == pytest.approx(1.0)
     printed = run_cli("predict", "--part", str(own_part), "--loc1", "straight:30", "--loc2", "none")

@@ -112,7 +112,7 @@ def resolve_model_dir(model: Path | None, prog: str = "feeder") -> Path:
         if found != Path(model):
             print(f"{prog}: the model {found}", file=sys.stderr)
         return found
-    from feeder.learn.models import WEIGHTS_FILE
+    from feeder.learn.spec import WEIGHTS_FILE
 
     shipped = shipped_model_dir()
     if not (shipped / WEIGHTS_FILE).is_file():

@@ -39,24 +39,17 @@ import pandas as pd
 from feeder.errors import FeederError
 
 TOP_ORIENTATIONS = 3  # resting orientations feeder predict prints
-# torch threads for predict/recommend: one part's batch (one row, or a few hundred configurations)
-# is too small to share among threads, and with other jobs on the cores extra threads only wait
-# for each other (`feeder bench-predict`, 2 cores busy with other jobs: the 360-configuration grid
-# in a median 20 ms with one thread, 168 ms with torch's default two).
-INFERENCE_THREADS = 1
 
 
 def load_model(path: Path):
-    """The :class:`feeder.learn.models.TrainedModel` in ``path``, torch set up for inference
-    (``INFERENCE_THREADS``); an exported model only if its card's features version is the code's."""
-    import torch
-
+    """The model in ``path`` as :class:`feeder.learn.inference.NumpyModel`: its network answered in
+    numpy, so that predict and recommend never import torch; an exported model only if its card's
+    features version is the code's."""
+    from feeder.learn import inference
     from feeder.learn.export import check_card
-    from feeder.learn.models import TrainedModel
 
     check_card(path)
-    torch.set_num_threads(INFERENCE_THREADS)
-    return TrainedModel.load(path)
+    return inference.load(path)
 
 
 def check_part_fits(part: Path, prog: str = "feeder predict", scene: dict | None = None) -> None:
