@@ -664,7 +664,7 @@ def _bootstrap_settings(args) -> dict:
     return {"resamples": args.resamples, "level": args.level, "seed": args.bootstrap_seed}
 
 
-def main(argv: list[str]) -> int:
+def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="feeder evaluate", description=__doc__.split("\n\n")[0])
     sub = parser.add_subparsers(dest="cmd", required=True)
 
@@ -703,7 +703,63 @@ def main(argv: list[str]) -> int:
     p.add_argument("--dir", type=Path, required=True, help="results/models/grid/<model>")
     p.add_argument("--out", type=Path, required=True)
 
-    args = parser.parse_args(argv)
+    return parser
+
+
+def _groupkfold_tables(args) -> None:
+    """``feeder evaluate groupkfold``: the GroupKFold table of one model (and its paired table)."""
+    from feeder.config import compose_config
+    from feeder.labels.dataset import load_dataset
+
+    data = load_dataset(args.dataset)
+    cfg = compose_config("train", args.overrides)
+    bootstrap = _bootstrap_settings(args) if args.paired_out else None
+    df, paired = groupkfold(data, cfg, seeds=args.seeds, bootstrap=bootstrap)
+    name = str(cfg.model.name)
+    seeds = args.seeds or [int(cfg.seed)]
+    _write_table(
+        args.out,
+        df,
+        f"Leave-parts-out GroupKFold of {name} ({np.unique(data['group_fold']).size} folds, "
+        f"{len(seeds)} training seed{'s' if len(seeds) > 1 else ''}): "
+        "CDF R², W1 in degrees, mean ± SD (ddof=0) per part, over all held-out "
+        "configurations, and over the per-part means; averaged over seeds, *_seed_sd across them.",
+    )
+    if paired is not None:
+        _write_table(
+            args.paired_out,
+            paired,
+            f"{name} against each baseline on unseen parts (GroupKFold), paired over parts: mean "
+            f"difference of per-part means with a {bootstrap['level']:.0%} percentile bootstrap "
+            f"interval ({bootstrap['resamples']} resamples); better/worse only when it excludes 0.",
+        )
+    summary = df[df.group == "over parts"][["model", "r2_mean", "r2_sd", "w1_mean"]]
+    print(summary.to_string(index=False), file=sys.stderr)
+
+
+def _generalisation_table(args) -> None:
+    """``feeder evaluate generalisation``: every predictor on unseen parts, side by side."""
+    metrics = [f"{m}_mean" for m, _ in GENERALISATION_METRICS]
+    tables = [_read_table(path, "GroupKFold table", ["model", "group", "n", *metrics]) for path in args.groupkfold]
+    bootstrap = _bootstrap_settings(args)
+    df = generalisation_table(tables, _read_table(args.parts_table, "Table 8", ["model", *metrics]), bootstrap)
+    _write_table(
+        args.out,
+        df,
+        "Every predictor on unseen parts: leave-parts-out GroupKFold (mean over parts, SD across parts "
+        "and across training seeds) and the Parts split (Table 8); the difference to the mean-PMF "
+        f"baseline paired over parts with a {bootstrap['level']:.0%} percentile bootstrap interval "
+        f"({bootstrap['resamples']} resamples). r2: the paper's CDF R²; r2c: at the best common cut; "
+        "cw1: circular W1 (degrees, lower is better).",
+    )
+    print(
+        df[["predictor", "groupkfold_r2_mean", "groupkfold_r2c_mean", "groupkfold_cw1_mean"]].to_string(),
+        file=sys.stderr,
+    )
+
+
+def main(argv: list[str]) -> int:
+    args = _parser().parse_args(argv)
     if args.cmd == "tables":
         from feeder.config import compose_config
 
@@ -711,51 +767,9 @@ def main(argv: list[str]) -> int:
         for path in write_tables(args.dataset, args.models, args.out_dir, _bootstrap_settings(args), prior_grids):
             print(path)
     elif args.cmd == "groupkfold":
-        from feeder.config import compose_config
-        from feeder.labels.dataset import load_dataset
-
-        data = load_dataset(args.dataset)
-        cfg = compose_config("train", args.overrides)
-        bootstrap = _bootstrap_settings(args) if args.paired_out else None
-        df, paired = groupkfold(data, cfg, seeds=args.seeds, bootstrap=bootstrap)
-        name = str(cfg.model.name)
-        seeds = args.seeds or [int(cfg.seed)]
-        _write_table(
-            args.out,
-            df,
-            f"Leave-parts-out GroupKFold of {name} ({np.unique(data['group_fold']).size} folds, "
-            f"{len(seeds)} training seed{'s' if len(seeds) > 1 else ''}): "
-            "CDF R², W1 in degrees, mean ± SD (ddof=0) per part, over all held-out "
-            "configurations, and over the per-part means; averaged over seeds, *_seed_sd across them.",
-        )
-        if paired is not None:
-            _write_table(
-                args.paired_out,
-                paired,
-                f"{name} against each baseline on unseen parts (GroupKFold), paired over parts: mean "
-                f"difference of per-part means with a {bootstrap['level']:.0%} percentile bootstrap "
-                f"interval ({bootstrap['resamples']} resamples); better/worse only when it excludes 0.",
-            )
-        summary = df[df.group == "over parts"][["model", "r2_mean", "r2_sd", "w1_mean"]]
-        print(summary.to_string(index=False), file=sys.stderr)
+        _groupkfold_tables(args)
     elif args.cmd == "generalisation":
-        metrics = [f"{m}_mean" for m, _ in GENERALISATION_METRICS]
-        tables = [_read_table(path, "GroupKFold table", ["model", "group", "n", *metrics]) for path in args.groupkfold]
-        bootstrap = _bootstrap_settings(args)
-        df = generalisation_table(tables, _read_table(args.parts_table, "Table 8", ["model", *metrics]), bootstrap)
-        _write_table(
-            args.out,
-            df,
-            "Every predictor on unseen parts: leave-parts-out GroupKFold (mean over parts, SD across parts "
-            "and across training seeds) and the Parts split (Table 8); the difference to the mean-PMF "
-            f"baseline paired over parts with a {bootstrap['level']:.0%} percentile bootstrap interval "
-            f"({bootstrap['resamples']} resamples). r2: the paper's CDF R²; r2c: at the best common cut; "
-            "cw1: circular W1 (degrees, lower is better).",
-        )
-        print(
-            df[["predictor", "groupkfold_r2_mean", "groupkfold_r2c_mean", "groupkfold_cw1_mean"]].to_string(),
-            file=sys.stderr,
-        )
+        _generalisation_table(args)
     elif args.cmd == "figure-data":
         from feeder.io import write_npz
 
