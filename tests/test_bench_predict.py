@@ -80,10 +80,14 @@ def test_bench_writes_every_timing_and_its_summary(model_dir, own_part, tmp_path
 
 
 def test_cold_runs_time_a_fresh_interpreter(model_dir):
-    rows = pd.DataFrame(B.cold_timings(model_dir, PARTS / "keyhole-a.stl", B.DEFAULT_LOC1, B.DEFAULT_LOC2, 1))
-    assert list(rows.stage) == list(B.COLD_STAGES) and set(rows.part) == {"keyhole-a"}
+    part = PARTS / "keyhole-a.stl"
+    rows = pd.DataFrame(B.cold_timings(model_dir, part, B.DEFAULT_LOC1, B.DEFAULT_LOC2, 2, interval_s=0.0))
+    assert list(rows.stage) == 2 * list(B.COLD_STAGES) and set(rows.part) == {"keyhole-a"}
+    assert list(rows.repeat) == [0] * len(B.COLD_STAGES) + [1] * len(B.COLD_STAGES)
+    rows = rows[rows.repeat == 0]
     ms = dict(zip(rows.stage, rows.ms, strict=True))
     assert all(v > 0 for v in ms.values())
+    assert dict(zip(rows.stage, rows.configs, strict=True))["predict"] == 1  # feeder predict: one configuration
     # the child's steps happen inside its lifetime, which the parent's clock spans
     assert ms["process"] >= ms["import"] + ms["model_load"] + ms["features_cold"] + ms["config_cold"]
 

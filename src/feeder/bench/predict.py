@@ -20,13 +20,16 @@ second. For each part (``--parts``, default ``DEFAULT_PARTS`` of ``parts/``) thi
 
 and ``--cold-repeats`` times in a fresh interpreter (:mod:`feeder.bench.predict_probe`, the steps
 of ``feeder predict`` in a new process): ``import`` (the predict command's module), ``model_load``
-(torch and the weights), ``features_cold`` (the process's first features: the feature path's
-lazy imports plus the computation), ``config_cold`` (the first configuration: the label and
-fence modules' imports plus the network) and ``process`` (the child process's wall time from
-start to exit, interpreter start-up included). Start-up is therefore kept apart from the
-features and from the work per configuration.
+(the weights, read and answered in numpy: :mod:`feeder.learn.inference`), ``features_cold`` (the
+process's first features: the feature path's lazy imports plus the computation), ``config_cold``
+(the first configuration: the label and fence modules' imports plus the network) and ``process``
+(the child process's wall time from start to exit, interpreter start-up included). Start-up is
+therefore kept apart from the features and from the work per configuration. Each cold repeat
+also runs ``feeder predict`` itself for one configuration (``--loc1``, ``--loc2``) as a user
+does, ``python -m feeder predict ... --out FILE``, and times its wall clock from start to exit:
+``predict`` (issue 36: at most 1 s). The fresh processes are ``--interval`` seconds apart, so
+that one run's exit (its pages, the disk cache) does not lean on the next.
 
-The torch threads are those of ``feeder predict`` (:data:`feeder.learn.predict.INFERENCE_THREADS`).
 ``--out`` keeps every timing (``part, stage, repeat, configs, ms``; ``configs``: the configurations
 a timing covers, 0 for none), so other statistics need no rerun. ``--summary`` has, per part and
 stage and over all parts (part ``all``): the repeats, the median, minimum and maximum in ms, the
@@ -53,6 +56,7 @@ if TYPE_CHECKING:  # pandas and numpy load inside the functions: the workflow im
 DEFAULT_PARTS = ("rect-a2", "crescent-a", "gear20-a", "blob-d", "keyhole-a")  # in --parts-dir
 DEFAULT_REPEATS = 7
 DEFAULT_COLD_REPEATS = 5
+DEFAULT_INTERVAL_S = 1.0  # seconds between two fresh processes
 MIN_REPEATS = 1
 DEFAULT_LOC1 = "straight:30"
 DEFAULT_LOC2 = "none"
@@ -63,14 +67,17 @@ RANK_TOLERANCE_DEG = 10.0
 FEATURES_GOAL_MS = 200.0
 CONFIG_GOAL_MS = 5.0
 GRID_GOAL_MS = 1000.0
+PREDICT_GOAL_MS = 1000.0  # issue 36: a fresh `feeder predict` of one configuration
 GOALS_MS = {
     "features": FEATURES_GOAL_MS,
     "features_cold": FEATURES_GOAL_MS,
     "config": CONFIG_GOAL_MS,
     "grid": GRID_GOAL_MS,
+    "predict": PREDICT_GOAL_MS,
 }
 WARM_STAGES = ("features", "symmetry", "config", "grid")
-COLD_STAGES = ("import", "model_load", "features_cold", "config_cold", "process")
+PROBE_STAGES = ("import", "model_load", "features_cold", "config_cold", "process")
+COLD_STAGES = (*PROBE_STAGES, "predict")
 RAW_COLUMNS = ["part", "stage", "repeat", "configs", "ms"]
 SUMMARY_COLUMNS = [
     "part",
@@ -119,23 +126,47 @@ def warm_timings(model, part: Path, config_ids: list[str], loc1: str, loc2: str,
     return rows
 
 
-def cold_timings(model_dir: Path, part: Path, loc1: str, loc2: str, repeats: int) -> list[dict]:
-    """``repeats`` fresh-interpreter runs of :mod:`feeder.bench.predict_probe` for one part."""
+def _fresh_run(cmd: list[str], what: str) -> tuple[float, str]:
+    """(wall ms from start to exit, stdout) of one fresh process; a one-line error if it fails."""
+    start = time.perf_counter()
+    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=PROBE_TIMEOUT_S)
+    wall = 1e3 * (time.perf_counter() - start)
+    if proc.returncode != 0:
+        last = (proc.stderr.strip().splitlines() or ["no output"])[-1]
+        raise FeederError(f"{what} failed: {last}")
+    return wall, proc.stdout
+
+
+def cold_timings(
+    model_dir: Path, part: Path, loc1: str, loc2: str, repeats: int, interval_s: float = DEFAULT_INTERVAL_S
+) -> list[dict]:
+    """``repeats`` fresh-interpreter runs for one part, ``interval_s`` apart: the steps of
+    :mod:`feeder.bench.predict_probe`, then ``feeder predict`` itself (stage ``predict``)."""
+    import tempfile
+
     from feeder.bench import predict_probe
 
-    cmd = [sys.executable, predict_probe.__file__, str(model_dir), str(part), loc1, loc2]
+    probe = [sys.executable, predict_probe.__file__, str(model_dir), str(part), loc1, loc2]
     rows = []
-    for r in range(repeats):
-        start = time.perf_counter()
-        proc = subprocess.run(cmd, capture_output=True, text=True, timeout=PROBE_TIMEOUT_S)
-        wall = 1e3 * (time.perf_counter() - start)
-        if proc.returncode != 0:
-            last = (proc.stderr.strip().splitlines() or ["no output"])[-1]
-            raise FeederError(f"cold run of {part.name} failed: {last}")
-        stages = {**json.loads(proc.stdout.strip().splitlines()[-1]), "process": wall}
-        for stage in COLD_STAGES:
-            configs = 1 if stage == "config_cold" else 0
-            rows.append({"part": part.stem, "stage": stage, "repeat": r, "configs": configs, "ms": stages[stage]})
+    with tempfile.TemporaryDirectory(prefix="bench-predict-") as tmp:
+        predict = [sys.executable, "-m", "feeder", "predict", "--model", str(model_dir), "--part", str(part)]
+        predict += ["--loc1", loc1, "--loc2", loc2, "--out", str(Path(tmp) / "pmf.csv")]
+        for r in range(repeats):
+            time.sleep(interval_s if r else 0.0)
+            wall, out = _fresh_run(probe, f"cold run of {part.name}")
+            time.sleep(interval_s)
+            predict_ms, _ = _fresh_run(predict, f"feeder predict of {part.name}")
+            stages = {**json.loads(out.strip().splitlines()[-1]), "process": wall, "predict": predict_ms}
+            rows += _cold_rows(part, r, stages)
+    return rows
+
+
+def _cold_rows(part: Path, repeat: int, stages: dict) -> list[dict]:
+    """One cold repeat's timings as rows (:data:`RAW_COLUMNS`)."""
+    rows = []
+    for stage in COLD_STAGES:
+        configs = 1 if stage in ("config_cold", "predict") else 0
+        rows.append({"part": part.stem, "stage": stage, "repeat": repeat, "configs": configs, "ms": stages[stage]})
     return rows
 
 
@@ -186,6 +217,7 @@ def run(
     repeats: int = DEFAULT_REPEATS,
     cold_repeats: int = DEFAULT_COLD_REPEATS,
     progress=None,
+    interval_s: float = DEFAULT_INTERVAL_S,
 ) -> pd.DataFrame:
     """Every timing (:data:`RAW_COLUMNS`) of the parts, warm stages then cold ones."""
     import pandas as pd
@@ -196,6 +228,8 @@ def run(
 
     if repeats < MIN_REPEATS or cold_repeats < 0:
         raise FeederError(f"--repeats must be at least {MIN_REPEATS} and --cold-repeats at least 0")
+    if not interval_s >= 0:
+        raise FeederError(f"--interval must be 0 seconds or more, got {interval_s!r}")
     if not parts:
         raise FeederError("no parts to time")
     for part in parts:
@@ -207,7 +241,7 @@ def run(
     rows = []
     for part in parts:
         rows += warm_timings(model, part, config_ids, loc1, loc2, repeats)
-        rows += cold_timings(model_dir, part, loc1, loc2, cold_repeats)
+        rows += cold_timings(model_dir, part, loc1, loc2, cold_repeats, interval_s)
         if progress is not None:
             print(f"bench-predict: {part.name} done", file=progress)
     return pd.DataFrame(rows, columns=RAW_COLUMNS)
@@ -222,11 +256,12 @@ def main(argv: list[str]) -> int:
     )
     ap.add_argument("--model", type=Path, required=True, help="trained model directory (as for feeder predict)")
     ap.add_argument("--parts", type=Path, nargs="+", help="part files (.stl); default: DEFAULT_PARTS in --parts-dir")
-    ap.add_argument("--parts-dir", type=Path, default=Path("parts"), help="where the default parts are")
+    ap.add_argument("--parts-dir", type=Path, default=Path("parts"), help="where the default parts are (the project's)")
     ap.add_argument("--loc1", default=DEFAULT_LOC1, help="fence at location 1 of the one-configuration timing")
     ap.add_argument("--loc2", default=DEFAULT_LOC2, help="fence at location 2 of the one-configuration timing")
     ap.add_argument("--repeats", type=int, default=DEFAULT_REPEATS, help="timings of each stage in this process")
     ap.add_argument("--cold-repeats", type=int, default=DEFAULT_COLD_REPEATS, help="fresh-interpreter runs a part")
+    ap.add_argument("--interval", type=float, default=DEFAULT_INTERVAL_S, help="seconds between two fresh processes")
     add_config_source(ap, "fences")
     ap.add_argument("--out", type=Path, required=True, help="CSV of every timing")
     ap.add_argument("--summary", type=Path, required=True, help="CSV of the statistics")
@@ -234,8 +269,20 @@ def main(argv: list[str]) -> int:
     cfg = config_from_args(args)
     if "fences" not in cfg:
         raise FeederError("settings lack section fences")
-    parts = args.parts or [args.parts_dir / f"{name}.stl" for name in DEFAULT_PARTS]
-    raw = run(args.model, parts, cfg["fences"], args.loc1, args.loc2, args.repeats, args.cold_repeats, sys.stderr)
+    from feeder.config import project_path
+
+    parts = args.parts or [project_path(args.parts_dir) / f"{name}.stl" for name in DEFAULT_PARTS]
+    raw = run(
+        args.model,
+        parts,
+        cfg["fences"],
+        args.loc1,
+        args.loc2,
+        args.repeats,
+        args.cold_repeats,
+        sys.stderr,
+        args.interval,
+    )
     summary = summarise(raw)
     write_csv(args.out, raw)
     write_csv(args.summary, summary)

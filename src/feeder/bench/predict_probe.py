@@ -5,7 +5,7 @@ is imported before its clock starts.
     python predict_probe.py MODEL PART LOC1 LOC2
 
 Prints one JSON object of milliseconds: ``import`` (the predict command's module: numpy, pandas),
-``model_load`` (torch and the weights, :func:`feeder.learn.predict.load_model`),
+``model_load`` (the weights, read for numpy, :func:`feeder.learn.predict.load_model`),
 ``features_cold`` (the process's first features from the part file: the feature path's own lazy
 imports, OpenCV and shapely, plus the computation) and ``config_cold`` (the first prediction of one
 fence configuration: the label and fence modules' imports plus the network).
