@@ -95,8 +95,9 @@ def add_model_option(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--model",
         type=Path,
-        help=f"trained model directory (default: the shipped model {shipped_model_dir()}, "
-        f"written by `feeder export-model`; ${MODEL_DIR_ENV} points elsewhere)",
+        help=f"trained model directory, or `analytic` for the untrained analytic push PMF (needs --part as "
+        f"an STL; the best answer for a new part by circular W1, docs/results.md) (default: the shipped "
+        f"model {shipped_model_dir()}, written by `feeder export-model`; ${MODEL_DIR_ENV} points elsewhere)",
     )
 
 

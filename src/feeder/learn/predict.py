@@ -52,6 +52,21 @@ def load_model(path: Path):
     return inference.load(path)
 
 
+def choose_model(model_arg, prog: str, study: dict):
+    """The predictor ``--model`` names: the untrained analytic push PMF for ``analytic``
+    (:class:`feeder.learn.analytic.AnalyticModel`, over the study's ``labels.bins``), else the
+    trained model folder (:func:`load_model`; the shipped one without ``--model``). The choice is
+    said on stderr."""
+    from feeder.learn.analytic import AnalyticModel, is_analytic
+
+    if is_analytic(model_arg):
+        print(f"{prog}: the analytic push PMF (untrained; --model analytic)", file=sys.stderr)
+        return AnalyticModel(int(study["labels"]["bins"]))
+    from feeder.learn.export import resolve_model_dir
+
+    return load_model(resolve_model_dir(model_arg, prog))
+
+
 def check_part_fits(part: Path, prog: str = "feeder predict", scene: dict | None = None) -> None:
     """Refuse an STL part the simulator refuses (wider than the belt, or too thin for the fences:
     :func:`feeder.sim.body.check_fit`, units as ``--units auto``): the model has never seen such a
@@ -112,7 +127,7 @@ def check_push_source(model, part: Path | None) -> None:
         what = (
             f"the analytic push features (model.inputs: {model.inputs})"
             if model.needs_push
-            else "the analytic PMF (model.base: prior)"
+            else "the analytic PMF" + (" (model.base: prior)" if getattr(model.spec, "base", None) == "prior" else "")
         )
         raise FeederError(
             f"model {model.spec.name} takes {what}, computed from the part's outline: "
@@ -269,7 +284,7 @@ def orientation_summary(frame, top: int = TOP_ORIENTATIONS) -> str:
 
 def main(argv: list[str]) -> int:
     from feeder.config import add_settings_options, study_settings
-    from feeder.learn.export import add_model_option, resolve_model_dir
+    from feeder.learn.export import add_model_option
 
     parser = argparse.ArgumentParser(prog="feeder predict", description=__doc__.split("\n\n")[0])
     add_model_option(parser)
@@ -289,9 +304,9 @@ def main(argv: list[str]) -> int:
         from feeder.io import check_figure_path
 
         check_figure_path(args.plot)
-    model = load_model(resolve_model_dir(args.model, "feeder predict"))
-    check_push_source(model, args.part)
     study = study_settings(args)
+    model = choose_model(args.model, "feeder predict", study)
+    check_push_source(model, args.part)
     t0 = time.perf_counter()
     part_raw, frame_deg = part_vector(args.part, args.features, scene=study.get("scene"))
     t_dft = time.perf_counter()

@@ -200,8 +200,8 @@ def status_counts(status) -> str:
 
 def main(argv: list[str]) -> int:
     from feeder.config import add_settings_options, study_settings
-    from feeder.learn.export import add_model_option, resolve_model_dir
-    from feeder.learn.predict import check_push_source, load_model, part_vector, push_inputs
+    from feeder.learn.export import add_model_option
+    from feeder.learn.predict import check_push_source, choose_model, part_vector, push_inputs
 
     parser = argparse.ArgumentParser(prog="feeder recommend", description=__doc__.splitlines()[0])
     add_model_option(parser)
@@ -242,7 +242,7 @@ def main(argv: list[str]) -> int:
         config_ids = grid_configurations(study["fences"])
     settings = verify_settings(study) if args.verify else None
     order = symmetry_order(args.symmetry, args.part)
-    model = load_model(resolve_model_dir(args.model, "feeder recommend"))
+    model = choose_model(args.model, "feeder recommend", study)
     check_push_source(model, args.part)
     part_raw, frame_deg = part_vector(args.part, args.features, "feeder recommend", study.get("scene"))
     push_raw = analytic = None

@@ -1,0 +1,80 @@
+"""``--model analytic``: the untrained analytic push PMF as a predictor of predict and recommend."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from feeder.errors import FeederError
+from feeder.learn import predict as P
+from feeder.learn import recommend as R
+from feeder.learn.analytic import AnalyticModel, is_analytic
+
+REPO = Path(__file__).resolve().parents[1]
+PART = REPO / "parts" / "rect-a2.stl"
+
+
+def test_predict_normalises_and_accumulates_by_hand():
+    model = AnalyticModel(4)
+    pmf, cdf = model.predict(None, np.zeros((1, 8)), analytic=[[1.0, 0.0, 3.0, 0.0]])
+    np.testing.assert_allclose(pmf, [[0.25, 0.0, 0.75, 0.0]])
+    np.testing.assert_allclose(cdf, [[0.25, 0.25, 1.0, 1.0]])
+
+
+@pytest.mark.parametrize(
+    "analytic",
+    [None, [[1.0, 0.0, 0.0]], [[0.0, 0.0, 0.0, 0.0]], [[1.0, -0.5, 0.0, 0.5]], [[np.nan, 1.0, 0.0, 0.0]]],
+)
+def test_bad_analytic_pmfs_are_one_line_errors(analytic):
+    with pytest.raises(FeederError):
+        AnalyticModel(4).predict(None, np.zeros((1, 8)), analytic=analytic)
+
+
+def test_only_the_name_analytic_selects_it():
+    assert is_analytic("analytic") and is_analytic(Path("analytic"))
+    assert not is_analytic(None) and not is_analytic("models/m3")
+    with pytest.raises(FeederError):
+        AnalyticModel(0)
+
+
+def test_predict_answers_the_smoothed_analytic_pmf_of_the_part_frame(tmp_path):
+    from feeder.config import load_study_config, study_root
+    from feeder.labels.dataset import label_smooth_deg
+    from feeder.mechanics.hull import push_geometry
+    from feeder.mechanics.pmf import analytic_pmf
+    from feeder.parts.geometry import load_profile
+
+    out = tmp_path / "a.csv"
+    argv = ["--model", "analytic", "--part", str(PART), "--loc1", "straight:30", "--loc2", "none", "--out", str(out)]
+    assert P.main(argv) == 0
+    got = pd.read_csv(out)
+    study = load_study_config(root=study_root())
+    bins = int(study["labels"]["bins"])
+    outline, holes, _ = load_profile(PART, "auto")
+    smooth = label_smooth_deg(bins, float(study["labels"]["sigma_bins"]))
+    want = analytic_pmf(
+        push_geometry(outline, holes), "straight:30", "none", study["scene"], smooth_deg=smooth, bins=bins
+    )
+    np.testing.assert_allclose(got.pmf.to_numpy(), want / want.sum(), rtol=0, atol=1e-12)
+    np.testing.assert_allclose(got.cdf.to_numpy(), np.cumsum(want / want.sum()), rtol=0, atol=1e-9)
+
+
+def test_analytic_needs_an_stl_and_writes_nothing_without_one(tmp_path):
+    out = tmp_path / "a.csv"
+    with pytest.raises(FeederError, match="--part PART.stl"):
+        P.main(["--model", "analytic", "--features", str(tmp_path / "f.json"), "--loc1", "none", "--loc2", "none"])
+    assert not out.exists()
+
+
+def test_recommend_ranks_with_the_analytic_pmf(tmp_path, capsys):
+    out = tmp_path / "rank.csv"
+    configs = "none_straight30,straight45_none"
+    argv = ["--model", "analytic", "--part", str(PART), "--target", "0", "--tolerance", "10", "--configs", configs]
+    assert R.main([*argv, "--out", str(out)]) == 0
+    ranked = pd.read_csv(out)
+    assert set(ranked.config_id) == set(configs.split(","))
+    assert ranked.probability.between(0, 1).all()
+    assert ranked.probability.is_monotonic_decreasing
