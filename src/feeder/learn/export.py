@@ -382,15 +382,20 @@ CARD_INPUTS = {
 
 
 def card_markdown(card: dict) -> str:
-    """``MODEL_CARD.md``: the card for a person."""
-    from feeder.learn.evaluate import TABLES
+    """``MODEL_CARD.md``: the card for a person (what it does, its training data, its metrics,
+    its files)."""
+    lines = _card_purpose(card) + _card_training(card) + _card_metrics(card) + _card_files(card)
+    return "\n".join(lines) + "\n"
 
-    name, data, spec = card["model"], card["training_data"], card["spec"]
+
+def _card_purpose(card: dict) -> list[str]:
+    """The card's title, what the model does and how to call it."""
+    name, spec = card["model"], card["spec"]
     seed = "unknown" if card["seed"] is None else card["seed"]
     inputs = str(spec.get("inputs") or "paper")  # a paper model's spec leaves it out
     default = name == SHIPPED_MODEL  # the model predict and recommend use without --model
     model_option = "" if default else f" --model {SHIPPED_ROOT}/{name}"
-    lines = [
+    return [
         f"# Model card: {name} (seed {seed})",
         "",
         "Written by `feeder export-model`; the same in machine-readable form: `card.json`.",
@@ -422,6 +427,13 @@ def card_markdown(card: dict) -> str:
         f"- features version: `{card['features_version']}` (`feeder predict` refuses this model when the "
         "code computes other features)",
         "",
+    ]
+
+
+def _card_training(card: dict) -> list[str]:
+    """The card's training data: dataset, splits, simulation design and training run."""
+    data = card["training_data"]
+    lines = [
         "## Training data",
         "",
         f"- dataset: `{data['dataset']}`, {data['rows']} rows (part x fence configuration) of "
@@ -438,8 +450,15 @@ def card_markdown(card: dict) -> str:
     if training:
         shown = (f"{k} {v:.4g}" if isinstance(v, float) else f"{k} {v}" for k, v in training.items())
         lines.append("- training run: " + ", ".join(shown))
-    lines += [
-        "",
+    return lines + [""]
+
+
+def _card_metrics(card: dict) -> list[str]:
+    """The card's metrics: the paper's split tables, unseen parts, and the paired comparison."""
+    from feeder.learn.evaluate import TABLES
+
+    seed = "unknown" if card["seed"] is None else card["seed"]
+    lines = [
         "## Metrics",
         "",
         "From `feeder evaluate` (CDF R², W1 in degrees; mean ± SD over the configurations of a split). "
@@ -459,12 +478,17 @@ def card_markdown(card: dict) -> str:
     if metrics["model_vs_baselines"] is not None:
         caption = "Model against the baselines: paired differences (model − baseline) with bootstrap intervals"
         lines += [_table_md(metrics["model_vs_baselines"], caption), ""]
-    lines += ["## Files", ""]
+    return lines
+
+
+def _card_files(card: dict) -> list[str]:
+    """The card's files with their digests, and the provenance of the run."""
+    lines = ["## Files", ""]
     lines += [f"- `{f}`: sha256 `{digest}`" for f, digest in card["files"].items()]
     provenance = card["provenance"]
     if provenance:
         lines.append("- provenance: " + ", ".join(f"{k} `{v}`" for k, v in provenance.items()))
-    return "\n".join(lines) + "\n"
+    return lines
 
 
 # ----------------------------------------------------------------------------------------------
