@@ -396,3 +396,23 @@ def test_generalisation_cli_refuses_a_missing_table_in_one_line(tmp_path, capsys
     assert main([*argv, "--out", str(out)]) == 2
     err = capsys.readouterr().err.strip()
     assert "GroupKFold table" in err and "is missing" in err and "\n" not in err and not out.exists()
+
+
+def test_test_rows_with_a_training_neighbour_by_hand():
+    from feeder.learn.evaluate import _split_note, fence_types, rows_with_a_neighbour
+
+    assert fence_types("straight30_none") == "straight+none"
+    data = {
+        "part": np.array(["a", "a", "a", "b", "b"]),
+        "config_id": np.array(
+            ["straight30_none", "straight45_none", "curved30_none", "straight30_none", "none_straight30"]
+        ),
+        "split": np.array(["train", "test", "test", "train", "test"]),
+    }
+    # a's straight45_none shares straight+none with a training row; a's curved and b's none+straight do not
+    assert rows_with_a_neighbour(data, "test") == (1, 3)
+    assert (
+        _split_note(data, "test")
+        == "; 1 of 3 Test rows have a training row of the same part and fence-type combination"
+    )
+    assert _split_note(data, "fences") == ""
