@@ -294,6 +294,9 @@ def _decomposition(path):
             "passes_paired": d <= 2 * f,
             "passes_label": True,
             "cpu_ms_per_drop": None,
+            "rows": None,
+            "rows_passed_paired": None,
+            "rows_passed_label": None,
         }
         for p in ("rect", "ell")
         for m, d, f in (("pieces", 3.0, 0.1), ("pads8", 0.1, 0.1))
@@ -306,6 +309,9 @@ def _decomposition(path):
             "passes_paired": ok,
             "passes_label": True,
             "cpu_ms_per_drop": c,
+            "rows": 2,
+            "rows_passed_paired": int(ok) * 2,
+            "rows_passed_label": 2,
         }
         for m, ok, c in (("pieces", False, 80.0), ("pads8", True, 95.0))
     ]
@@ -854,7 +860,10 @@ def test_contact_decomposition_plots_each_models_distances_beside_its_floor_and_
     paired, label, cost = contact_decomposition.draw(pd.read_csv(tmp_path / "d.csv")).axes
     assert [t.get_text() for t in cost.get_xticklabels()] == ["pieces", "pads8"]  # pieces first
     assert [p.get_height() for p in cost.patches] == [80.0, 95.0]
-    assert "paired fail" in cost.texts[0].get_text() and "paired pass" in cost.texts[1].get_text()
+    assert [t.get_text() for t in cost.texts] == [
+        "paired fail (0/2)\nlabel pass (2/2)",
+        "paired pass (2/2)\nlabel pass (2/2)",
+    ]
     filled = sorted(
         float(y)
         for ln in paired.get_lines()

@@ -5,7 +5,7 @@ part, configuration, contact model and pair of decompositions (``kind = decompos
 paired median |Δ final yaw| and the labels' circular W1, each beside the model's floor
 (``floor_*``), and one ``verdict`` row per model with its CPU per drop. Left: median |Δyaw| between
 decompositions (filled) and the floor (open), per model, log scale. Middle: the same for the
-labels' circular W1. Right: CPU per drop of each model, with the verdict on top.
+labels' circular W1. Right: CPU per drop of each model, with its verdicts on top (rows passed out of rows).
 """
 
 from __future__ import annotations
@@ -26,6 +26,9 @@ COLUMNS = (
     "passes_paired",
     "passes_label",
     "cpu_ms_per_drop",
+    "rows",
+    "rows_passed_paired",
+    "rows_passed_label",
 )
 _FLOOR_AT_LEAST = 1e-4  # deg: where a floor or a distance of zero is drawn on the log axes
 
@@ -77,8 +80,11 @@ def draw(table):
         v = by_model.get(model)
         if v is None:
             continue
-        text = "paired " + ("pass" if _truthy(v["passes_paired"]) else "fail")
-        text += "\nlabel " + ("pass" if _truthy(v["passes_label"]) else "fail")
+        text = "\n".join(
+            f"{what} {'pass' if _truthy(v[f'passes_{what}']) else 'fail'} "
+            f"({int(v[f'rows_passed_{what}'])}/{int(v['rows'])})"
+            for what in ("paired", "label")
+        )
         cost.text(k, bar.get_height(), text, ha="center", va="bottom", fontsize=7)
     cost.set_xticks(range(len(models)), models)
     cost.set_ylabel("CPU per drop (ms)")
