@@ -472,7 +472,7 @@ def _row(kind, part, config, model, x, y, rx, ry, floor, bins, sigma, factor) ->
 def main(argv: list[str]) -> int:
     parser = argparse.ArgumentParser(prog="feeder bench-decomposition", description=__doc__.splitlines()[0])
     parser.add_argument("--settings", required=True, help="JSON {scene, sim, parts, labels} config sections")
-    parser.add_argument("--out-csv", required=True)
+    parser.add_argument("--out-csv", required=True, help="the table: comparisons, floors and verdicts (CSV)")
     parser.add_argument("--out-raw", help="every drop (CSV): initial and final yaw, status, CPU of its run")
     parser.add_argument("--from-raw", help="rebuild the table from these raw drops (no simulation)")
     args = parser.parse_args(argv)
