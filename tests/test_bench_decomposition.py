@@ -287,3 +287,16 @@ def test_verdicts_on_two_small_parts(study, part, other, config, pieces_label):
     assert bool(pieces["passes_label"]) is pieces_label and pads["passes_label"]
     verdict = table[table["kind"] == "verdict"].set_index("model")
     assert not verdict.loc["pieces", "passes"] and not verdict.loc["pads8", "passes"]
+
+
+def test_a_bench_whose_pieces_would_be_merged_back_stops_before_simulating(study, monkeypatch):
+    """If the part model stopped merging through feeder.sim.body.merge_pieces (so the bypass did
+    not take), the run refuses rather than simulate the library's pieces under another name."""
+    import contextlib
+
+    scene, preset, _ = study
+    monkeypatch.setattr(D, "pieces_as_given", contextlib.nullcontext)
+    with pytest.raises(FeederError, match="simulated as 1 pieces, not the 2 given"):
+        D.run_decomposition(
+            _part(RECT), D.triangles(RECT), "straight:30|none", [0.0], D.model_scene(scene, "pieces"), preset
+        )
