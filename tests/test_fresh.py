@@ -92,3 +92,39 @@ def test_main_reports_what_it_marked(repo, capsys):
 def test_the_folders_are_where_the_default_study_writes():
     config = yaml.safe_load((ROOT / "config" / "config.yaml").read_text())
     assert set(fresh.COMMITTED_OUTPUTS) == {config["results"], config["models"]["export_dir"]}
+
+
+def test_code_committed_after_the_results_is_said(repo, capsys):
+    assert fresh.code_after_results(repo) == ""  # results and code in one commit
+    git(repo, "commit", "-q", "--allow-empty", "-m", "nothing")
+    assert fresh.code_after_results(repo) == ""  # a commit that touches no code
+    write(repo, "src/feeder/stage.py", "x = 3\n", 3_000)
+    git(repo, "add", "src/feeder/stage.py")
+    git(repo, "commit", "-q", "-m", "change the stage", "--date=@3000")
+    # the committer time of the second commit is now, after the results' commit: said
+    assert fresh.code_after_results(repo).endswith("change the stage")
+    assert fresh.main([str(repo)]) == 0
+    assert "code was committed after the newest committed results" in capsys.readouterr().err
+
+
+def test_a_checkout_marked_from_a_subfolder_keeps_its_edits(repo):
+    """The study in a subfolder of a larger checkout: the local edit is still seen (paths relative)."""
+    outer = repo.parent / "outer"
+    (outer / "study").mkdir(parents=True)
+    for p in ("results/tables/t.csv", "results/tables/edited.csv", "src/feeder/stage.py"):
+        write(outer / "study", p, "a\n1\n", 1_000)
+    git(outer, "init", "-q")
+    git(outer, "add", ".")
+    git(outer, "commit", "-q", "-m", "study")
+    write(outer / "study", "results/tables/edited.csv", "a\n2\n", 500)
+    marked, _ = fresh.mark_current(outer / "study")
+    assert "results/tables/edited.csv" not in marked and "results/tables/t.csv" in marked
+    assert mtime(outer / "study", "results/tables/edited.csv") == 500
+
+
+def test_a_checkout_without_a_commit_is_a_one_line_error(tmp_path):
+    git(tmp_path, "init", "-q")
+    write(tmp_path, "results/t.csv", "a\n", 1_000)
+    with pytest.raises(FeederError, match="not a git checkout with a commit") as err:
+        fresh.mark_current(tmp_path)
+    assert "[" not in str(err.value)

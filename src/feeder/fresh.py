@@ -9,7 +9,10 @@ its code, and Snakemake plans the whole study (all simulations) to redraw one fi
 of the checkout's unmodified tracked files. A committed output is then as new as its code, its
 configuration and its committed inputs, so Snakemake reruns nothing for it; whatever is edited
 afterwards (code, config, a committed table) is newer and reruns what depends on it, as usual. A
-file that differs from ``HEAD`` keeps its time, so a local edit is never hidden.
+file that differs from ``HEAD`` keeps its time, so a local edit is never hidden. A commit is
+trusted: results committed at ``HEAD`` count as current for ``HEAD``'s code. When code, config or
+rules were committed after the newest committed result, the command says so (a result may then be
+stale: force it).
 
 Files that are not committed (``results/sim/``, the dataset, the trained models) are left alone:
 Snakemake builds a missing intermediate only when a job that needs it runs, so a committed table
@@ -34,6 +37,8 @@ from feeder.errors import FeederError
 # `results`, overlays below it) and the shipped models (models.export_dir); tests/test_fresh.py
 # checks these against config/config.yaml.
 COMMITTED_OUTPUTS = ("results", "models")
+# what a result depends on besides its committed inputs: the code, the settings and the rules
+CODE_PATHS = ("src", "config", "workflow", "Snakefile")
 
 
 def _git_paths(root: Path, *args: str) -> list[str]:
@@ -43,14 +48,34 @@ def _git_paths(root: Path, *args: str) -> list[str]:
     except FileNotFoundError as exc:
         raise FeederError("git not found on PATH: marking committed results needs a git checkout") from exc
     if proc.returncode != 0:
-        raise FeederError(f"{root} is not a git checkout: {proc.stderr.strip().splitlines()[-1:]}")
+        said = (proc.stderr.strip().splitlines() or ["no commit"])[-1]
+        raise FeederError(f"{root}: not a git checkout with a commit ({said})")
     return [p for p in proc.stdout.split("\0") if p]
+
+
+def _git_out(root: Path, *args: str) -> str:
+    """What ``git ARGS`` prints ('' when it fails)."""
+    proc = subprocess.run(["git", *args], cwd=root, capture_output=True, text=True)
+    return proc.stdout.strip() if proc.returncode == 0 else ""
+
+
+def code_after_results(root: str | os.PathLike = ".", folders=COMMITTED_OUTPUTS) -> str:
+    """The newest commit (``hash summary``) that changed the code, config or workflow after the
+    newest commit of the committed results, '' when there is none: the results trusted by
+    :func:`mark_current` may then be stale for that code (a refactor that changes no output also
+    counts). Commits are ordered by history, not by time."""
+    root = Path(root)
+    results = _git_out(root, "log", "-1", "--format=%H", "--", *folders)
+    if not results:
+        return ""
+    return _git_out(root, "log", "-1", "--format=%h %s", f"{results}..HEAD", "--", *CODE_PATHS)
 
 
 def clean_tracked(root: str | os.PathLike = ".") -> list[str]:
     """The tracked files of the checkout at ``root`` whose working copy is as committed in ``HEAD``."""
     root = Path(root)
-    changed = set(_git_paths(root, "diff", "--name-only", "HEAD"))
+    _git_paths(root, "rev-parse", "--verify", "--quiet", "HEAD")  # a checkout with a commit, or a one-line error
+    changed = set(_git_paths(root, "diff", "--name-only", "--relative", "HEAD"))  # paths as ls-files gives them
     return [p for p in _git_paths(root, "ls-files") if p not in changed and os.path.lexists(root / p)]
 
 
@@ -90,6 +115,13 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     when = time.strftime("%Y-%m-%d %H:%M:%S", time.localtime(stamp))
     print(f"{len(marked)} committed results under {', '.join(COMMITTED_OUTPUTS)} marked current ({when})")
+    later = code_after_results(args.root)
+    if later:
+        print(
+            f"note: code was committed after the newest committed results ({later}); a result that "
+            "depends on it may be stale: rebuild it with snakemake -f TARGET (or -R RULE)",
+            file=sys.stderr,
+        )
     return 0
 
 
