@@ -78,3 +78,52 @@ def test_recommend_ranks_with_the_analytic_pmf(tmp_path, capsys):
     assert set(ranked.config_id) == set(configs.split(","))
     assert ranked.probability.between(0, 1).all()
     assert ranked.probability.is_monotonic_decreasing
+
+
+@pytest.mark.parametrize("settings", ['{"scene": {}}', '{"labels": {"bins": 360, "sigma_bins": 1.0}}'])
+def test_partial_settings_are_a_one_line_error_before_any_work(tmp_path, settings):
+    out = tmp_path / "a.csv"
+    argv = ["--model", "analytic", "--part", str(PART), "--loc1", "straight:30", "--loc2", "none"]
+    with pytest.raises(FeederError, match="--settings lacks the config section"):
+        P.main([*argv, "--out", str(out), "--settings", settings])
+    with pytest.raises(FeederError, match="--settings lacks the config section"):
+        R.main(
+            ["--model", "analytic", "--part", str(PART), "--target", "0", "--tolerance", "5", "--settings", settings]
+        )
+    assert not out.exists()
+
+
+def test_analytic_answers_the_evaluation_baseline_moved_to_the_part_frame(tmp_path):
+    """The dataset's pmf_analytic (the evaluation's baseline) is in the feature frame (yaw + frame_deg);
+    moved back by frame_deg it is what --model analytic answers, on a part whose frame is turned
+    (lshape-a: about 338 deg)."""
+    from feeder.config import load_study_config, study_root
+    from feeder.labels import metrics as L
+    from feeder.labels.dataset import label_smooth_deg
+    from feeder.mechanics.hull import push_geometry
+    from feeder.mechanics.pmf import analytic_pmf
+    from feeder.parts.features import features_of_file
+    from feeder.parts.geometry import load_profile
+
+    part = REPO / "parts" / "lshape-a.stl"
+    frame = features_of_file(part)["frame_deg"]
+    assert 1.0 < frame % 360.0 < 359.0  # a turned frame, or the test shows nothing
+    out = tmp_path / "a.csv"
+    assert (
+        P.main(
+            ["--model", "analytic", "--part", str(part), "--loc1", "straight:45", "--loc2", "none", "--out", str(out)]
+        )
+        == 0
+    )
+    got = pd.read_csv(out).pmf.to_numpy()
+    study = load_study_config(root=study_root())
+    bins, outline_holes = int(study["labels"]["bins"]), load_profile(part, "auto")[:2]
+    smooth = label_smooth_deg(bins, float(study["labels"]["sigma_bins"]))
+    geom = push_geometry(*outline_holes)
+    baseline = analytic_pmf(geom, "straight:45", "none", study["scene"], frame_deg=frame, smooth_deg=smooth, bins=bins)
+    back = L.shift_pmf(baseline[None, :], -frame)[0]
+    assert (
+        float(L.circular_w1(L.cdf(got[None, :])[0], L.cdf(back[None, :])[0])) < 0.5
+    )  # degrees: bin interpolation only
+    # and the frame matters: unshifted, the baseline is elsewhere
+    assert float(L.circular_w1(L.cdf(got[None, :])[0], L.cdf(baseline[None, :])[0])) > 5.0

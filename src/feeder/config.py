@@ -234,10 +234,11 @@ def add_settings_options(parser):
     return parser
 
 
-def study_settings(args) -> dict:
-    """The settings named by :func:`add_settings_options`: the JSON, else config/config.yaml of
-    the study (:func:`study_root`) with the overlays laid on top, checked against the schema."""
+def study_settings(args, *sections: str) -> dict:
+    """The settings named by :func:`add_settings_options`: the JSON (which must hold the config
+    ``sections`` the command reads), else config/config.yaml of the study (:func:`study_root`)
+    with the overlays laid on top, checked against the schema."""
     if args.settings:
-        return parse_settings(args.settings)
+        return parse_settings(args.settings, *sections)
     overlays = [str(Path(f).resolve()) for f in args.configfile or []]
     return load_study_config(*overlays, root=study_root(), check=True)

@@ -304,7 +304,7 @@ def main(argv: list[str]) -> int:
         from feeder.io import check_figure_path
 
         check_figure_path(args.plot)
-    study = study_settings(args)
+    study = study_settings(args, "scene", "labels")
     model = choose_model(args.model, "feeder predict", study)
     check_push_source(model, args.part)
     t0 = time.perf_counter()

@@ -232,7 +232,8 @@ def main(argv: list[str]) -> int:
         raise FeederError(f"--top must be positive, got {args.top}")
     if args.verify < 0:
         raise FeederError(f"--verify must be 0 or more, got {args.verify}")
-    study = study_settings(args)
+    needed = ("scene", "labels") + (() if args.configs else ("fences",)) + (("sim",) if args.verify else ())
+    study = study_settings(args, *needed)
     geom = None
     if args.verify:
         geom = verify_part(args.part)
