@@ -122,3 +122,21 @@ def test_predict_does_not_import_torch(tmp_path):
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
     assert proc.returncode == 0, proc.stderr
     assert proc.stdout.strip().splitlines()[-1] == "False"
+
+
+def test_a_tensor_record_outside_its_storage_is_refused():
+    from feeder.learn.inference import _rebuild_tensor
+
+    storage = np.arange(6, dtype=np.float32)
+    np.testing.assert_array_equal(_rebuild_tensor(storage, 0, (2, 3), (3, 1)), storage.reshape(2, 3))
+    np.testing.assert_array_equal(_rebuild_tensor(storage, 1, (2, 2), (3, 1)), [[1, 2], [4, 5]])
+    assert _rebuild_tensor(storage, 5, (), ()) == 5
+    for offset, size, stride in [
+        (1, (2, 3), (3, 1)),
+        (0, (2, 3), (4, 1)),
+        (-1, (2,), (1,)),
+        (0, (2,), (-1,)),
+        (6, (), ()),
+    ]:
+        with pytest.raises(ValueError):
+            _rebuild_tensor(storage, offset, size, stride)

@@ -46,11 +46,19 @@ class _Storage:
 
 
 def _rebuild_tensor(storage: np.ndarray, offset: int, size, stride, *_rest) -> np.ndarray:
-    """``torch._utils._rebuild_tensor_v2`` in numpy: the strided view of a storage, copied."""
+    """``torch._utils._rebuild_tensor_v2`` in numpy: the strided view of a storage, copied. A view
+    that would reach outside the storage (negative or too large offset, sizes or strides) is a
+    ValueError, which :func:`read_weights` reports as a file that is not a saved model."""
+    size, stride = tuple(int(n) for n in size), tuple(int(s) for s in stride)
+    if len(size) != len(stride) or offset < 0 or any(n < 0 for n in size) or any(s < 0 for s in stride):
+        raise ValueError("a tensor record with a negative or mismatched offset, size or stride")
+    last = offset + sum((n - 1) * s for n, s in zip(size, stride, strict=True)) if all(size) else offset - 1
+    if last >= storage.size or (not size and offset >= storage.size):
+        raise ValueError("a tensor record that reaches outside its storage")
     if not size:
         return np.array(storage[offset])
     strides = [s * storage.itemsize for s in stride]
-    return np.lib.stride_tricks.as_strided(storage[offset:], shape=tuple(size), strides=strides).copy()
+    return np.lib.stride_tricks.as_strided(storage[offset:], shape=size, strides=strides).copy()
 
 
 # what a saved model.pt may name: the state dict's container, tensors and their storages
@@ -100,7 +108,16 @@ def read_weights(path: str | Path) -> dict:
             if order in names and archive.read(order).decode().strip() != _LITTLE_ENDIAN:
                 raise FeederError(f"{path}: weights in big-endian byte order")
             return _WeightsUnpickler(archive, prefix, path).load()
-    except (zipfile.BadZipFile, KeyError, pickle.UnpicklingError, EOFError, ValueError) as err:
+    except (
+        zipfile.BadZipFile,
+        KeyError,
+        pickle.UnpicklingError,
+        EOFError,
+        ValueError,
+        TypeError,
+        AttributeError,
+        IndexError,
+    ) as err:
         raise FeederError(f"{path}: not a saved model ({type(err).__name__})") from None
 
 
