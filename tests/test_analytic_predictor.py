@@ -127,3 +127,26 @@ def test_analytic_answers_the_evaluation_baseline_moved_to_the_part_frame(tmp_pa
     )  # degrees: bin interpolation only
     # and the frame matters: unshifted, the baseline is elsewhere
     assert float(L.circular_w1(L.cdf(got[None, :])[0], L.cdf(baseline[None, :])[0])) > 5.0
+
+
+def test_recommend_does_not_rank_a_configuration_that_always_jams_first():
+    """The analytic PMF is over the ok drops: ranked by P(window) alone, a configuration whose drops
+    all jam could top the list. Ranked by P(window) x ok mass it cannot."""
+    from feeder.mechanics.features import PUSH_FEATURE_NAMES
+
+    model = AnalyticModel(4)
+    push = np.zeros((2, len(PUSH_FEATURE_NAMES)))
+    push[:, PUSH_FEATURE_NAMES.index("ok_mass")] = [0.0, 0.9]  # the first always jams
+    pmf = np.array([[1.0, 0.0, 0.0, 0.0], [0.5, 0.0, 0.5, 0.0]])  # ... and alone puts all its mass at 0 deg
+    ranked = R.rank(model, np.zeros(45), None, ["straight30_none", "straight60_none"], 0.0, 10.0, 1, push, pmf)
+    assert list(ranked.config_id) == ["straight60_none", "straight30_none"]
+    np.testing.assert_allclose(ranked.predicted_ok_mass, [0.9, 0.0])
+    np.testing.assert_allclose(ranked.probability_overall, ranked.probability * ranked.predicted_ok_mass)
+    assert ranked.probability[1] > ranked.probability[0] > 0  # by P(window) alone the jamming one led
+
+
+def test_predict_prints_the_analytic_ok_mass(tmp_path, capsys):
+    argv = ["--model", "analytic", "--part", str(PART), "--loc1", "straight:30", "--loc2", "none"]
+    assert P.main([*argv, "--out", str(tmp_path / "a.csv")]) == 0
+    line = [x for x in capsys.readouterr().out.splitlines() if "without jamming" in x]
+    assert len(line) == 1 and 0.0 <= float(line[0].rsplit(":", 1)[1]) <= 1.0

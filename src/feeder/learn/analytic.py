@@ -1,13 +1,17 @@
 """The untrained analytic predictor: ``feeder predict --model analytic``.
 
 It answers with the configuration's analytic push PMF (:mod:`feeder.mechanics`: quasi-static
-pushing of the part's convex hull against each fence, exit turns and jams included), smoothed as
+pushing of the part's convex hull against each fence, with exit turns) over the drops that do not
+jam, smoothed as
 the study's labels are (``labels.sigma_bins``), in the part file's own frame. It reads no
 training row. It is the evaluation tables' ``baseline_analytic_pmf`` (the dataset's
 ``pmf_analytic``, whose CDF is its cumulative sum) offered as a predictor: by circular W1 no trained
 network beats it on unseen parts (``results/tables/groupkfold_*_paired.csv``; docs/results.md).
 
-The class answers :meth:`predict` like :class:`feeder.learn.spec.Predictor`, so
+Its share of drops that jam is not in the PMF: :meth:`AnalyticModel.ok_mass` gives the share that
+does not, which ``feeder predict`` prints and ``feeder recommend`` ranks by (the evaluation scores
+the PMF on configurations that are not excluded as jammed). The class answers :meth:`predict`
+like :class:`feeder.learn.spec.Predictor`, so
 ``feeder predict`` and ``feeder recommend`` use it in place of a network. It needs the part as an
 STL (its outline): the PMFs come from :func:`feeder.learn.predict.push_inputs`.
 """
@@ -36,7 +40,7 @@ class AnalyticModel:
 
     label_frame = "part"
     inputs = "outline"  # what it reads of the part: the STL's outline, no DFT feature
-    needs_push = False
+    needs_push = True  # the push block: its ok mass (:meth:`ok_mass`)
     needs_analytic = True
 
     def __init__(self, bins: int):
@@ -59,6 +63,14 @@ class AnalyticModel:
             raise FeederError("the analytic PMFs must be finite, non-negative and hold some mass")
         pmf = pmf / total
         return pmf, np.cumsum(pmf, axis=1)
+
+    def ok_mass(self, push_raw) -> np.ndarray:
+        """The analytic share of drops that leave without jamming, per row of the push block
+        (its ``ok_mass`` feature): the PMF itself is over the ok drops only, so a configuration
+        that always jams needs this beside it."""
+        from feeder.mechanics.features import PUSH_FEATURE_NAMES
+
+        return np.atleast_2d(np.asarray(push_raw, dtype=np.float64))[:, PUSH_FEATURE_NAMES.index("ok_mass")]
 
 
 def is_analytic(model_arg) -> bool:

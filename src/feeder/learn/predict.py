@@ -126,7 +126,7 @@ def check_push_source(model, part: Path | None) -> None:
     if part is None or part.suffix.lower() != ".stl":
         what = (
             f"the analytic push features (model.inputs: {model.inputs})"
-            if model.needs_push
+            if model.needs_push and hasattr(model, "scaler")
             else "the analytic PMF" + (" (model.base: prior)" if getattr(model.spec, "base", None) == "prior" else "")
         )
         raise FeederError(
@@ -321,7 +321,10 @@ def main(argv: list[str]) -> int:
     else:
         sys.stdout.write(frame.to_csv(index=False, lineterminator="\n"))
     # the summary a person reads: on stdout unless stdout carries the table
-    print(orientation_summary(frame), file=sys.stdout if args.out is not None else sys.stderr)
+    summary = orientation_summary(frame)
+    if hasattr(model, "ok_mass") and push_raw is not None:
+        summary += f"\nshare of drops that leave without jamming (analytic): {float(model.ok_mass(push_raw)[0]):.2f}"
+    print(summary, file=sys.stdout if args.out is not None else sys.stderr)
     if args.plot is not None:
         from feeder.io import save_figure
 

@@ -86,7 +86,9 @@ def rank(
     """Every configuration's predicted probability of the target window, best first (ties in the
     given order); columns ``config_id, loc1, loc2, probability, mode_deg`` (the PMF's largest bin,
     part frame). ``push_raw``: the push block of every configuration, for a ``paper+push`` model;
-    ``analytic``: their analytic PMFs, for a ``base: prior`` model."""
+    ``analytic``: their analytic PMFs, for a ``base: prior`` model. The analytic predictor
+    (``--model analytic``, whose PMF is over the drops that do not jam) adds ``predicted_ok_mass``
+    and ``probability_overall`` (probability × ok mass) and is ranked by the latter."""
     from feeder.labels import metrics as L
     from feeder.labels.dataset import feeder_vector
     from feeder.lane.fences import parse_config_id
@@ -112,7 +114,12 @@ def rank(
             "mode_deg": (np.argmax(pmf, axis=1) + 0.5) * width,
         }
     )
-    return frame.sort_values("probability", ascending=False, kind="stable").reset_index(drop=True)
+    key = "probability"
+    if push_raw is not None and hasattr(model, "ok_mass"):  # the analytic PMF: over the ok drops only
+        frame["predicted_ok_mass"] = model.ok_mass(push_raw)
+        frame["probability_overall"] = frame["probability"] * frame["predicted_ok_mass"]
+        key = "probability_overall"  # a configuration that always jams does not top the ranking
+    return frame.sort_values(key, ascending=False, kind="stable").reset_index(drop=True)
 
 
 def verify_settings(study: dict) -> dict:
