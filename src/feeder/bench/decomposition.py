@@ -15,7 +15,12 @@ with every initial yaw ``nudge_deg`` later (same-basin fraction, median |Δ fina
 label, the label of offset ``a`` against that of offset ``b``, a second seeded offset of the same
 design (sup|ΔCDF|, circular W1). A comparison **passes** when every one of its four distances is
 within ``floor_factor`` times the floor (the missed-basin share's floor is at least one drop in
-``drops``: a floor measured on a few dozen drops is itself uncertain). A model passes the
+``drops``: a floor measured on a few dozen drops is itself uncertain). No floor is below what
+the label can show (:func:`label_resolution`): half a bin for median |Δyaw|, one drop's mass for
+sup|ΔCDF|, one drop moved by one bin for circular W1. Without it a model whose drops repeat
+exactly (pads against an aligning fence: a measured floor of 1e-6 degrees and 1e-16) fails on any
+difference at all, however far below the label's bins; the measured floors stay in the table
+(``own_floor_*``) beside the floors applied (``floor_*``). A model passes the
 decomposition test when every decomposition pair of every part and configuration passes; the pad
 counts are **converged** when two pad counts pass the same test against each other (each
 decomposition, floor: the larger of the two models' floors).
@@ -448,9 +453,24 @@ def summarize(raw: pd.DataFrame, bins: int, sigma: float, factor: float) -> pd.D
     return pd.concat([table, pd.DataFrame(verdicts)], ignore_index=True)
 
 
-def _row(kind, part, config, model, x, y, rx, ry, floor, bins, sigma, factor) -> dict:
+def label_resolution(bins: int, drops: int) -> dict:
+    """The least difference a label of ``drops`` drops over ``bins`` yaw bins can show (pure): half
+    a bin of median |Δyaw| (a smaller shift need not move a drop to another bin), one drop's mass
+    of sup|ΔCDF| and one drop moved by one bin of circular W1 (degrees)."""
+    width = 360.0 / bins
+    return {"median_dyaw_deg": width / 2.0, "sup_cdf": 1.0 / drops, "circular_w1_deg": width / drops}
+
+
+def resolved_floor(floor: dict, bins: int, drops: int) -> dict:
+    """``floor`` raised to :func:`label_resolution` where it is below it (a NaN floor stays NaN)."""
+    least = label_resolution(bins, drops)
+    return {k: v if k not in least or math.isnan(v) else max(v, least[k]) for k, v in floor.items()}
+
+
+def _row(kind, part, config, model, x, y, rx, ry, own_floor, bins, sigma, factor) -> dict:
     dist = compare(rx, ry, bins, sigma)
     drops = len(rx)
+    floor = resolved_floor(own_floor, bins, drops)
     return {
         "kind": kind,
         "part": part,
@@ -464,6 +484,7 @@ def _row(kind, part, config, model, x, y, rx, ry, floor, bins, sigma, factor) ->
         "ok_rate_a": float(np.mean(rx["status"] == "ok")),
         "ok_rate_b": float(np.mean(ry["status"] == "ok")),
         **dist,
+        **{f"own_floor_{k}": v for k, v in own_floor.items()},
         **{f"floor_{k}": v for k, v in floor.items()},
         "passes_paired": within_floor(dist, floor, drops, factor, PAIRED),
         "passes_label": within_floor(dist, floor, drops, factor, LABEL),

@@ -82,7 +82,7 @@ def draw(table):
             continue
         text = "\n".join(
             f"{what} {'pass' if _truthy(v[f'passes_{what}']) else 'fail'} "
-            f"({int(v[f'rows_passed_{what}'])}/{int(v['rows'])})"
+            f"({int(v[f'rows_passed_{what}'])}/{int(v['rows'])} rows pass)"
             for what in ("paired", "label")
         )
         cost.text(k, bar.get_height(), text, ha="center", va="bottom", fontsize=7)
