@@ -861,8 +861,8 @@ def test_contact_decomposition_plots_each_models_distances_beside_its_floor_and_
     assert [t.get_text() for t in cost.get_xticklabels()] == ["pieces", "pads8"]  # pieces first
     assert [p.get_height() for p in cost.patches] == [80.0, 95.0]
     assert [t.get_text() for t in cost.texts] == [
-        "paired fail (0/2)\nlabel pass (2/2)",
-        "paired pass (2/2)\nlabel pass (2/2)",
+        "paired fail (0/2 rows pass)\nlabel pass (2/2 rows pass)",
+        "paired pass (2/2 rows pass)\nlabel pass (2/2 rows pass)",
     ]
     filled = sorted(
         float(y)
