@@ -457,3 +457,21 @@ def test_no_shipped_model_is_a_one_line_error(tmp_path, pentagon, capsys, monkey
     (missing / WEIGHTS_FILE).write_bytes(b"")
     assert main(["predict", "--part", str(pentagon), "--loc1", "none", "--loc2", "none"]) == 2
     assert "feeder export-model" in capsys.readouterr().err
+
+
+def test_the_card_headline_is_circular_w1_beside_the_analytic_and_mean_pmf():
+    from feeder.learn.export import card_headline
+
+    metrics = {
+        "test": [
+            {"model": "m9", "cw1_mean": 12.34},
+            {"model": "baseline_mean_pmf", "cw1_mean": 30.0},
+            {"model": "baseline_analytic_pmf", "cw1_mean": 10.0},
+        ],
+        "fences": [{"model": "m9", "cw1_mean": 40.0}],
+        "parts": [],
+        "unseen_parts": None,
+    }
+    line = card_headline("m9", metrics)
+    assert line.startswith("Headline, circular W1 in degrees")
+    assert line.endswith(": Test 12.3° (analytic PMF 10.0°, mean PMF 30.0°); Fences 40.0°.")

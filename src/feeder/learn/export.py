@@ -214,7 +214,7 @@ def table_metrics(tables: Path, name: str, split_rows: dict[str, int]) -> dict:
     Tables 6-8, the GroupKFold ``over parts`` rows and the model's rows of the paired comparison
     (None when those optional tables are missing). A Test/Fences/Parts table evaluated on another
     number of rows than ``split_rows`` gives (another dataset) is refused."""
-    from feeder.learn.evaluate import BASELINE_MEAN, BASELINE_NEAREST, TABLES
+    from feeder.learn.evaluate import BASELINE_ANALYTIC, BASELINE_MEAN, BASELINE_NEAREST, TABLES
 
     tables = Path(tables)
     names = [name, BASELINE_MEAN, BASELINE_NEAREST]
@@ -223,7 +223,9 @@ def table_metrics(tables: Path, name: str, split_rows: dict[str, int]) -> dict:
         path = tables / f"table{TABLES[split][0]}.csv"
         if not path.is_file():
             raise FeederError(f"table {path} is missing (run `feeder evaluate tables` first)")
-        rows = _rows_of(_read_table(path, ("model",)), path, names)
+        frame = _read_table(path, ("model",))
+        # the analytic PMF's row too, where the dataset has it: the untrained answer to beat
+        rows = _rows_of(frame, path, names + [BASELINE_ANALYTIC] * bool((frame["model"] == BASELINE_ANALYTIC).any()))
         for row in rows:
             n = row.get("n")
             if n is not None and int(n) != split_rows.get(split, 0):
@@ -235,7 +237,10 @@ def table_metrics(tables: Path, name: str, split_rows: dict[str, int]) -> dict:
     path = tables / f"groupkfold_{name}.csv"
     if path.is_file():
         frame = _read_table(path, ("model", "group"))
-        out["unseen_parts"] = _rows_of(frame[frame["group"] == OVER_PARTS], path, names)
+        over = frame[frame["group"] == OVER_PARTS]
+        out["unseen_parts"] = _rows_of(
+            over, path, names + [BASELINE_ANALYTIC] * bool((over["model"] == BASELINE_ANALYTIC).any())
+        )
     else:
         out["unseen_parts"] = None
     path = tables / MODEL_VS_BASELINES
@@ -467,6 +472,7 @@ def _card_metrics(card: dict) -> list[str]:
         "",
     ]
     metrics = card["metrics"]
+    lines += [card_headline(card["model"], metrics), ""]
     for split in CARD_SPLITS:
         number, caption = TABLES[split]
         lines += [_table_md(metrics[split], f"Table {number}. {caption}"), ""]
@@ -479,6 +485,30 @@ def _card_metrics(card: dict) -> list[str]:
         caption = "Model against the baselines: paired differences (model − baseline) with bootstrap intervals"
         lines += [_table_md(metrics["model_vs_baselines"], caption), ""]
     return lines
+
+
+def card_headline(name: str, metrics: dict) -> str:
+    """The card's headline: the model's circular W1 (degrees, lower is better) on Test, Fences,
+    Parts and unseen parts, each beside the analytic PMF's and the mean PMF's where the tables hold
+    them (pure)."""
+    from feeder.learn.evaluate import BASELINE_ANALYTIC, BASELINE_MEAN
+
+    shown = {"test": "Test", "fences": "Fences", "parts": "Parts", "unseen_parts": "unseen parts (GroupKFold)"}
+    parts = []
+    for key, label in shown.items():
+        rows = {r["model"]: r for r in metrics.get(key) or []}
+        if name not in rows:
+            continue
+        others = [
+            f"{what} {rows[b]['cw1_mean']:.1f}°"
+            for b, what in ((BASELINE_ANALYTIC, "analytic PMF"), (BASELINE_MEAN, "mean PMF"))
+            if b in rows
+        ]
+        parts.append(f"{label} {rows[name]['cw1_mean']:.1f}°" + (f" ({', '.join(others)})" if others else ""))
+    return (
+        "Headline, circular W1 in degrees (lower is better; the paper's R² is in the tables below and "
+        "rewards a hedged answer): " + "; ".join(parts) + "."
+    )
 
 
 def _card_files(card: dict) -> list[str]:
