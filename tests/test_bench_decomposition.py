@@ -1,5 +1,6 @@
-"""feeder bench-decomposition (issue #37 item 1): the alternative convex decompositions are valid,
-the bench simulates them as given, the pass rule, and the test's verdicts on two small parts."""
+"""feeder bench-decomposition and bench-decomposition-table (issue #37 item 1): the alternative
+convex decompositions are valid, the bench simulates them as given, the pass rule, the table from
+the raw drops, and the test's verdicts on two small parts."""
 
 from __future__ import annotations
 
@@ -13,6 +14,7 @@ from shapely.geometry import Polygon
 from shapely.ops import unary_union
 
 from feeder.bench import decomposition as D
+from feeder.bench import decomposition_table as T
 from feeder.errors import FeederError
 from feeder.parts.geometry import PartGeometry, is_convex
 
@@ -144,16 +146,16 @@ FLOOR = {"same_basin": 0.95, "median_dyaw_deg": 0.1, "sup_cdf": 0.05, "circular_
     ],
 )
 def test_a_comparison_passes_within_the_factor_times_its_floor(row, paired, label):
-    assert D.within_floor(row, FLOOR, 40, 2.0, D.PAIRED) is paired
-    assert D.within_floor(row, FLOOR, 40, 2.0, D.LABEL) is label
-    assert D.within_floor(row, FLOOR, 40, 2.0) is (paired and label)
+    assert T.within_floor(row, FLOOR, 40, 2.0, T.PAIRED) is paired
+    assert T.within_floor(row, FLOOR, 40, 2.0, T.LABEL) is label
+    assert T.within_floor(row, FLOOR, 40, 2.0) is (paired and label)
 
 
 def test_label_resolution_by_hand():
-    assert D.label_resolution(360, 32) == {"median_dyaw_deg": 0.5, "sup_cdf": 1 / 32, "circular_w1_deg": 1 / 32}
-    assert D.label_resolution(90, 8)["circular_w1_deg"] == pytest.approx(0.5)
+    assert T.label_resolution(360, 32) == {"median_dyaw_deg": 0.5, "sup_cdf": 1 / 32, "circular_w1_deg": 1 / 32}
+    assert T.label_resolution(90, 8)["circular_w1_deg"] == pytest.approx(0.5)
     own = {"same_basin": 1.0, "median_dyaw_deg": 1e-6, "sup_cdf": 0.2, "circular_w1_deg": math.nan}
-    floor = D.resolved_floor(own, 360, 32)
+    floor = T.resolved_floor(own, 360, 32)
     assert floor["same_basin"] == 1.0 and floor["median_dyaw_deg"] == 0.5  # raised
     assert floor["sup_cdf"] == 0.2 and math.isnan(floor["circular_w1_deg"])  # kept
 
@@ -161,10 +163,10 @@ def test_label_resolution_by_hand():
 def test_a_perfect_floor_still_allows_one_missed_drop_per_factor():
     perfect = {"same_basin": 1.0, "median_dyaw_deg": 0.1, "sup_cdf": 0.05, "circular_w1_deg": 1.0}
     row = dict(perfect)
-    assert D.within_floor(row | {"same_basin": 1 - 2 / 40}, perfect, 40, 2.0, D.PAIRED)
-    assert not D.within_floor(row | {"same_basin": 1 - 3 / 40}, perfect, 40, 2.0, D.PAIRED)
+    assert T.within_floor(row | {"same_basin": 1 - 2 / 40}, perfect, 40, 2.0, T.PAIRED)
+    assert not T.within_floor(row | {"same_basin": 1 - 3 / 40}, perfect, 40, 2.0, T.PAIRED)
     nan = {k: math.nan for k in perfect}
-    assert D.within_floor(nan | {"same_basin": 1.0}, nan | {"same_basin": 1.0}, 40, 2.0)
+    assert T.within_floor(nan | {"same_basin": 1.0}, nan | {"same_basin": 1.0}, 40, 2.0)
 
 
 def _raw(final_by_run, drops=8, cpu=0.8):
@@ -201,7 +203,7 @@ def test_summarize_gives_each_model_its_floor_and_a_verdict():
             (model, "library", "b", 0.0): base + 1.0,
             (model, "strips3", "a", 0.0): base + moved,
         }
-    table = D.summarize(_raw(runs), 360, 1.0, 2.0)
+    table = T.summarize(_raw(runs), 360, 1.0, 2.0)
     rows = table[table["kind"] == "decomposition"].set_index("model")
     assert rows.loc["pieces", "median_dyaw_deg"] == pytest.approx(4.0)
     assert rows.loc["pieces", "own_floor_median_dyaw_deg"] == pytest.approx(0.05)
@@ -233,7 +235,7 @@ def _bench(part, names, config, drops=6):
     }
 
 
-def test_cli_rebuilds_the_table_from_raw_drops(tmp_path, capsys):
+def test_cli_makes_the_table_from_raw_drops_alone(tmp_path, capsys):
     from feeder.cli import main as cli
     from feeder.config import load_study_config
 
@@ -252,12 +254,17 @@ def test_cli_rebuilds_the_table_from_raw_drops(tmp_path, capsys):
         "labels": cfg["labels"],
     }
     out = tmp_path / "t.csv"
-    args = ["bench-decomposition", "--settings", json.dumps(settings), "--out-csv", str(out), "--from-raw", str(raw)]
+    args = ["bench-decomposition-table", "--settings", json.dumps(settings), "--raw", str(raw), "--out-csv", str(out)]
     assert cli(args) == 0
     table = pd.read_csv(out)
     assert set(table["kind"]) == {"decomposition", "convergence", "verdict"}
     assert "passes" in capsys.readouterr().err
-    assert cli(["bench-decomposition", "--settings", json.dumps(settings), "--out-csv", str(out)]) == 2
+    again = tmp_path / "t2.csv"
+    assert cli([*args[:-1], str(again)]) == 0
+    assert again.read_bytes() == out.read_bytes()  # the same raw drops, the same table, bit for bit
+    missing = ["bench-decomposition-table", "--settings", json.dumps({"sim": {}}), "--raw", str(raw)]
+    assert cli([*missing, "--out-csv", str(tmp_path / "none.csv")]) == 2
+    assert not (tmp_path / "none.csv").exists()
 
 
 D_PLAN = [("library", "a", 0.0), ("library", "a", 0.01), ("library", "b", 0.0), ("fan", "a", 0.0)]
@@ -286,7 +293,7 @@ def test_verdicts_on_two_small_parts(study, part, other, config, pieces_label):
     scene, preset, labels = study
     bench = _bench(part, [other], config)
     raw = D.simulate_all(bench, 0, "parts", scene, preset, 1)
-    table = D.summarize(raw, int(labels["bins"]), float(labels["sigma_bins"]), 2.0)
+    table = T.summarize(raw, int(labels["bins"]), float(labels["sigma_bins"]), 2.0)
     rows = table[table["kind"] == "decomposition"].set_index("model")
     assert len(rows) == 2 and (rows["decomposition_b"] == other).all()
     pieces, pads = rows.loc["pieces"], rows.loc["pads8"]

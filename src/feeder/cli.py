@@ -45,6 +45,10 @@ COMMANDS: dict[str, tuple[str, str]] = {
         "feeder.bench.decomposition",
         "is the belt friction the part's or its convex pieces'? each contact model under other decompositions",
     ),
+    "bench-decomposition-table": (
+        "feeder.bench.decomposition_table",
+        "the decomposition test's table and verdicts from its raw drops (no simulation)",
+    ),
     "bench-step": (
         "feeder.bench.step",
         "what one simulation step costs against a bare one-box world, and what it is spent on",
