@@ -115,17 +115,15 @@ def test_check_decomposition_refuses_overlap_gap_and_a_concave_piece():
 
 
 def test_the_pieces_are_simulated_as_given_not_merged_back():
-    """At tolerance 0 the part model fuses a rectangle's two triangles back into one piece; the
-    bench keeps them (and the merge is restored afterwards)."""
+    """At tolerance 0 the part model fuses a rectangle's two triangles back into one piece; with
+    merge_tolerance None (what the bench's runs use) it keeps them."""
     from feeder.config import load_study_config
     from feeder.sim.body import part_model
 
     scene = load_study_config("config/config.yaml")["scene"]
     part = D.with_pieces(_part(RECT), D.triangles(RECT))
     assert len(part_model(part, scene, 0.0).pieces) == 1
-    with D.pieces_as_given():
-        assert len(part_model(part, scene, 0.0).pieces) == 2
-    assert len(part_model(part, scene, 0.0).pieces) == 1
+    assert len(part_model(part, scene, None).pieces) == 2
 
 
 # ----------------------------------------------------------------------------------------------
@@ -307,14 +305,16 @@ def test_verdicts_on_two_small_parts(study, part, other, config, pieces_label):
     assert not verdict.loc["pieces", "passes"] and verdict.loc["pads8", "passes"]
 
 
-def test_a_bench_whose_pieces_would_be_merged_back_stops_before_simulating(study, monkeypatch):
-    """If the part model stopped merging through feeder.sim.body.merge_pieces (so the bypass did
-    not take), the run refuses rather than simulate the library's pieces under another name."""
-    import contextlib
+def test_the_bench_runs_the_pieces_it_is_given(study, monkeypatch):
+    """run_decomposition hands the part model its pieces unmerged: the two triangles of a rectangle
+    reach the world as two pieces, not fused back into one."""
+    import feeder.sim.drops as drops
 
     scene, preset, _ = study
-    monkeypatch.setattr(D, "pieces_as_given", contextlib.nullcontext)
-    with pytest.raises(FeederError, match="simulated as 1 pieces, not the 2 given"):
-        D.run_decomposition(
-            _part(RECT), D.triangles(RECT), "straight:30|none", [0.0], D.model_scene(scene, "pieces"), preset
-        )
+    built = []
+    real = drops.part_model
+    monkeypatch.setattr(drops, "part_model", lambda *a, **k: built.append(real(*a, **k)) or built[-1])
+    D.run_decomposition(
+        _part(RECT), D.triangles(RECT), "straight:30|none", [0.0], D.model_scene(scene, "pieces"), preset
+    )
+    assert built and all(len(m.pieces) == 2 for m in built)

@@ -3,10 +3,10 @@
 Issue #37, item 1. The same part is built under several valid convex decompositions (pure
 functions below: the library's own pieces, a constrained triangulation, a fan from the centroid,
 strips across the long axis, cuts through every reflex vertex along one edge or the other), each
-substituted for ``geom.convex_pieces`` and simulated exactly as given (the merge of
-:func:`feeder.sim.body.merge_pieces` is bypassed: at tolerance 0 it fuses back any pieces whose
-union is convex, e.g. a rectangle's two triangles). Each decomposition runs under each contact
-model (``pieces``: each convex piece touches the belt; ``padsK``: K footprint pads of uniform
+substituted for ``geom.convex_pieces`` and simulated exactly as given (the part model's merge,
+:func:`feeder.sim.body.merge_pieces`, is off: ``merge_tolerance: None``; at tolerance 0 it would
+fuse back any pieces whose union is convex, e.g. a rectangle's two triangles). Each decomposition
+runs under each contact model (``pieces``: each convex piece touches the belt; ``padsK``: K footprint pads of uniform
 pressure, :func:`feeder.sim.body.footprint_pads`) with the same initial yaws (offset ``a``), one
 drop per world (:func:`feeder.sim.drops.run_each`), so drop ``i`` of two runs is paired.
 
@@ -33,7 +33,6 @@ from them, so a new statistic needs no simulation.
 from __future__ import annotations
 
 import argparse
-import contextlib
 import copy
 import dataclasses
 import math
@@ -231,20 +230,6 @@ def with_pieces(geom, pieces):
     return dataclasses.replace(geom, convex_pieces=[np.asarray(p, np.float64) for p in pieces])
 
 
-@contextlib.contextmanager
-def pieces_as_given():
-    """Within the block, :func:`feeder.sim.body.part_model` simulates the pieces exactly as given
-    (its merge is bypassed); :func:`run_decomposition` checks that it took."""
-    import feeder.sim.body as body
-
-    saved = body.merge_pieces
-    body.merge_pieces = lambda pieces, tolerance: [np.asarray(p, np.float64) for p in pieces]
-    try:
-        yield
-    finally:
-        body.merge_pieces = saved
-
-
 # ----------------------------------------------------------------------------------------------
 # Runs (simulation)
 # ----------------------------------------------------------------------------------------------
@@ -261,23 +246,14 @@ def run_decomposition(geom, pieces, config: str, yaws, scene: dict, preset: dict
     """The drops of one decomposition, one drop per world, pieces as given: final yaws, statuses,
     process CPU seconds."""
     from feeder.lane.fences import parse_location
-    from feeder.sim.body import part_model
     from feeder.sim.drops import run_each
 
     part = with_pieces(geom, pieces)
     loc1, loc2 = config.split("|")
-    margin = float(scene["part"]["collision_margin"])
-    kept = sum(not _polygon(p).buffer(-margin, join_style=2).is_empty for p in pieces)  # slivers drop out
-    with pieces_as_given():
-        built = part_model(part, scene, float(preset["merge_tolerance"]))
-        if len(built.pieces) != kept:
-            raise FeederError(
-                f"part {geom.part_id}: simulated as {len(built.pieces)} pieces, not the {kept} given "
-                "(feeder.sim.body.part_model no longer merges through merge_pieces?)"
-            )
-        start = time.process_time()
-        out = run_each(part, parse_location(loc1), parse_location(loc2), np.asarray(yaws, np.float64), scene, preset)
-        cpu = time.process_time() - start
+    as_given = dict(preset, merge_tolerance=None)  # the part model merges nothing back
+    start = time.process_time()
+    out = run_each(part, parse_location(loc1), parse_location(loc2), np.asarray(yaws, np.float64), scene, as_given)
+    cpu = time.process_time() - start
     return {"final_yaw_deg": out["final_yaw_deg"], "status": out["status"].astype(str), "cpu_s": cpu}
 
 

@@ -228,8 +228,9 @@ def check_fit(part_id: str, outline, centroid, thickness: float, scene: dict) ->
         )
 
 
-def part_model(geom, scene: dict, merge_tolerance: float = 0.0) -> PartModel:
-    """Pieces (merged within ``merge_tolerance``) in the centroidal principal frame, inset by the margin."""
+def part_model(geom, scene: dict, merge_tolerance: float | None = 0.0) -> PartModel:
+    """Pieces (merged within ``merge_tolerance``; exactly as given for None, as the decomposition
+    bench needs) in the centroidal principal frame, inset by the margin."""
     from shapely.geometry import MultiPoint, Point, Polygon
 
     check_scene_fit(geom, scene)
@@ -240,7 +241,8 @@ def part_model(geom, scene: dict, merge_tolerance: float = 0.0) -> PartModel:
     rot = np.array([[c, -s], [s, c]])
     centroid = np.asarray(geom.centroid, dtype=np.float64)
     pieces = []
-    for piece in merge_pieces(geom.convex_pieces, merge_tolerance):
+    given = geom.convex_pieces if merge_tolerance is None else merge_pieces(geom.convex_pieces, merge_tolerance)
+    for piece in given:
         local = (np.asarray(piece, np.float64) - centroid) @ rot.T
         poly = Polygon(local).buffer(-margin, join_style=2)
         if poly.is_empty or poly.area <= 0 or poly.geom_type != "Polygon":

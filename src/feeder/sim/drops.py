@@ -611,7 +611,8 @@ def run_drops(
     """
     drops = len(yaws0)
     out = empty_results(drops)
-    model = part_model(geom, scene, float(preset["merge_tolerance"]))
+    merge = preset["merge_tolerance"]  # None: the pieces as given (feeder.bench.decomposition)
+    model = part_model(geom, scene, None if merge is None else float(merge))
     plan = make_plan(scene, loc1, loc2, model, bool(preset["full_path"]), prune=prune)
     out["diag"]["plan_fences"] = [f.location for f in plan.fences]
     if not plan.fences:  # nothing in reach: a part at rest on the belt is carried without turning
