@@ -15,7 +15,9 @@ to the bit there too::
 from __future__ import annotations
 
 import importlib.metadata
+import os
 import platform
+from pathlib import Path
 
 import numpy as np
 
@@ -23,12 +25,35 @@ import numpy as np
 AVX2_ENV = {"NPY_DISABLE_CPU_FEATURES": "X86_V4,AVX512_ICL", "ATEN_CPU_CAPABILITY": "avx2"}
 
 
+# besides the library versions: what else a fingerprint holds (same_arithmetic tells them apart)
+_FIXED_KEYS = ("machine", "cpu", "openblas_coretype", "libc", "numpy_simd", "torch_cpu")
+
+
+def cpu_model() -> str:
+    """The processor's model name (Linux ``/proc/cpuinfo``; the platform's word elsewhere): BLAS
+    picks its kernels by processor, so two machines with the same libraries and SIMD level can still
+    sum in another order."""
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or "unknown"
+
+
 def arithmetic(*dists: str) -> dict:
-    """The library versions (``dists``), the C library, and which vector code numpy and (if named)
-    torch dispatch to in this process: equal dicts give equal bits."""
+    """The library versions (``dists``), the processor and the BLAS core type forced on it
+    (``OPENBLAS_CORETYPE``), the C library, and which vector code numpy and (if named) torch
+    dispatch to in this process: equal dicts give equal bits."""
     from numpy._core import _multiarray_umath as mu
 
-    out = {"machine": platform.machine(), "libc": "-".join(platform.libc_ver())}
+    out = {
+        "machine": platform.machine(),
+        "cpu": cpu_model(),
+        "openblas_coretype": os.environ.get("OPENBLAS_CORETYPE", ""),
+        "libc": "-".join(platform.libc_ver()),
+    }
     out.update({d: importlib.metadata.version(d) for d in dists})
     out["numpy_simd"] = [t for t in mu.__cpu_dispatch__ if mu.__cpu_features__.get(t)]
     if "torch" in dists:
@@ -39,7 +64,7 @@ def arithmetic(*dists: str) -> dict:
 
 
 def same_arithmetic(recorded_on: dict) -> bool:
-    dists = [k for k in recorded_on if k not in ("machine", "libc", "numpy_simd", "torch_cpu")]
+    dists = [k for k in recorded_on if k not in _FIXED_KEYS]
     return arithmetic(*dists) == recorded_on
 
 
