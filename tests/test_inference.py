@@ -64,7 +64,6 @@ def test_the_numpy_pass_is_the_torch_network(model_dir):
         np.testing.assert_allclose(cdf, np.cumsum(pmf, axis=1), rtol=1e-12)
 
 
-@needs_models
 def test_the_numpy_pass_of_every_architecture_matches_torch(tmp_path):
     """Branched bodies, PCA outputs and CDF labels (not among the shipped models): a network
     built by models.RegressionModel with random weights, saved, read back without torch."""
