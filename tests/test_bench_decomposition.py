@@ -218,11 +218,11 @@ def test_summarize_gives_each_model_its_floor_and_a_verdict():
 # ----------------------------------------------------------------------------------------------
 # The verdicts on two small parts (real simulations, `fast`, a few drops)
 # ----------------------------------------------------------------------------------------------
-def _bench(part, names, config, drops=6):
+def _bench(part, names, config, drops=6, models=("pieces", "pads8")):
     return {
         "parts": {part: names},
         "configurations": [config],
-        "models": ["pieces", "pads8"],
+        "models": list(models),
         "drops": drops,
         "sampling": "grid",
         "offset_b_seed": 1,
@@ -289,11 +289,18 @@ def test_verdicts_on_two_small_parts(study, part, other, config, pieces_label):
     within the label's resolution (half a bin): they pass. With six drops the L's label floor (a
     second offset) is 14 degrees of W1, which the pieces' 2 degrees pass."""
     scene, preset, labels = study
-    bench = _bench(part, [other], config)
+    bench = _bench(part, [other], config, models=("pieces", "pads8", "pads8+outline"))
     raw = D.simulate_all(bench, 0, "parts", scene, preset, 1)
     table = T.summarize(raw, int(labels["bins"]), float(labels["sigma_bins"]), 2.0)
     rows = table[table["kind"] == "decomposition"].set_index("model")
-    assert len(rows) == 2 and (rows["decomposition_b"] == other).all()
+    assert len(rows) == 3 and (rows["decomposition_b"] == other).all()
+    # pads with outline slabs: walls and fences never see the decomposition, every drop repeats exactly
+    outline = rows.loc["pads8+outline"]
+    assert (outline["same_basin"], outline["median_dyaw_deg"], outline["sup_cdf"]) == (1.0, 0.0, 0.0)
+    assert outline["circular_w1_deg"] == 0.0 and outline["passes"]
+    runs = raw[(raw["model"] == "pads8+outline") & (raw["offset"] == "a") & (raw["yaw_shift_deg"] == 0)]
+    by = {n: g.sort_values("drop")["final_yaw_deg"].to_numpy() for n, g in runs.groupby("decomposition")}
+    assert np.array_equal(by["library"], by[other], equal_nan=True)
     pieces, pads = rows.loc["pieces"], rows.loc["pads8"]
     assert (pieces["same_basin"], pads["same_basin"]) == (1.0, 1.0)
     assert pieces["median_dyaw_deg"] > 20 * pieces["own_floor_median_dyaw_deg"]
@@ -303,6 +310,7 @@ def test_verdicts_on_two_small_parts(study, part, other, config, pieces_label):
     assert bool(pieces["passes_label"]) is pieces_label and pads["passes_label"]
     verdict = table[table["kind"] == "verdict"].set_index("model")
     assert not verdict.loc["pieces", "passes"] and verdict.loc["pads8", "passes"]
+    assert verdict.loc["pads8+outline", "passes"]
 
 
 def test_the_bench_runs_the_pieces_it_is_given(study, monkeypatch):

@@ -47,6 +47,7 @@ import pandas as pd
 from feeder.errors import FeederError
 
 PIECES = "pieces"
+OUTLINE_SUFFIX = "+outline"  # a contact model's suffix: walls and fences meet the outline slabs
 LIBRARY = "library"
 _STRIPS = re.compile(r"^strips([2-9])$")
 NAMED = ("library", "triangles", "fan", "cut_in", "cut_out", "greedy")  # and strips2 ... strips9
@@ -234,12 +235,18 @@ def with_pieces(geom, pieces):
 # Runs (simulation)
 # ----------------------------------------------------------------------------------------------
 def model_scene(scene: dict, model: str) -> dict:
-    """The scene under contact model ``pieces`` or ``padsK`` (:func:`feeder.bench.contact.footprint_scene`)."""
+    """The scene under contact model ``pieces`` or ``padsK`` (the belt footprint,
+    :func:`feeder.bench.contact.footprint_scene`), with ``+outline`` the part meeting walls and fences
+    through its outline slabs (``scene.part.wall_contact``, depth as configured) instead of its pieces."""
     from feeder.bench.contact import footprint_scene
 
-    if model != PIECES and not re.fullmatch(r"pads[1-9][0-9]*", model):
-        raise FeederError(f"contact model {model!r}: pieces or padsK (K pads)")
-    return footprint_scene(scene, model, float(scene["belt"]["footprint"]["pad_radius"]))
+    footprint, plus, wall = model.partition(OUTLINE_SUFFIX)
+    if (footprint != PIECES and not re.fullmatch(r"pads[1-9][0-9]*", footprint)) or wall:
+        raise FeederError(f"contact model {model!r}: pieces or padsK (K pads), optionally followed by {OUTLINE_SUFFIX}")
+    out = footprint_scene(scene, footprint, float(scene["belt"]["footprint"]["pad_radius"]))
+    wall = scene["part"]["wall_contact"]
+    out["part"]["wall_contact"] = dict(wall, model="outline" if plus else "pieces")
+    return out
 
 
 def run_decomposition(geom, pieces, config: str, yaws, scene: dict, preset: dict) -> dict:

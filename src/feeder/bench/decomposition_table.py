@@ -11,12 +11,13 @@ from __future__ import annotations
 import argparse
 import itertools
 import math
+import re
 import sys
 
 import numpy as np
 import pandas as pd
 
-from feeder.bench.decomposition import LIBRARY, PIECES
+from feeder.bench.decomposition import LIBRARY
 from feeder.errors import FeederError
 
 
@@ -105,9 +106,9 @@ def summarize(raw: pd.DataFrame, bins: int, sigma: float, factor: float) -> pd.D
         for x, y in itertools.combinations(names, 2):
             rx, ry = runs[(part, config, model, x, "a", 0.0)], runs[(part, config, model, y, "a", 0.0)]
             rows.append(_row("decomposition", part, config, model, x, y, rx, ry, floor, bins, sigma, factor))
-    pads = sorted((m for m in raw["model"].unique() if m != PIECES), key=lambda m: int(m[4:]))
+    pad_pairs = [pair for pads in pad_ladders(raw["model"].unique()) for pair in zip(pads, pads[1:])]
     for (part, config, name), _ in raw[raw["offset"] == "a"].groupby(["part", "configuration", "decomposition"]):
-        for m1, m2 in zip(pads, pads[1:]):
+        for m1, m2 in pad_pairs:
             rx, ry = runs.get((part, config, m1, name, "a", 0.0)), runs.get((part, config, m2, name, "a", 0.0))
             if rx is None or ry is None:
                 continue
@@ -146,6 +147,18 @@ def summarize(raw: pd.DataFrame, bins: int, sigma: float, factor: float) -> pd.D
             | {f"floor_{k}": float(g[f"floor_{k}"].median()) for k in METRICS}
         )
     return pd.concat([table, pd.DataFrame(verdicts)], ignore_index=True)
+
+
+def pad_ladders(models) -> list[list[str]]:
+    """The pad models grouped by how walls and fences meet the part (the suffix after the pad
+    count, e.g. ``+outline``), each ordered by pad count: the ladders whose neighbours the
+    convergence test compares (pure; ``pieces`` and ``pieces+…`` have no pad count)."""
+    ladders: dict[str, list[tuple[int, str]]] = {}
+    for m in models:
+        hit = re.fullmatch(r"pads([1-9][0-9]*)(.*)", str(m))
+        if hit:
+            ladders.setdefault(hit.group(2), []).append((int(hit.group(1)), str(m)))
+    return [[m for _, m in sorted(ladders[suffix])] for suffix in sorted(ladders)]
 
 
 def label_resolution(bins: int, drops: int) -> dict:

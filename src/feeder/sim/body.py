@@ -33,7 +33,7 @@ import numpy as np
 
 from feeder.errors import FeederError
 from feeder.lane.geometry import FenceGeom
-from feeder.sim.scene import belt_contact, footprint_setting
+from feeder.sim.scene import belt_contact, footprint_setting, wall_contact_setting
 
 # Part collision filter: group bit 1 (dynamic) colliding only with static bodies (group bit 2).
 _PART_GROUP, _PART_MASK = 1, 2
@@ -69,6 +69,12 @@ class PartModel:
     hull: np.ndarray = field(repr=False, default=None)  # (H, 2) convex hull of the outline, principal frame
     pads: np.ndarray | None = field(repr=False, default=None)  # (K, 2) belt footprint pads (None: the pieces)
     pad_radius: float = 0.0  # m: radius of each pad sphere
+    slabs: tuple[np.ndarray, ...] | None = field(repr=False, default=None)  # outline slabs (None: the pieces)
+
+    @property
+    def shell(self) -> tuple[np.ndarray, ...]:
+        """The convex shapes that meet walls and fences: the outline slabs, else the pieces."""
+        return self.pieces if self.slabs is None else self.slabs
 
 
 def principal_inertia(area, second_moment, thickness, density):
@@ -122,6 +128,69 @@ def _mergeable_pair(polys, tolerance: float):
             ):
                 return i, j, hull
     return None
+
+
+def outline_slabs(outline, depth: float, min_depth_share: float = 1.0 / 64.0) -> list[np.ndarray]:
+    """One convex slab per edge of a simple polygon, reaching ``depth`` into it (pure).
+
+    The slab of edge ``ab`` is the rectangle ``a, b, b + depth n, a + depth n`` (``n`` the inward
+    normal), cut by the inner half-plane of each neighbouring edge that meets it at a convex corner
+    (so it never pokes out past a sharp corner). Where the part is thinner than ``depth`` the slab
+    would leave it through the far side: its depth is halved until it lies inside the polygon, down
+    to ``min_depth_share`` of ``depth`` (then the edge gets no slab; its neighbours' cover it). The
+    slabs depend only on the outline, so every decomposition of a part meets walls and fences the
+    same way; their union is the outline's band of width ``depth``, the only place a wall or fence
+    can touch a part from outside (holes are closed).
+    """
+    from shapely.geometry import Polygon
+    from shapely.geometry.polygon import orient
+
+    outline = np.asarray(outline, np.float64)
+    if outline.ndim != 2 or outline.shape[0] < 3 or outline.shape[1] != 2 or not Polygon(outline).is_valid:
+        raise FeederError("outline slabs: the outline is not a simple polygon with an area")
+    ring = np.asarray(orient(Polygon(outline), 1.0).exterior.coords)[:-1]
+    poly = Polygon(ring)
+    n = len(ring)
+    if poly.area <= 0:
+        raise FeederError("outline slabs: the outline is not a simple polygon with an area")
+    slack = 1e-9 * math.sqrt(poly.area)
+    slabs = []
+    for i in range(n):
+        prev, a, b, nxt = ring[i - 1], ring[i], ring[(i + 1) % n], ring[(i + 2) % n]
+        edge = b - a
+        length = float(np.hypot(*edge))
+        if length <= slack:
+            continue
+        inward = np.array([-edge[1], edge[0]]) / length  # counter-clockwise ring: the interior is on the left
+        d = float(depth)
+        while d >= min_depth_share * depth:
+            slab = Polygon([a, b, b + d * inward, a + d * inward])
+            reach = 4.0 * (length + d)
+            if _cross(a - prev, edge) > 0:  # a convex corner at a: keep the inner side of edge prev-a
+                slab = _inner_side(slab, prev, a, reach)
+            if _cross(edge, nxt - b) > 0:  # a convex corner at b: keep the inner side of edge b-nxt
+                slab = _inner_side(slab, b, nxt, reach)
+            if slab.area > 0 and poly.buffer(slack).contains(slab):
+                slabs.append(np.asarray(orient(slab, 1.0).exterior.coords)[:-1])
+                break
+            d *= 0.5
+    if not slabs:
+        raise FeederError("outline slabs: no edge of the outline holds a slab")
+    return slabs
+
+
+def _cross(u, v) -> float:
+    return float(u[0] * v[1] - u[1] * v[0])
+
+
+def _inner_side(shape, p, q, reach: float):
+    """``shape`` cut to the left of the directed line ``p -> q`` (a counter-clockwise ring's inside)."""
+    from shapely.geometry import Polygon
+
+    d = (q - p) / float(np.hypot(*(q - p)))
+    left = np.array([-d[1], d[0]])
+    half = Polygon([p - reach * d, q + reach * d, q + reach * d + reach * left, p - reach * d + reach * left])
+    return shape.intersection(half)
 
 
 def footprint_pads(outline, count: int, samples_per_pad: int = 400, holes=()) -> np.ndarray:
@@ -258,14 +327,28 @@ def part_model(geom, scene: dict, merge_tolerance: float | None = 0.0) -> PartMo
     footprint, count, pad_radius = footprint_setting(scene)
     holes = [(np.asarray(h, np.float64) - centroid) @ rot.T for h in geom.holes]
     pads = footprint_pads(outline @ rot.T, count, holes=holes) if footprint == "pads" else None
+    slabs = _slabs(outline @ rot.T, scene, margin)
     if pads is not None and not MultiPoint(pads).convex_hull.contains(Point(0.0, 0.0)):
         raise FeederError(
             f"part {geom.part_id}: its {count} footprint pads do not surround its centre of mass; "
             "it would tip over (scene.belt.footprint.pads)"
         )
     return PartModel(
-        geom.part_id, float(geom.thickness), mass, inertia, alpha, radius, tuple(pieces), hull, pads, pad_radius
+        geom.part_id, float(geom.thickness), mass, inertia, alpha, radius, tuple(pieces), hull, pads, pad_radius, slabs
     )
+
+
+def _slabs(outline: np.ndarray, scene: dict, margin: float) -> tuple[np.ndarray, ...] | None:
+    """The outline slabs of ``scene.part.wall_contact`` (inset by the margin), or None (the pieces)."""
+    from shapely.geometry import Polygon
+
+    model, depth = wall_contact_setting(scene)
+    if model == "pieces":
+        return None
+    inset = Polygon(outline).buffer(-margin, join_style=2)
+    if inset.geom_type != "Polygon" or inset.is_empty:
+        raise FeederError("outline slabs: the outline falls apart when inset by the collision margin")
+    return tuple(outline_slabs(np.asarray(inset.exterior.coords)[:-1], depth))
 
 
 def obj_text(pieces, half_height: float) -> str:
@@ -373,7 +456,7 @@ class World:
             self._add_fences(x0)
         self.part_shape = self._add_part_shape()
         self.pad_shapes = self._add_pad_shapes()
-        if model.pads is not None:  # explicit groups for every static body (pybullet's OR filter)
+        if self.pad_shapes:  # explicit groups for every static body (pybullet's OR filter)
             for body in range(pb.getNumBodies(physicsClientId=self.cid)):
                 group, mask = (_BELT_GROUP, _PADS_GROUP) if body in self.belts else (_WALLS_GROUP, _PART_GROUP)
                 pb.setCollisionFilterGroupMask(body, -1, group, mask, physicsClientId=self.cid)
@@ -429,7 +512,7 @@ class World:
         self._tmp = tempfile.TemporaryDirectory(prefix="feeder-sim-")
         obj = Path(self._tmp.name) / "part.obj"
         margin = float(self.scene["part"]["collision_margin"])
-        obj.write_text(obj_text(model.pieces, 0.5 * model.thickness - margin))
+        obj.write_text(obj_text(model.shell, 0.5 * model.thickness - margin))
         shape = self.pb.createCollisionShape(self.pb.GEOM_MESH, fileName=str(obj), physicsClientId=self.cid)
         if shape < 0:
             raise FeederError(f"part {model.part_id}: pybullet rejected its collision shape")

@@ -52,6 +52,31 @@ def footprint_setting(scene: dict) -> tuple[str, int, float]:
     return "pads", count, float(radius)
 
 
+def wall_contact_setting(scene: dict) -> tuple[str, float]:
+    """(model, slab depth m) of ``scene.part.wall_contact``: how the part meets walls and fences.
+
+    ``pieces`` (missing: the paper's way): through its convex pieces, so the contact points follow
+    the decomposition. ``outline``: through one convex slab along each edge of its outline, reaching
+    ``depth`` into the part (:func:`feeder.sim.body.outline_slabs`), which no decomposition enters;
+    it needs the footprint pads (the slabs meet only walls and fences, the pads only the belt).
+    """
+    wc = scene["part"].get("wall_contact") or {}
+    model = wc.get("model", "pieces")
+    if model == "pieces":
+        return "pieces", 0.0
+    if model != "outline":
+        raise FeederError(f"scene.part.wall_contact.model: pieces or outline (got {model!r})")
+    depth = wc.get("depth")
+    if isinstance(depth, bool) or not isinstance(depth, (int, float)) or not depth > 0:
+        raise FeederError(f"scene.part.wall_contact.depth: a slab depth in m, > 0, for model outline (got {depth!r})")
+    if footprint_setting(scene)[0] != "pads":
+        raise FeederError(
+            "scene.part.wall_contact: model outline goes with footprint pads (scene.belt.footprint.model: pads); "
+            "the slabs alone would rest the part on its rim"
+        )
+    return "outline", float(depth)
+
+
 def belt_contact_row(belt: dict) -> tuple[str, str, str]:
     """Table 1 row of the belt-part contact model: rigid, or a spring-damper per contact point."""
     contact = belt_contact(belt)
@@ -87,6 +112,18 @@ def belt_footprint_row(scene: dict) -> tuple[str, str, str]:
     )
 
 
+def wall_contact_row(scene: dict) -> tuple[str, str, str]:
+    """Table 1 row of how the part meets walls and fences (``scene.part.wall_contact``)."""
+    model, depth = wall_contact_setting(scene)
+    if model == "pieces":
+        return ("Wall and fence contact", "convex pieces", "each convex piece of the part meets walls and fences")
+    return (
+        "Wall and fence contact",
+        f"outline slabs, {depth:g} m deep",
+        "one convex slab along each outline edge meets walls and fences, whatever the decomposition",
+    )
+
+
 def table1_rows(scene: dict, presets: dict) -> list[tuple[str, str, str]]:
     """(parameter, value, units / notes) for every physical parameter of the scene and presets."""
     b, w, pt, fc = scene["belt"], scene["walls"], scene["part"], scene["fences"]
@@ -116,6 +153,7 @@ def table1_rows(scene: dict, presets: dict) -> list[tuple[str, str, str]]:
         ("Belt slab thickness", f"{b['thickness']:g}", "m; belt surface at z = 0"),
         belt_contact_row(b),
         belt_footprint_row(scene),
+        wall_contact_row(scene),
         ("Containment walls", f"{w['height']:g} x {w['thickness']:g}", "m, height x thickness"),
         ("Part density", f"{pt['density']:g}", "kg/m^3; mass, centre of mass and inertia from the exact polygon"),
         (
