@@ -103,10 +103,22 @@ def simulate_adaptive(run, geom, seed: int, budget: int, preset: dict, adaptive:
         diags.append(res["diag"])
         return res["final_yaw_deg"], res["status"]
 
-    design = run_design(evaluate, seed, budget, adaptive, order)
+    stop = adaptive.get("stop", "budget")
+    estimate = None
+    if stop == "budget":
+        design = run_design(evaluate, seed, budget, adaptive, order)
+    elif stop == "target":
+        from feeder.labels.errest import targeted
+        from feeder.labels.pushforward import DEFAULT_BINS, DEFAULT_SIGMA
+
+        design, estimate, _ = targeted(evaluate, seed, adaptive, order, DEFAULT_BINS, DEFAULT_SIGMA)
+    else:
+        raise FeederError(f"sim.adaptive.stop must be budget or target, got {stop!r}")
     out = {"final_yaw_deg": design.final, "status": design.status, "diag": diags}
     arrays, summary = design_record(design, order)
-    summary |= {"n0": int(adaptive["n0"]), "symmetry": adaptive.get("symmetry", "auto")}
+    summary |= {"n0": int(adaptive["n0"]), "symmetry": adaptive.get("symmetry", "auto"), "stop": stop}
+    if estimate is not None:
+        summary |= {"est_sup_cdf": estimate.sup_cdf, "est_circular_w1_deg": estimate.circular_w1_deg}
     return design.yaws, out, arrays, summary
 
 
