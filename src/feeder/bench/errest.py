@@ -2,13 +2,13 @@
 
 For every reference of the design bench (``feeder bench-reference``: a dense map, initial yaw →
 final yaw and status) and ``sim.design_bench.repeats`` seeded offsets, each design of
-``sim.design_bench.errest.designs`` is emulated through the reference map (every simulation
+``sim.errest_bench.designs`` is emulated through the reference map (every simulation
 replaced by the map at that initial yaw, as ``feeder bench-designs`` does; nothing is simulated):
 
 * ``adaptive``: today's adaptive design at the budget ``sim.drops``, then one round of
-  ``sim.adaptive.target.audits`` audit drops that only estimate (the label is the budget's);
+  ``sim.adaptive_target.audits`` audit drops that only estimate (the label is the budget's);
 * ``targeted``: the design whose budget follows the scene (:func:`feeder.labels.errest.targeted`,
-  ``sim.adaptive.target``), at its targets times each of ``errest.target_scales``.
+  ``sim.adaptive_target``), at its targets times each of ``sim.errest_bench.target_scales``.
 
 Each row: simulations spent (audits included), the label's true sup|ΔCDF| and circular W1 to the
 reference label, the estimates, and whether each estimate covers the error. The summary gives,
@@ -35,23 +35,23 @@ ROUND_OFF = 1e-9  # an estimate within this of the error covers it (a zero error
 
 
 def check_errest(settings: dict) -> dict:
-    """``sim.design_bench.errest`` checked: a one-line FeederError for an unknown design or a
+    """``sim.errest_bench`` checked: a one-line FeederError for an unknown design or a
     scale ≤ 0; the targets themselves are checked by :func:`feeder.labels.errest.check_target`."""
     from feeder.labels.errest import check_target
 
     sim = settings["sim"]
-    cfg = sim.get("design_bench", {}).get("errest")
+    cfg = sim.get("errest_bench")
     if cfg is None:
-        raise FeederError("settings lack section sim.design_bench.errest")
+        raise FeederError("settings lack section sim.errest_bench")
     unknown = [d for d in cfg["designs"] if d not in DESIGNS]
     if unknown:
         raise FeederError(
-            f"sim.design_bench.errest.designs: unknown design {unknown[0]!r} (known: {', '.join(DESIGNS)})"
+            f"sim.errest_bench.designs: unknown design {unknown[0]!r} (known: {', '.join(DESIGNS)})"
         )
     for s in cfg["target_scales"]:
         if not (isinstance(s, (int, float)) and np.isfinite(s) and s > 0):
-            raise FeederError(f"sim.design_bench.errest.target_scales must be numbers > 0, got {s!r}")
-    check_target(sim["adaptive"].get("target") or {}, int(sim["adaptive"]["n0"]))
+            raise FeederError(f"sim.errest_bench.target_scales must be numbers > 0, got {s!r}")
+    check_target(sim.get("adaptive_target") or {}, int(sim["adaptive"]["n0"]))
     return cfg
 
 
@@ -73,7 +73,7 @@ def entry_rows(reference: Path, settings: dict, cfg: dict) -> list[dict]:
 
     sim, labels = settings["sim"], settings["labels"]
     bins, sigma = int(labels["bins"]), float(labels["sigma_bins"])
-    adaptive = sim["adaptive"]
+    adaptive = {**sim["adaptive"], "target": sim["adaptive_target"]}
     z = _load(reference)
     meta = json.loads(str(z["meta"]))
     key = meta["entry"]["key"]

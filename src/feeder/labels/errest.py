@@ -46,6 +46,17 @@ from feeder.circular import FULL_TURN_DEG, circular_distance, normalize_yaw
 from feeder.errors import FeederError
 from feeder.sim.adaptive import OK, Design, extend, refine
 
+# Defaults of the targeted design for callers without a config (feeder simulate --stop target); the
+# study's are sim.adaptive_target in config/config.yaml (the same values, reasoned there).
+DEFAULT_TARGET = {
+    "target_w1_deg": 1.5,  # below the budget-40 design's measured mean circular W1 (1.58 deg)
+    "target_sup_cdf": 0.02,  # below its mean sup|dCDF| (0.0218)
+    "min_budget": 24,  # n0 = 16 and a first round of midpoint checks
+    "cap": 96,  # the largest budget the design bench simulates for real
+    "audits": 8,  # half of n0: one audit per 45 deg of a full turn
+    "step": 8,
+    "confidence": 0.9,  # the coverage the issue asks for
+}
 TARGET_KEYS = ("target_w1_deg", "target_sup_cdf", "min_budget", "cap", "audits", "step", "confidence")
 
 
@@ -65,34 +76,34 @@ class ErrorEstimate:
 
 
 def check_target(target: dict, n0: int) -> dict:
-    """The targeted design's settings (``sim.adaptive.target``) checked: a one-line FeederError
+    """The targeted design's settings (``sim.adaptive_target``) checked: a one-line FeederError
     for a target error ≤ 0, a minimum budget below ``n0``, a cap below the minimum budget plus
     one round of audits, fewer than 2 audits, a step < 1 or a confidence outside (0.5, 1)."""
     missing = [k for k in TARGET_KEYS if k not in target]
     if missing:
-        raise FeederError(f"sim.adaptive.target lacks {', '.join(missing)}")
+        raise FeederError(f"sim.adaptive_target lacks {', '.join(missing)}")
     for key in ("target_w1_deg", "target_sup_cdf"):
         v = target[key]
         if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
-            raise FeederError(f"sim.adaptive.target.{key} must be a number > 0, got {v!r}")
+            raise FeederError(f"sim.adaptive_target.{key} must be a number > 0, got {v!r}")
     for key in ("min_budget", "cap", "audits", "step"):
         v = target[key]
         if isinstance(v, bool) or not isinstance(v, (int, float)) or int(v) != v:
-            raise FeederError(f"sim.adaptive.target.{key} must be an integer, got {v!r}")
+            raise FeederError(f"sim.adaptive_target.{key} must be an integer, got {v!r}")
     if target["audits"] < 2:
-        raise FeederError(f"sim.adaptive.target.audits must be at least 2, got {target['audits']!r}")
+        raise FeederError(f"sim.adaptive_target.audits must be at least 2, got {target['audits']!r}")
     if target["step"] < 1:
-        raise FeederError(f"sim.adaptive.target.step must be at least 1, got {target['step']!r}")
+        raise FeederError(f"sim.adaptive_target.step must be at least 1, got {target['step']!r}")
     if target["min_budget"] < n0:
-        raise FeederError(f"sim.adaptive.target.min_budget ({target['min_budget']}) must be >= sim.adaptive.n0 ({n0})")
+        raise FeederError(f"sim.adaptive_target.min_budget ({target['min_budget']}) must be >= sim.adaptive.n0 ({n0})")
     least = int(target["min_budget"]) + int(target["audits"])
     if target["cap"] < least:
         raise FeederError(
-            f"sim.adaptive.target.cap ({target['cap']}) is below the minimum budget plus one round of audits ({least})"
+            f"sim.adaptive_target.cap ({target['cap']}) is below the minimum budget plus one round of audits ({least})"
         )
     c = target["confidence"]
     if not (isinstance(c, (int, float)) and 0.5 < c < 1):
-        raise FeederError(f"sim.adaptive.target.confidence must be in (0.5, 1), got {c!r}")
+        raise FeederError(f"sim.adaptive_target.confidence must be in (0.5, 1), got {c!r}")
     return {
         k: (float(target[k]) if k in ("target_w1_deg", "target_sup_cdf", "confidence") else int(target[k]))
         for k in TARGET_KEYS
@@ -270,8 +281,8 @@ def estimate_error(
 
 def targeted(evaluate, seed: int, adaptive: dict, order: int, bins: int, sigma: float):
     """The design whose budget follows the scene (module docstring): ``(design, estimate,
-    rounds)``. ``adaptive`` is ``sim.adaptive`` (n0, tolerance_deg, min_width_deg and
-    ``target``); the offset and the grid start are those of
+    rounds)``. ``adaptive`` is ``sim.adaptive`` (n0, tolerance_deg, min_width_deg) with
+    ``target`` = ``sim.adaptive_target``; the offset and the grid start are those of
     :func:`feeder.sim.simulate.run_design` for the same ``seed``; audits draw from their own
     stream of ``seed``. ``evaluate(yaws)`` as for :func:`feeder.sim.adaptive.refine`."""
     n0 = int(adaptive["n0"])
