@@ -1,4 +1,6 @@
-"""Does a label's error estimate cover its error? (``feeder bench-errest``)
+"""How often a label's error estimate covers its error, emulated through the design bench's references.
+
+(``feeder bench-errest``)
 
 For every reference of the design bench (``feeder bench-reference``: a dense map, initial yaw →
 final yaw and status) and ``sim.design_bench.repeats`` seeded offsets, each design of
