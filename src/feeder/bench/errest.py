@@ -47,9 +47,7 @@ def check_errest(settings: dict) -> dict:
         raise FeederError("settings lack section sim.errest_bench")
     unknown = [d for d in cfg["designs"] if d not in DESIGNS]
     if unknown:
-        raise FeederError(
-            f"sim.errest_bench.designs: unknown design {unknown[0]!r} (known: {', '.join(DESIGNS)})"
-        )
+        raise FeederError(f"sim.errest_bench.designs: unknown design {unknown[0]!r} (known: {', '.join(DESIGNS)})")
     for s in cfg["target_scales"]:
         if not (isinstance(s, (int, float)) and np.isfinite(s) and s > 0):
             raise FeederError(f"sim.errest_bench.target_scales must be numbers > 0, got {s!r}")
