@@ -7,6 +7,7 @@
 #   results/tables/jam_rates.csv              (+ figure)  ok and jam rates of each fence angle
 #   results/tables/sim_cost.csv, sim_cost_sample.csv (+ figure)  the stage's projected cost
 #   results/tables/label_emulation*.csv       (+ figure)  emulated i.i.d. drops against real ones
+#   results/tables/design_error_estimate*.csv            the label error estimate's coverage (emulated)
 #   results/tables/contact_model.csv          (+ figure)  the belt footprint: pieces against pads
 #   results/tables/contact_decomposition.csv  (+ figure)  each contact model under other convex decompositions
 #   results/tables/step_cost.csv              (+ figure)  CPU of one step against a bare one-box world
@@ -26,6 +27,8 @@ BENCH_TARGETS = [
     f"{RESULTS}/tables/label_designs.csv",
     f"{RESULTS}/tables/label_designs_summary.csv",
     f"{RESULTS}/figures/label_designs.png",
+    f"{RESULTS}/tables/design_error_estimate.csv",
+    f"{RESULTS}/tables/design_error_estimate_summary.csv",
     f"{RESULTS}/tables/label_emulation.csv",
     f"{RESULTS}/tables/label_emulation_summary.csv",
     f"{RESULTS}/figures/label_emulation.png",
@@ -311,6 +314,35 @@ rule bench_designs:
     shell:
         "feeder bench-designs table --references {input.references} --adaptive {input.adaptive}"
         " --settings '{params.settings}' --out-csv {output.rows} --out-summary {output.summary} > {log} 2>&1"
+
+
+rule bench_errest:
+    """Does each label's error estimate cover its error; what the targeted design costs (feeder bench-errest)."""
+    input:
+        code("bench-errest"),
+        references=expand(f"{DESIGN_DIR}/reference/{{key}}.npz", key=DESIGN_KEYS),
+    output:
+        rows=f"{RESULTS}/tables/design_error_estimate.csv",
+        summary=f"{RESULTS}/tables/design_error_estimate_summary.csv",
+    log:
+        f"{LOGS}/bench_errest/table.log",
+    benchmark:
+        f"{BENCHMARKS}/bench_errest/table.tsv"
+    conda:
+        "../envs/feeder.yaml"
+    params:
+        settings=settings_json(
+            "labels",
+            "sim.design_bench",
+            "sim.errest_bench",
+            "sim.adaptive",
+            "sim.adaptive_target",
+            "sim.min_ok_mass",
+            "sim.drops",
+        ),
+    shell:
+        "feeder bench-errest --references {input.references} --settings '{params.settings}'"
+        " --out-csv {output.rows} --out-summary {output.summary} > {log} 2>&1"
 
 
 rule bench_emulation_run:

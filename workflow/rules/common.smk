@@ -64,7 +64,10 @@ def design_options():
     designs, so editing sim.adaptive reruns only adaptive simulations."""
     if config["sim"]["yaw_sampling"] != "adaptive":
         return ""
-    return cli_options({key.replace("_", "-"): value for key, value in config["sim"]["adaptive"].items()})
+    options = dict(config["sim"]["adaptive"])
+    if config["sim"].get("adaptive_stop", "budget") == "target":  # budget: the command line as before the switch
+        options |= {"stop": "target", **config["sim"]["adaptive_target"]}
+    return cli_options({key.replace("_", "-"): value for key, value in options.items()})
 
 
 def fence_location(index):

@@ -440,6 +440,60 @@ def refine(
     )
 
 
+def extend(
+    design: Design, evaluate: Evaluate, budget: int, *, samples=None, max_width_deg: float | None = None
+) -> Design:
+    """Go on refining ``design`` (the rounds of :func:`refine`) until no interval needs a midpoint
+    or its evaluations reach ``budget``. ``samples``: ``(yaws, final, status)`` already simulated
+    (e.g. audit yaws, inside ``[offset, offset + period)``), merged first and counted in the
+    evaluations. ``max_width_deg``: a narrower midpoint-check width than the design's (it never
+    widens). FeederError for a budget below the evaluations already spent."""
+    evaluations = design.evaluations
+    yaws, final, status = design.yaws, design.final, design.status
+    if samples is not None:
+        new = np.asarray(samples[0], dtype=np.float64)
+        f_new, s_new = _check_evaluation(new, (samples[1], samples[2]))
+        yaws, final, status = _merge_samples((yaws, final, status), (new, f_new, s_new))
+        evaluations += new.size
+    if int(budget) != budget or budget < evaluations:
+        raise FeederError(f"extend: budget ({budget!r}) must be an integer >= the evaluations spent ({evaluations})")
+    max_width = design.max_width_deg if max_width_deg is None else min(float(max_width_deg), design.max_width_deg)
+    max_width = max(max_width, design.min_width_deg)
+    period, offset, calls = design.period_deg, design.offset_deg, design.calls
+    while evaluations < budget:
+        iv = intervals(yaws, final, status, period, design.tolerance_deg)
+        new = _next_midpoints(
+            iv,
+            design.min_width_deg,
+            max_width,
+            design.band_gap_deg,
+            design.edge_check_deg,
+            int(budget) - evaluations,
+            offset,
+            period,
+        )
+        if new.size == 0:
+            break
+        f_new, s_new = _check_evaluation(new, evaluate(normalize_yaw(new)))
+        evaluations += new.size
+        calls += 1
+        yaws, final, status = _merge_samples((yaws, final, status), (new, f_new, s_new))
+    return _finish(
+        yaws,
+        final,
+        status,
+        evaluations,
+        calls,
+        period,
+        offset,
+        design.tolerance_deg,
+        design.min_width_deg,
+        max_width,
+        design.band_gap_deg,
+        design.edge_check_deg,
+    )
+
+
 def _finish(
     yaws, final, status, evaluations, calls, period, offset, tolerance, min_width, max_width, band_gap, edge_check
 ) -> Design:

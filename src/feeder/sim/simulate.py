@@ -103,10 +103,22 @@ def simulate_adaptive(run, geom, seed: int, budget: int, preset: dict, adaptive:
         diags.append(res["diag"])
         return res["final_yaw_deg"], res["status"]
 
-    design = run_design(evaluate, seed, budget, adaptive, order)
+    stop = adaptive.get("stop", "budget")
+    estimate = None
+    if stop == "budget":
+        design = run_design(evaluate, seed, budget, adaptive, order)
+    elif stop == "target":
+        from feeder.labels.errest import targeted
+        from feeder.labels.pushforward import DEFAULT_BINS, DEFAULT_SIGMA
+
+        design, estimate, _ = targeted(evaluate, seed, adaptive, order, DEFAULT_BINS, DEFAULT_SIGMA)
+    else:
+        raise FeederError(f"sim.adaptive.stop must be budget or target, got {stop!r}")
     out = {"final_yaw_deg": design.final, "status": design.status, "diag": diags}
     arrays, summary = design_record(design, order)
-    summary |= {"n0": int(adaptive["n0"]), "symmetry": adaptive.get("symmetry", "auto")}
+    summary |= {"n0": int(adaptive["n0"]), "symmetry": adaptive.get("symmetry", "auto"), "stop": stop}
+    if estimate is not None:
+        summary |= {"est_sup_cdf": estimate.sup_cdf, "est_circular_w1_deg": estimate.circular_w1_deg}
     return design.yaws, out, arrays, summary
 
 
@@ -252,6 +264,18 @@ def _parser() -> argparse.ArgumentParser:
     adaptive.add_argument(
         "--symmetry", default="auto", help="rotational order to fold over: auto (from the outline) or N (checked)"
     )
+    adaptive.add_argument(
+        "--stop",
+        default="budget",
+        help="budget: at most --drops simulations; target: stop once the error estimate is within the targets "
+        "(sim.adaptive_stop, sim.adaptive_target; feeder.labels.errest)",
+    )
+    target = parser.add_argument_group("targeted design (--stop target; sim.adaptive_target)")
+    from feeder.labels.errest import DEFAULT_TARGET
+
+    for key, default in DEFAULT_TARGET.items():
+        name, kind = key.replace("_", "-"), type(default)
+        target.add_argument(f"--{name}", type=kind, default=default, help=f"sim.adaptive_target.{key}")
     parser.add_argument("--settings", default=None, help="JSON {scene, presets}; default config/config.yaml")
     parser.add_argument("--out", required=True, help="output .npz")
     return parser
@@ -277,6 +301,16 @@ def main(argv: list[str]) -> int:
             "tolerance_deg": args.tolerance_deg,
             "min_width_deg": args.min_width_deg,
             "symmetry": args.symmetry,
+            "stop": args.stop,
+            "target": {
+                "target_w1_deg": args.target_w1_deg,
+                "target_sup_cdf": args.target_sup_cdf,
+                "min_budget": args.min_budget,
+                "cap": args.cap,
+                "audits": args.audits,
+                "step": args.step,
+                "confidence": args.confidence,
+            },
         }
         res = simulate(
             geom,
