@@ -130,17 +130,18 @@ def _mergeable_pair(polys, tolerance: float):
     return None
 
 
-def outline_slabs(outline, depth: float, min_depth_share: float = 1.0 / 64.0) -> list[np.ndarray]:
-    """One convex slab per edge of a simple polygon, reaching ``depth`` into it (pure).
+def outline_slabs(outline, depth: float, max_turn_deg: float, min_depth_share: float = 1.0 / 64.0) -> list[np.ndarray]:
+    """Convex slabs along the outline of a simple polygon, reaching ``depth`` into it (pure).
 
-    The slab of edge ``ab`` is the rectangle ``a, b, b + depth n, a + depth n`` (``n`` the inward
-    normal), cut by the inner half-plane of each neighbouring edge that meets it at a convex corner
-    (so it never pokes out past a sharp corner). Where the part is thinner than ``depth`` the slab
-    would leave it through the far side: its depth is halved until it lies inside the polygon, down
-    to ``min_depth_share`` of ``depth`` (then the edge gets no slab; its neighbours' cover it). The
-    slabs depend only on the outline, so every decomposition of a part meets walls and fences the
-    same way; their union is the outline's band of width ``depth``, the only place a wall or fence
-    can touch a part from outside (holes are closed).
+    The outline is cut into *chains*: runs of consecutive edges that turn left (convex corners)
+    by at most ``max_turn_deg`` in all; a reflex corner always ends a chain. A chain's slab is the
+    convex hull of its vertices and of each vertex moved ``depth`` inward (along the corner's
+    bisector, so never out past a sharp corner); its outer side is the chain itself. A slab that leaves the
+    polygon (a part thinner than ``depth``, a chord across a concave neighbour) is split in half,
+    and a single edge's slab is made shallower, halving ``depth`` down to ``min_depth_share`` of it
+    (then the edge gets none; its neighbours' cover its ends). The slabs depend only on the
+    outline, so every decomposition of a part meets walls and fences the same way, and their
+    union covers the outline, the only place a wall or fence can touch a part (holes are closed).
     """
     from shapely.geometry import Polygon
     from shapely.geometry.polygon import orient
@@ -148,49 +149,91 @@ def outline_slabs(outline, depth: float, min_depth_share: float = 1.0 / 64.0) ->
     outline = np.asarray(outline, np.float64)
     if outline.ndim != 2 or outline.shape[0] < 3 or outline.shape[1] != 2 or not Polygon(outline).is_valid:
         raise FeederError("outline slabs: the outline is not a simple polygon with an area")
+    if not 0.0 <= float(max_turn_deg) < 180.0:
+        raise FeederError(f"outline slabs: max_turn_deg must lie in [0, 180) (got {max_turn_deg!r})")
     ring = np.asarray(orient(Polygon(outline), 1.0).exterior.coords)[:-1]
     poly = Polygon(ring)
-    n = len(ring)
     if poly.area <= 0:
         raise FeederError("outline slabs: the outline is not a simple polygon with an area")
+    n = len(ring)
     slack = 1e-9 * math.sqrt(poly.area)
+    inside = poly.buffer(slack)
+    turn = np.array([_turn(ring[k - 1], ring[k], ring[(k + 1) % n]) for k in range(n)])  # at vertex k, rad
     slabs = []
-    for i in range(n):
-        prev, a, b, nxt = ring[i - 1], ring[i], ring[(i + 1) % n], ring[(i + 2) % n]
-        edge = b - a
-        length = float(np.hypot(*edge))
-        if length <= slack:
-            continue
-        inward = np.array([-edge[1], edge[0]]) / length  # counter-clockwise ring: the interior is on the left
-        d = float(depth)
-        while d >= min_depth_share * depth:
-            slab = Polygon([a, b, b + d * inward, a + d * inward])
-            reach = 4.0 * (length + d)
-            if _cross(a - prev, edge) > 0:  # a convex corner at a: keep the inner side of edge prev-a
-                slab = _inner_side(slab, prev, a, reach)
-            if _cross(edge, nxt - b) > 0:  # a convex corner at b: keep the inner side of edge b-nxt
-                slab = _inner_side(slab, b, nxt, reach)
-            if slab.area > 0 and poly.buffer(slack).contains(slab):
-                slabs.append(np.asarray(orient(slab, 1.0).exterior.coords)[:-1])
-                break
-            d *= 0.5
+    for chain in _chains(turn, math.radians(float(max_turn_deg))):
+        slabs += _chain_slabs(ring, turn, chain, float(depth), min_depth_share, inside, slack)
     if not slabs:
         raise FeederError("outline slabs: no edge of the outline holds a slab")
     return slabs
 
 
+def _turn(p, q, r) -> float:
+    """Signed turn (rad) of the path p -> q -> r at q: > 0 to the left (a convex corner of a
+    counter-clockwise ring), < 0 to the right (reflex)."""
+    u, v = q - p, r - q
+    return math.atan2(_cross(u, v), float(np.dot(u, v)))
+
+
+def _chains(turn: np.ndarray, max_turn: float) -> list[list[int]]:
+    """Edges (edge k runs from vertex k to k+1) in runs whose inner corners turn left by at most
+    ``max_turn`` in all; a run starts after a reflex corner, or after the sharpest corner when none
+    is reflex (the same outline always gives the same runs)."""
+    n = len(turn)
+    reflex = np.flatnonzero(turn < 0)
+    start = int(reflex[0]) if len(reflex) else int(np.argmax(turn))
+    chains, current, total = [], [start], 0.0
+    for k in range(start + 1, start + n):
+        edge, t = k % n, float(turn[k % n])  # t: the corner between the current edge and this one
+        if t >= 0 and total + t <= max_turn:
+            current.append(edge)
+            total += t
+        else:
+            chains.append(current)
+            current, total = [edge], 0.0
+    chains.append(current)
+    return chains
+
+
+def _chain_slabs(ring, turn, chain, depth, min_depth_share, inside, slack) -> list[np.ndarray]:
+    """The slab of one chain, or of its halves when it leaves the polygon (:func:`outline_slabs`):
+    the convex hull of the chain's vertices and of each vertex moved ``depth`` inward, along the
+    corner's bisector where the corner is convex (so never out past a sharp corner), along the
+    chain's own edge normal at a reflex end."""
+    from shapely.geometry import MultiPoint
+    from shapely.geometry.polygon import orient
+
+    n = len(ring)
+    vertices = [chain[0]] + [(k + 1) % n for k in chain]
+
+    def normal(k):  # inward unit normal of edge k (the interior lies left of ring[k] -> ring[k + 1])
+        e = ring[(k + 1) % n] - ring[k]
+        return np.array([-e[1], e[0]]) / max(float(np.hypot(*e)), slack)
+
+    inward = []
+    for pos, v in enumerate(vertices):
+        if turn[v] >= 0:
+            w = normal(v - 1) + normal(v)
+            w = w / max(float(np.hypot(*w)), slack)
+        else:  # a reflex corner ends the chain: go in along the chain's edge
+            w = normal(chain[0]) if pos == 0 else normal(chain[-1])
+        inward.append(w)
+    d = depth
+    while d >= min_depth_share * depth:
+        points = [ring[v] for v in vertices] + [ring[v] + d * w for v, w in zip(vertices, inward)]
+        slab = MultiPoint(points).convex_hull
+        if slab.geom_type == "Polygon" and slab.area > 0 and inside.contains(slab):
+            return [np.asarray(orient(slab, 1.0).exterior.coords)[:-1]]
+        if len(chain) > 1:
+            half = len(chain) // 2
+            return _chain_slabs(ring, turn, chain[:half], depth, min_depth_share, inside, slack) + _chain_slabs(
+                ring, turn, chain[half:], depth, min_depth_share, inside, slack
+            )
+        d *= 0.5
+    return []
+
+
 def _cross(u, v) -> float:
     return float(u[0] * v[1] - u[1] * v[0])
-
-
-def _inner_side(shape, p, q, reach: float):
-    """``shape`` cut to the left of the directed line ``p -> q`` (a counter-clockwise ring's inside)."""
-    from shapely.geometry import Polygon
-
-    d = (q - p) / float(np.hypot(*(q - p)))
-    left = np.array([-d[1], d[0]])
-    half = Polygon([p - reach * d, q + reach * d, q + reach * d + reach * left, p - reach * d + reach * left])
-    return shape.intersection(half)
 
 
 def footprint_pads(outline, count: int, samples_per_pad: int = 400, holes=()) -> np.ndarray:
@@ -342,13 +385,13 @@ def _slabs(outline: np.ndarray, scene: dict, margin: float) -> tuple[np.ndarray,
     """The outline slabs of ``scene.part.wall_contact`` (inset by the margin), or None (the pieces)."""
     from shapely.geometry import Polygon
 
-    model, depth = wall_contact_setting(scene)
+    model, depth, max_turn = wall_contact_setting(scene)
     if model == "pieces":
         return None
     inset = Polygon(outline).buffer(-margin, join_style=2)
     if inset.geom_type != "Polygon" or inset.is_empty:
         raise FeederError("outline slabs: the outline falls apart when inset by the collision margin")
-    return tuple(outline_slabs(np.asarray(inset.exterior.coords)[:-1], depth))
+    return tuple(outline_slabs(np.asarray(inset.exterior.coords)[:-1], depth, max_turn))
 
 
 def obj_text(pieces, half_height: float) -> str:

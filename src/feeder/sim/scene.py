@@ -52,29 +52,32 @@ def footprint_setting(scene: dict) -> tuple[str, int, float]:
     return "pads", count, float(radius)
 
 
-def wall_contact_setting(scene: dict) -> tuple[str, float]:
-    """(model, slab depth m) of ``scene.part.wall_contact``: how the part meets walls and fences.
+def wall_contact_setting(scene: dict) -> tuple[str, float, float]:
+    """(model, slab depth m, largest turn of a slab's chain in degrees) of
+    ``scene.part.wall_contact``: how the part meets walls and fences.
 
     ``pieces`` (missing: the paper's way): through its convex pieces, so the contact points follow
-    the decomposition. ``outline``: through one convex slab along each edge of its outline, reaching
+    the decomposition. ``outline``: through convex slabs along runs of its outline edges, reaching
     ``depth`` into the part (:func:`feeder.sim.body.outline_slabs`), which no decomposition enters;
     it needs the footprint pads (the slabs meet only walls and fences, the pads only the belt).
     """
     wc = scene["part"].get("wall_contact") or {}
     model = wc.get("model", "pieces")
     if model == "pieces":
-        return "pieces", 0.0
+        return "pieces", 0.0, 0.0
     if model != "outline":
         raise FeederError(f"scene.part.wall_contact.model: pieces or outline (got {model!r})")
-    depth = wc.get("depth")
+    depth, turn = wc.get("depth"), wc.get("max_turn_deg")
     if isinstance(depth, bool) or not isinstance(depth, (int, float)) or not depth > 0:
         raise FeederError(f"scene.part.wall_contact.depth: a slab depth in m, > 0, for model outline (got {depth!r})")
+    if isinstance(turn, bool) or not isinstance(turn, (int, float)) or not 0 <= turn < 180:
+        raise FeederError(f"scene.part.wall_contact.max_turn_deg: degrees in [0, 180) for model outline (got {turn!r})")
     if footprint_setting(scene)[0] != "pads":
         raise FeederError(
             "scene.part.wall_contact: model outline goes with footprint pads (scene.belt.footprint.model: pads); "
             "the slabs alone would rest the part on its rim"
         )
-    return "outline", float(depth)
+    return "outline", float(depth), float(turn)
 
 
 def belt_contact_row(belt: dict) -> tuple[str, str, str]:
@@ -114,13 +117,13 @@ def belt_footprint_row(scene: dict) -> tuple[str, str, str]:
 
 def wall_contact_row(scene: dict) -> tuple[str, str, str]:
     """Table 1 row of how the part meets walls and fences (``scene.part.wall_contact``)."""
-    model, depth = wall_contact_setting(scene)
+    model, depth, turn = wall_contact_setting(scene)
     if model == "pieces":
         return ("Wall and fence contact", "convex pieces", "each convex piece of the part meets walls and fences")
     return (
         "Wall and fence contact",
-        f"outline slabs, {depth:g} m deep",
-        "one convex slab along each outline edge meets walls and fences, whatever the decomposition",
+        f"outline slabs, {depth:g} m deep, {turn:g} deg a slab",
+        "convex slabs along runs of outline edges meet walls and fences, whatever the decomposition",
     )
 
 
