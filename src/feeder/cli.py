@@ -34,6 +34,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
         "each initial-yaw design's label against a dense reference, and its cost",
     ),
     "bench-errest": ("feeder.bench.errest", "does a label's error estimate cover its error (emulated designs)"),
+    "bench-frontier": ("feeder.bench.frontier", "each predictor and simulation budget: its error against its cost"),
     "bench-emulation": (
         "feeder.bench.emulation",
         "JS(P_N, P_all) of drops emulated through the adaptive design against real independent drops",

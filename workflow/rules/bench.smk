@@ -29,6 +29,8 @@ BENCH_TARGETS = [
     f"{RESULTS}/figures/label_designs.png",
     f"{RESULTS}/tables/design_error_estimate.csv",
     f"{RESULTS}/tables/design_error_estimate_summary.csv",
+    f"{RESULTS}/tables/frontier.csv",
+    f"{RESULTS}/figures/frontier.png",
     f"{RESULTS}/tables/label_emulation.csv",
     f"{RESULTS}/tables/label_emulation_summary.csv",
     f"{RESULTS}/figures/label_emulation.png",
@@ -343,6 +345,33 @@ rule bench_errest:
     shell:
         "feeder bench-errest --references {input.references} --settings '{params.settings}'"
         " --out-csv {output.rows} --out-summary {output.summary} > {log} 2>&1"
+
+
+rule bench_frontier:
+    """Every predictor and simulation budget: its error against the dense labels, its cost (feeder bench-frontier)."""
+    input:
+        code("bench-frontier"),
+        references=expand(f"{DESIGN_DIR}/reference/{{key}}.npz", key=DESIGN_KEYS),
+        dataset=DATASET,
+        models=[m for m in config["sim"]["frontier_bench"]["models"] if m != "analytic"],
+    output:
+        raw=f"{RESULTS}/bench/frontier/frontier_answers.csv",
+        csv=f"{RESULTS}/tables/frontier.csv",
+        fig=f"{RESULTS}/figures/frontier.png",
+    log:
+        f"{LOGS}/bench_frontier/table.log",
+    benchmark:
+        f"{BENCHMARKS}/bench_frontier/table.tsv"
+    conda:
+        "../envs/feeder.yaml"
+    params:
+        settings=settings_json(
+            "scene", "labels", "parts", "sim.frontier_bench", "sim.adaptive", "sim.bench", "sim.min_ok_mass"
+        ),
+    shell:
+        "feeder bench-frontier --references {input.references} --dataset {input.dataset}"
+        " --settings '{params.settings}' --out-raw {output.raw} --out-csv {output.csv} --out-fig {output.fig}"
+        " > {log} 2>&1"
 
 
 rule bench_emulation_run:
