@@ -461,3 +461,48 @@ def test_predict_answers_a_part_with_a_hole_with_a_note(model_dir, tmp_path, cap
     # the hole shifts the face's principal frame, so the two plates differ
     solid = as_vector(features_of_file(tmp_path / "solid.stl")).reshape(-1, 3)
     assert not np.allclose(of_stl, solid)
+
+
+@pytest.mark.skipif(not (PARTS / "rect-a2.stl").is_file(), reason="no part library in parts/")
+def test_predict_simulate_answers_with_the_simulator(tmp_path, capsys):
+    """``--simulate 4``: the study's design with at most 4 drops (a grid below n0), its label in the
+    part frame as a PMF that sums to 1, written like a model's answer."""
+    from feeder.cli import main as cli
+
+    out = tmp_path / "sim.csv"
+    args = ["predict", "--part", str(PARTS / "rect-a2.stl"), "--loc1", "straight:30", "--loc2", "none"]
+    assert cli([*args, "--simulate", "4", "--out", str(out)]) == 0
+    frame = pd.read_csv(out)
+    assert list(frame.columns) == ["angle_deg", "pmf", "cdf"] and len(frame) == 360
+    assert frame["pmf"].sum() == pytest.approx(1.0) and frame["cdf"].iloc[-1] == pytest.approx(1.0)
+    printed = capsys.readouterr()
+    assert "simulated 4 drops (ok 4)" in printed.err and "(simulated): 1.00" in printed.out
+
+
+@pytest.mark.parametrize(
+    ("extra", "message"),
+    [
+        (["--simulate", "1"], "at least 2 drops"),
+        (["--simulate", "4", "--model", "analytic"], "not both"),
+    ],
+)
+def test_predict_simulate_refuses_bad_input_and_writes_nothing(tmp_path, capsys, extra, message):
+    from feeder.cli import main as cli
+
+    out = tmp_path / "sim.csv"
+    args = ["predict", "--part", str(PARTS / "rect-a2.stl"), "--loc1", "straight:30", "--loc2", "none"]
+    assert cli([*args, *extra, "--out", str(out)]) != 0
+    assert message in capsys.readouterr().err and not out.exists()
+
+
+def test_predict_simulate_with_every_drop_jammed_is_an_error_without_output(tmp_path, monkeypatch, capsys):
+    """Nothing leaves the fences: no orientation to give, a one-line error, no file."""
+    import feeder.sim.simulate as S
+    from feeder.cli import main as cli
+
+    monkeypatch.setattr(S, "simulate", fake_simulation({"straight30_none"}, drops=4))
+    out = tmp_path / "sim.csv"
+    args = ["predict", "--part", str(PARTS / "rect-a2.stl"), "--loc1", "straight:30", "--loc2", "none"]
+    assert cli([*args, "--simulate", "4", "--out", str(out)]) != 0
+    err = capsys.readouterr().err
+    assert "every one of the 4 drops (jammed 4)" in err and not out.exists()

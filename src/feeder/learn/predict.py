@@ -282,6 +282,85 @@ def orientation_summary(frame, top: int = TOP_ORIENTATIONS) -> str:
     return "most likely final yaws (part frame): " + ", ".join(f"{yaw:.1f} deg p={mass:.2f}" for yaw, mass in modes)
 
 
+def simulated_frame(geom, loc1: str, loc2: str, budget: int, study: dict) -> tuple[pd.DataFrame | None, dict]:
+    """The answer of the simulator: ``geom`` through (``loc1``, ``loc2``) with the study's adaptive
+    design at most ``budget`` drops (below ``sim.adaptive.n0`` an evenly spaced grid of ``budget``
+    drops), labelled as the workflow labels (part frame). Returns the PMF/CDF frame (None when
+    every drop jammed or fell off) and ``{ok_mass, statuses, simulations, cpu_s}``."""
+    from feeder.labels.pmf import sim_label
+    from feeder.lane.fences import parse_location
+    from feeder.learn.recommend import status_counts, verify_settings
+    from feeder.sim.record import record_of
+    from feeder.sim.simulate import simulate
+
+    if isinstance(budget, bool) or int(budget) != budget or budget < 2:
+        raise FeederError(f"--simulate: a budget of at least 2 drops (got {budget!r})")
+    settings = verify_settings(study)
+    adaptive = dict(settings["adaptive"], n0=min(int(settings["adaptive"]["n0"]), int(budget)))
+    result = simulate(
+        geom,
+        parse_location(loc1),
+        parse_location(loc2),
+        int(budget),
+        settings["seed"],
+        settings["scene"],
+        settings["preset"],
+        settings["preset_name"],
+        yaw_sampling="adaptive",
+        adaptive=adaptive,
+    )
+    rec = record_of(result)
+    info = {"ok_mass": 0.0, "statuses": status_counts(rec.status), "simulations": int(rec.status.size)}
+    info["cpu_s"] = float(result["cpu_s"])
+    if not rec.ok.any():
+        return None, info
+    label = sim_label(rec, settings["bins"], settings["sigma"])
+    info["ok_mass"] = float(label.ok_mass)
+    bins = label.pmf.size
+    frame = pd.DataFrame({"angle_deg": np.arange(bins) * (360.0 / bins), "pmf": label.pmf, "cdf": np.cumsum(label.pmf)})
+    return frame, info
+
+
+def _main_simulated(args) -> int:
+    """``feeder predict --simulate BUDGET``: the simulator's answer, written like a model's."""
+    from feeder.config import study_settings
+    from feeder.learn.recommend import verify_part
+
+    if args.model is not None:
+        raise FeederError("give --model or --simulate, not both")
+    if args.simulate < 2:
+        raise FeederError(f"--simulate: a budget of at least 2 drops (got {args.simulate})")
+    if args.features is not None:
+        raise FeederError("--simulate simulates the part: give it as --part PART.stl, not --features")
+    geom = verify_part(args.part)
+    study = study_settings(args, "scene", "labels", "sim")
+    check_part_fits(args.part, "feeder predict", study["scene"])
+    print(f"feeder predict: simulating at most {args.simulate} drops (the study's adaptive design)", file=sys.stderr)
+    frame, info = simulated_frame(geom, args.loc1, args.loc2, args.simulate, study)
+    done = f"{info['simulations']} drops ({info['statuses']}), {info['cpu_s']:.1f} s CPU"
+    if frame is None:
+        raise FeederError(f"no orientation to give: every one of the {done} failed to leave the fences")
+    if args.out is not None:
+        from feeder.io import write_csv
+
+        write_csv(args.out, frame)
+    else:
+        sys.stdout.write(frame.to_csv(index=False, lineterminator="\n"))
+    summary = (
+        orientation_summary(frame) + f"\nshare of drops that leave without jamming (simulated): {info['ok_mass']:.2f}"
+    )
+    print(summary, file=sys.stdout if args.out is not None else sys.stderr)
+    if args.plot is not None:
+        from feeder.io import save_figure
+        from feeder.parts.geometry import load_profile
+
+        outline, holes, _ = load_profile(args.part, "auto")
+        title = f"simulated ({args.simulate} drops at most): {args.part.stem}, loc1 {args.loc1}, loc2 {args.loc2}"
+        save_figure(args.plot, plot(frame, title, outline, holes))
+    print(f"feeder predict: simulated {done}", file=sys.stderr)
+    return 0
+
+
 def main(argv: list[str]) -> int:
     from feeder.config import add_settings_options, study_settings
     from feeder.learn.export import add_model_option
@@ -292,6 +371,14 @@ def main(argv: list[str]) -> int:
     parser.add_argument("--features", type=Path, help="precomputed features JSON instead of --part")
     parser.add_argument("--loc1", required=True, help="none | straight:ANGLE | curved:ANGLE")
     parser.add_argument("--loc2", required=True, help="none | straight:ANGLE | curved:ANGLE")
+    parser.add_argument(
+        "--simulate",
+        type=int,
+        metavar="BUDGET",
+        help="answer by simulating instead of a model: the study's adaptive design with at most BUDGET drops "
+        "(>= 2; needs --part as an STL; seconds of CPU a drop; results/tables/frontier.csv: budget 8 is "
+        "closer than every model)",
+    )
     parser.add_argument("--out", type=Path, help="CSV path (default: stdout)")
     parser.add_argument("--plot", type=Path, help="also draw the PMF/CDF to this image")
     add_settings_options(parser)
@@ -304,6 +391,8 @@ def main(argv: list[str]) -> int:
         from feeder.io import check_figure_path
 
         check_figure_path(args.plot)
+    if args.simulate is not None:
+        return _main_simulated(args)
     study = study_settings(args, "scene", "labels")
     model = choose_model(args.model, "feeder predict", study)
     check_push_source(model, args.part)
