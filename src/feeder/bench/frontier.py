@@ -16,11 +16,12 @@ dense map by circular W1 (and sup|ΔCDF|), beside what one answer costs in CPU s
 
 The labels of the map and of every answer are in the part's own frame, over ``labels.bins`` bins
 smoothed as the study's. A configuration whose dense map leaves less ok mass than
-``sim.min_ok_mass`` is left out, as the study leaves it out of its labels. The configurations mix library parts that the networks trained on
-(crescent-a, lshape-a, ...) with generated shapes no model has seen: ``seen_by_models`` says which.
-Writes one row per configuration and answer (``--out-raw``; a new statistic needs no rerun) and a
-summary per answer: mean circular W1 with a 95 % bootstrap interval over configurations, mean CPU
-seconds, and a figure (error against cost, log scale).
+``sim.min_ok_mass`` is left out, as the study leaves it out of its labels. The configurations mix
+library parts that the networks trained on (crescent-a, lshape-a, ...) with generated shapes no
+model has seen: ``seen_by_models`` says which. Writes one row per configuration and answer
+(``--out-raw``; a new statistic needs no rerun) and a summary per answer: mean circular W1 with a
+95 % bootstrap interval over configurations, mean CPU seconds, and a figure (error against cost,
+log scale).
 """
 
 from __future__ import annotations
