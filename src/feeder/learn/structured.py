@@ -36,6 +36,11 @@ from feeder.errors import FeederError
 
 LOGIT_FLOOR = 1e-3  # mass added before the log of the analytic masses (an empty candidate stays reachable)
 DIFFUSE = ("analytic", "analytic_wide", "uniform", "mean")  # the diffuse components, in order
+# candidates: a logit, an offset and a width per candidate from its own masses and the configuration;
+# variants: one weight per variant (and diffuse component) from the configuration, each candidate
+# getting the variants' masses so weighed, one shared width and no offset (far fewer outputs)
+KINDS = ("candidates", "variants")
+VARIANT_START_LOGIT = -4.0  # starting logit of every variant but the base, and of the diffuse components
 
 
 # ----------------------------------------------------------------------------------------------
@@ -98,6 +103,27 @@ class NetSettings:
     max_offset_deg: float
     sigma_min_deg: float
     sigma_init_deg: float
+    sigma_max_deg: float
+    kind: str = "candidates"  # one of KINDS
+
+    def __post_init__(self) -> None:
+        if self.kind not in KINDS:
+            raise FeederError(f"model: kind must be one of {KINDS}, got {self.kind!r}")
+        if not 0 < self.sigma_min_deg < self.sigma_init_deg < self.sigma_max_deg:
+            raise FeederError(
+                f"model: need 0 < sigma_min_deg < sigma_init_deg < sigma_max_deg, got "
+                f"{self.sigma_min_deg}, {self.sigma_init_deg}, {self.sigma_max_deg}"
+            )
+        if self.hidden < 1 or self.max_offset_deg < 0:
+            raise FeederError(f"model: hidden {self.hidden} must be >= 1 and max_offset_deg {self.max_offset_deg} >= 0")
+
+
+TAIL_SIGMAS = 4.0  # a candidate's Gaussian is evaluated out to this many of its widest SD past its largest offset
+
+
+def window_half_bins(s: NetSettings, bins: int) -> int:
+    """Half-width (bins) of the window a candidate's Gaussian is evaluated on."""
+    return int(math.ceil((TAIL_SIGMAS * s.sigma_max_deg + s.max_offset_deg) * bins / FULL_TURN_DEG)) + 1
 
 
 def circular_w1_loss(pmf_pred, cdf_true):
@@ -115,10 +141,56 @@ def _torch():
     return torch
 
 
-def make_nets(d_cfg: int, d_cand: int, n_diffuse: int, s: NetSettings):
-    """(StructuredNet, OkNet) as torch modules."""
+def _gaussians(torch, s, pos, delta, sigma, weights, bins: int):
+    """(N, bins): Σ_k weights_k · g(pos_k + delta_k, sigma_k), each Gaussian evaluated on the bins
+    within ±:func:`window_half_bins` of the bin holding ``pos_k`` and renormalised there."""
+    n = pos.shape[0]
+    width = FULL_TURN_DEG / bins
+    half = window_half_bins(s, bins)
+    steps = torch.arange(-half, half + 1)
+    home = torch.floor(pos / width).long()  # (N, K) bin of the candidate
+    d = (home[..., None] + steps + 0.5).to(pos.dtype) * width - (pos + delta)[..., None]
+    g = torch.exp(-0.5 * (d / sigma[..., None]) ** 2)
+    g = g / g.sum(dim=-1, keepdim=True)
+    idx = torch.remainder(home[..., None] + steps, bins).reshape(n, -1)
+    return torch.zeros(n, bins, dtype=pos.dtype).scatter_add(1, idx, (weights[..., None] * g).reshape(n, -1))
+
+
+def make_nets(d_cfg: int, d_cand: int, n_diffuse: int, s: NetSettings, n_variants: int = 0):
+    """(PMF network of ``s.kind``, OkNet) as torch modules."""
     torch = _torch()
     nn = torch.nn
+
+    def sigma_shift() -> float:
+        # sigma_min + (sigma_max - sigma_min) sigmoid(raw + shift) = sigma_init at raw = 0
+        frac = (s.sigma_init_deg - s.sigma_min_deg) / (s.sigma_max_deg - s.sigma_min_deg)
+        return math.log(frac / (1.0 - frac))
+
+    def width(raw):
+        return s.sigma_min_deg + (s.sigma_max_deg - s.sigma_min_deg) * torch.sigmoid(raw + sigma_shift())
+
+    class VariantNet(nn.Module):
+        def __init__(self):
+            super().__init__()
+            h = int(s.hidden)
+            self.net = nn.Sequential(nn.Linear(d_cfg, h), nn.ReLU(), nn.Linear(h, n_variants + n_diffuse))
+            nn.init.zeros_(self.net[-1].weight)
+            nn.init.zeros_(self.net[-1].bias)
+            start = torch.full((n_variants + n_diffuse,), VARIANT_START_LOGIT)
+            start[0] = 0.0
+            self.register_buffer("start", start)
+            self.sigma_raw = nn.Parameter(torch.zeros(()))
+
+        def forward(self, x, cf, mask, pos, logit_c, logit_d, diffuse, masses):
+            a = torch.softmax(self.net(x) + self.start, dim=1)
+            av, ad = a[:, :n_variants], a[:, n_variants:]
+            m = masses * mask[..., None]
+            wc = (m * av[:, None, :]).sum(dim=-1)  # (N, K)
+            rest = (av * (1.0 - m.sum(dim=1)).clamp(min=0.0)).sum(dim=1)  # the variants' mass off the candidates
+            wd = torch.cat([ad[:, :1] + rest[:, None], ad[:, 1:]], dim=1)
+            sigma = width(self.sigma_raw).expand_as(pos)
+            cand = _gaussians(torch, s, pos, torch.zeros_like(pos), sigma, wc, diffuse.shape[-1])
+            return cand + (wd[..., None] * diffuse).sum(dim=1)
 
     class StructuredNet(nn.Module):
         def __init__(self):
@@ -130,11 +202,8 @@ def make_nets(d_cfg: int, d_cand: int, n_diffuse: int, s: NetSettings):
             for layer in (self.cand[-1], self.diff):  # start at the analytic masses
                 nn.init.zeros_(layer.weight)
                 nn.init.zeros_(layer.bias)
-            # softplus(raw + shift) + sigma_min = sigma_init at raw = 0
-            gap = max(s.sigma_init_deg - s.sigma_min_deg, 1e-6)
-            self.sigma_shift = math.log(math.expm1(gap))
 
-        def forward(self, x, cf, mask, pos, logit_c, logit_d, diffuse):
+        def forward(self, x, cf, mask, pos, logit_c, logit_d, diffuse, masses):
             h = self.cfg(x)
             k = cf.shape[1]
             out = self.cand(torch.cat([cf, h[:, None, :].expand(-1, k, -1)], dim=-1))
@@ -142,14 +211,9 @@ def make_nets(d_cfg: int, d_cand: int, n_diffuse: int, s: NetSettings):
             ld = logit_d + self.diff(h)
             w = torch.softmax(torch.cat([lc, ld], dim=1), dim=1)
             wc, wd = w[:, :k], w[:, k:]
-            centre = pos + s.max_offset_deg * torch.tanh(out[..., 1])
-            sigma = s.sigma_min_deg + torch.nn.functional.softplus(out[..., 2] + self.sigma_shift)
-            bins = diffuse.shape[-1]
-            grid = (torch.arange(bins, dtype=x.dtype) + 0.5) * (FULL_TURN_DEG / bins)
-            d = torch.remainder(grid - centre[..., None] + FULL_TURN_DEG / 2, FULL_TURN_DEG) - FULL_TURN_DEG / 2
-            g = torch.exp(-0.5 * (d / sigma[..., None]) ** 2)
-            g = g / g.sum(dim=-1, keepdim=True)
-            return (wc[..., None] * g).sum(dim=1) + (wd[..., None] * diffuse).sum(dim=1)
+            delta = s.max_offset_deg * torch.tanh(out[..., 1])
+            cand = _gaussians(torch, s, pos, delta, width(out[..., 2]), wc, diffuse.shape[-1])
+            return cand + (wd[..., None] * diffuse).sum(dim=1)
 
     class OkNet(nn.Module):
         def __init__(self):
@@ -160,12 +224,12 @@ def make_nets(d_cfg: int, d_cand: int, n_diffuse: int, s: NetSettings):
         def forward(self, x):
             return self.net(x)[:, 0]
 
-    return StructuredNet(), OkNet()
+    return (StructuredNet() if s.kind == "candidates" else VariantNet()), OkNet()
 
 
 @dataclass
 class Batch:
-    """Model inputs of a set of rows as torch tensors (float64)."""
+    """Model inputs of a set of rows as torch tensors (float32)."""
 
     x: object
     cf: object
@@ -174,11 +238,12 @@ class Batch:
     logit_c: object
     logit_d: object
     diffuse: object
+    masses: object
 
     @classmethod
     def of(cls, arrays: dict, rows, diffuse: np.ndarray):
         torch = _torch()
-        t = lambda a: torch.as_tensor(np.ascontiguousarray(a), dtype=torch.float64)  # noqa: E731
+        t = lambda a: torch.as_tensor(np.ascontiguousarray(a), dtype=torch.float32)  # noqa: E731
         lc, ld = prior_logits(arrays["base_mass"][rows], arrays["mask"][rows])
         return cls(
             t(arrays["x"][rows]),
@@ -188,10 +253,11 @@ class Batch:
             t(np.where(np.isfinite(lc), lc, -1e9)),
             t(ld),
             t(diffuse),
+            t(arrays["masses"][rows]),
         )
 
     def args(self):
-        return (self.x, self.cf, self.mask, self.pos, self.logit_c, self.logit_d, self.diffuse)
+        return (self.x, self.cf, self.mask, self.pos, self.logit_c, self.logit_d, self.diffuse, self.masses)
 
 
 @dataclass(frozen=True)
@@ -250,13 +316,13 @@ def fit(arrays: dict, fit_rows, val_rows, fit_ok, val_ok, mean_pmf, net: NetSett
     if fit_rows.size == 0 or val_rows.size == 0:
         raise FeederError("the structured predictor needs fit and validation rows")
     torch.manual_seed(int(seed))
-    pmf_net, ok_net = make_nets(arrays["x"].shape[1], arrays["cf"].shape[2], len(DIFFUSE), net)
-    pmf_net, ok_net = pmf_net.double(), ok_net.double()
+    pmf_net, ok_net = make_nets(arrays["x"].shape[1], arrays["cf"].shape[2], len(DIFFUSE), net, arrays["masses"].shape[2])
+    pmf_net, ok_net = pmf_net.float(), ok_net.float()
     wide = float(arrays["wide_sigma_bins"])
     bf = Batch.of(arrays, fit_rows, diffuse_components(arrays["analytic"][fit_rows], mean_pmf, wide))
     bv = Batch.of(arrays, val_rows, diffuse_components(arrays["analytic"][val_rows], mean_pmf, wide))
-    cdf_f = torch.as_tensor(arrays["cdf"][fit_rows])
-    cdf_v = torch.as_tensor(arrays["cdf"][val_rows])
+    cdf_f = torch.as_tensor(arrays["cdf"][fit_rows], dtype=torch.float32)
+    cdf_v = torch.as_tensor(arrays["cdf"][val_rows], dtype=torch.float32)
     steps, val_cw1 = _early_stopped(
         pmf_net,
         lambda: circular_w1_loss(pmf_net(*bf.args()), cdf_f),
@@ -264,10 +330,9 @@ def fit(arrays: dict, fit_rows, val_rows, fit_ok, val_ok, mean_pmf, net: NetSett
         t,
         seed,
     )
-    xo_f = torch.as_tensor(arrays["x"][fit_ok])
-    xo_v = torch.as_tensor(arrays["x"][val_ok])
-    yo_f = torch.as_tensor(arrays["ok"][fit_ok])
-    yo_v = torch.as_tensor(arrays["ok"][val_ok])
+    f32 = lambda a: torch.as_tensor(np.asarray(a), dtype=torch.float32)  # noqa: E731
+    xo_f, xo_v = f32(arrays["x"][fit_ok]), f32(arrays["x"][val_ok])
+    yo_f, yo_v = f32(arrays["ok"][fit_ok]), f32(arrays["ok"][val_ok])
     bce = torch.nn.functional.binary_cross_entropy_with_logits
     ok_steps, val_mae = _early_stopped(
         ok_net,
@@ -285,7 +350,7 @@ def predict(fitted: Fitted, arrays: dict, rows, mean_pmf) -> tuple[np.ndarray, n
     rows = np.asarray(rows)
     b = Batch.of(arrays, rows, diffuse_components(arrays["analytic"][rows], mean_pmf, float(arrays["wide_sigma_bins"])))
     with torch.no_grad():
-        pmf = fitted.net(*b.args()).numpy()
-        ok = torch.sigmoid(fitted.ok_net(b.x)).numpy()
+        pmf = fitted.net(*b.args()).numpy().astype(np.float64)
+        ok = torch.sigmoid(fitted.ok_net(b.x)).numpy().astype(np.float64)
     pmf = np.clip(pmf, 0.0, None)
     return pmf / pmf.sum(axis=1, keepdims=True), ok

@@ -90,7 +90,9 @@ def _settings(cfg):
     m, t = cfg.model, cfg.train
 
     def net(hidden):
-        return NetSettings(int(hidden), float(m.max_offset_deg), float(m.sigma_min_deg), float(m.sigma_init_deg))
+        return NetSettings(
+            int(hidden), float(m.max_offset_deg), float(m.sigma_min_deg), float(m.sigma_init_deg), float(m.sigma_max_deg)
+        )
 
     def train(weight_decay):
         return TrainSettings(
