@@ -34,6 +34,7 @@ import numpy as np
 from feeder.circular import FULL_TURN_DEG
 from feeder.errors import FeederError
 
+OK_FLOOR = 0.02  # the analytic ok mass is clipped to [OK_FLOOR, 1 - OK_FLOOR] before its logit
 LOGIT_FLOOR = 1e-3  # mass added before the log of the analytic masses (an empty candidate stays reachable)
 DIFFUSE = ("analytic", "analytic_wide", "uniform", "mean")  # the diffuse components, in order
 # candidates: a logit, an offset and a width per candidate from its own masses and the configuration;
@@ -79,6 +80,12 @@ def prior_logits(base_masses, mask, floor: float = LOGIT_FLOOR, diffuse_floor: f
     diff = np.full((m.shape[0], len(DIFFUSE)), math.log(diffuse_floor))
     diff[:, 0] = np.log(rest + floor)
     return cand, diff
+
+
+def ok_logit(analytic_ok) -> np.ndarray:
+    """The logit of the analytic ok mass clipped to [:data:`OK_FLOOR`, 1 − :data:`OK_FLOOR`]."""
+    a = np.clip(np.asarray(analytic_ok, dtype=np.float64), OK_FLOOR, 1.0 - OK_FLOOR)
+    return np.log(a / (1.0 - a))
 
 
 def diffuse_components(analytic, mean_pmf, wide_sigma_bins: float) -> np.ndarray:
@@ -216,13 +223,18 @@ def make_nets(d_cfg: int, d_cand: int, n_diffuse: int, s: NetSettings, n_variant
             return cand + (wd[..., None] * diffuse).sum(dim=1)
 
     class OkNet(nn.Module):
+        """The ok share's logit: the analytic ok mass's plus a correction from the inputs (zero
+        at the start)."""
+
         def __init__(self):
             super().__init__()
             h = int(s.hidden)
             self.net = nn.Sequential(nn.Linear(d_cfg, h), nn.ReLU(), nn.Linear(h, 1))
+            nn.init.zeros_(self.net[-1].weight)
+            nn.init.zeros_(self.net[-1].bias)
 
-        def forward(self, x):
-            return self.net(x)[:, 0]
+        def forward(self, x, base_logit):
+            return base_logit + self.net(x)[:, 0]
 
     return (StructuredNet() if s.kind == "candidates" else VariantNet()), OkNet()
 
@@ -306,12 +318,15 @@ def _early_stopped(module, loss_fn, val_fn, t: TrainSettings, seed: int):
     return best_step, best
 
 
-def fit(arrays: dict, fit_rows, val_rows, fit_ok, val_ok, mean_pmf, net: NetSettings, t: TrainSettings, seed: int) -> Fitted:
+def fit(
+    arrays: dict, fit_rows, val_rows, fit_ok, val_ok, mean_pmf, net: NetSettings, t: TrainSettings, seed: int, ok_train=None
+) -> Fitted:
     """Train the PMF network on the kept rows ``fit_rows`` (early-stopped by circular W1 on
     ``val_rows``) and the ok network on ``fit_ok`` (early-stopped by the mean absolute error of
     the ok share on ``val_ok``); the rows index ``arrays`` (:func:`feeder.learn.structured_data`).
-    ``seed`` sets the initial weights."""
+    ``seed`` sets the initial weights; ``ok_train`` (default ``t``) the ok network's training."""
     torch = _torch()
+    ok_train = t if ok_train is None else ok_train
     fit_rows, val_rows = np.asarray(fit_rows), np.asarray(val_rows)
     if fit_rows.size == 0 or val_rows.size == 0:
         raise FeederError("the structured predictor needs fit and validation rows")
@@ -332,13 +347,14 @@ def fit(arrays: dict, fit_rows, val_rows, fit_ok, val_ok, mean_pmf, net: NetSett
     )
     f32 = lambda a: torch.as_tensor(np.asarray(a), dtype=torch.float32)  # noqa: E731
     xo_f, xo_v = f32(arrays["x"][fit_ok]), f32(arrays["x"][val_ok])
+    bo_f, bo_v = f32(ok_logit(arrays["analytic_ok"][fit_ok])), f32(ok_logit(arrays["analytic_ok"][val_ok]))
     yo_f, yo_v = f32(arrays["ok"][fit_ok]), f32(arrays["ok"][val_ok])
     bce = torch.nn.functional.binary_cross_entropy_with_logits
     ok_steps, val_mae = _early_stopped(
         ok_net,
-        lambda: bce(ok_net(xo_f), yo_f),
-        lambda: (torch.sigmoid(ok_net(xo_v)) - yo_v).abs().mean(),
-        t,
+        lambda: bce(ok_net(xo_f, bo_f), yo_f),
+        lambda: (torch.sigmoid(ok_net(xo_v, bo_v)) - yo_v).abs().mean(),
+        ok_train,
         seed + 1,
     )
     return Fitted(pmf_net, ok_net, steps, ok_steps, val_cw1, float(val_mae))
@@ -351,6 +367,7 @@ def predict(fitted: Fitted, arrays: dict, rows, mean_pmf) -> tuple[np.ndarray, n
     b = Batch.of(arrays, rows, diffuse_components(arrays["analytic"][rows], mean_pmf, float(arrays["wide_sigma_bins"])))
     with torch.no_grad():
         pmf = fitted.net(*b.args()).numpy().astype(np.float64)
-        ok = torch.sigmoid(fitted.ok_net(b.x)).numpy().astype(np.float64)
+        base = torch.as_tensor(ok_logit(arrays["analytic_ok"][rows]), dtype=torch.float32)
+        ok = torch.sigmoid(fitted.ok_net(b.x, base)).numpy().astype(np.float64)
     pmf = np.clip(pmf, 0.0, None)
     return pmf / pmf.sum(axis=1, keepdims=True), ok

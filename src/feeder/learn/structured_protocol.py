@@ -89,9 +89,14 @@ def _settings(cfg):
 
     m, t = cfg.model, cfg.train
 
-    def net(hidden):
+    def net(hp):
         return NetSettings(
-            int(hidden), float(m.max_offset_deg), float(m.sigma_min_deg), float(m.sigma_init_deg), float(m.sigma_max_deg)
+            int(hp.hidden),
+            float(m.max_offset_deg),
+            float(m.sigma_min_deg),
+            float(m.sigma_init_deg),
+            float(m.sigma_max_deg),
+            str(hp.get("kind", "candidates")),
         )
 
     def train(weight_decay):
@@ -123,19 +128,21 @@ def fit_protocol(arrays: dict, train: np.ndarray, cfg, key: str) -> dict:
     scaled = dict(arrays, x=(x - mu) / sd)
     mean_pmf = arrays["pmf"][fit_rows].mean(axis=0)
     net, tr = _settings(cfg)
+    ok_train = tr(float(cfg.train.ok_weight_decay))
     tried = []
     for i, hp in enumerate(cfg.search):
         seed = derived_seed(base, key, "seed", 0)
-        f = fit(scaled, fit_rows, val_rows, fit_ok, val_ok, mean_pmf, net(hp.hidden), tr(hp.weight_decay), seed)
+        f = fit(scaled, fit_rows, val_rows, fit_ok, val_ok, mean_pmf, net(hp), tr(hp.weight_decay), seed, ok_train)
         tried.append((f.val_cw1, i, f))
     best_cw1, best_i, first = min(tried, key=lambda t: (t[0], t[1]))
     hp = cfg.search[best_i]
     fits = [first]
     for s in range(1, int(cfg.seeds)):
         seed = derived_seed(base, key, "seed", s)
-        fits.append(fit(scaled, fit_rows, val_rows, fit_ok, val_ok, mean_pmf, net(hp.hidden), tr(hp.weight_decay), seed))
+        fits.append(fit(scaled, fit_rows, val_rows, fit_ok, val_ok, mean_pmf, net(hp), tr(hp.weight_decay), seed, ok_train))
     choice = {
         "fit": key,
+        "kind": str(hp.get("kind", "candidates")),
         "hidden": int(hp.hidden),
         "weight_decay": float(hp.weight_decay),
         "train_parts": int(len(set(arrays["part"][train]))),

@@ -36,6 +36,9 @@ from feeder.mechanics.hull import as_geometry
 from feeder.mechanics.pmf import bin_masses
 
 FENCE_SETS = ("both", "loc1", "loc2")  # which fences of the configuration a variant keeps
+# A mode must rise above its left neighbour by more than this (round-off of the smoothing makes a
+# flat PMF ripple at ~1e-18)
+PEAK_TOL = 1e-12
 
 
 @dataclass(frozen=True)
@@ -103,7 +106,8 @@ def window_sums(pmf, window_deg: float) -> np.ndarray:
 
 def pmf_modes(pmf, min_mass: float, window_deg: float, peak_sigma_bins: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
     """The modes of a circular PMF: the bins where the PMF smoothed by a wrapped Gaussian of
-    ``peak_sigma_bins`` is a strict local maximum (the first bin of a flat top) and whose
+    ``peak_sigma_bins`` is a local maximum (above its left neighbour by more than :data:`PEAK_TOL`:
+    the first bin of a flat top; a flat PMF has none) and whose
     window sum (:func:`window_sums` of the unsmoothed PMF) holds at least ``min_mass``. Returns
     (positions in degrees: bin centres, their window masses), heaviest first."""
     p = np.asarray(pmf, dtype=np.float64)
@@ -111,7 +115,7 @@ def pmf_modes(pmf, min_mass: float, window_deg: float, peak_sigma_bins: float = 
         raise FeederError(f"pmf_modes needs one PMF of at least 3 bins, got shape {p.shape}")
     q = wrapped_gaussian_smooth(p, float(peak_sigma_bins)) if peak_sigma_bins > 0 else p
     s = window_sums(p, window_deg)
-    peak = (q > np.roll(q, 1)) & (q >= np.roll(q, -1)) & (s >= min_mass)
+    peak = (q > np.roll(q, 1) + PEAK_TOL) & (q >= np.roll(q, -1) - PEAK_TOL) & (s >= min_mass)
     idx = np.flatnonzero(peak)
     idx = idx[np.argsort(-s[idx], kind="stable")]
     return bin_centres_deg(p.size)[idx], s[idx]
