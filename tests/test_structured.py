@@ -15,7 +15,6 @@ from feeder.labels.metrics import circular_w1
 from feeder.mechanics.candidates import (
     Variant,
     basin_masses,
-    bin_centres_deg,
     candidates_from_pmfs,
     configuration_candidates,
     merge_positions,
@@ -299,13 +298,31 @@ def test_unit_scores_and_comparison_by_hand():
 
     rows = []
     # part a: two configurations, part b: one; structured has two seeds
-    for pred, seed, cw1s in (("structured", 0, [1.0, 3.0, 5.0]), ("structured", 1, [3.0, 5.0, 7.0]), ("analytic_pmf", -1, [4.0, 6.0, 12.0])):
+    for pred, seed, cw1s in (
+        ("structured", 0, [1.0, 3.0, 5.0]),
+        ("structured", 1, [3.0, 5.0, 7.0]),
+        ("analytic_pmf", -1, [4.0, 6.0, 12.0]),
+    ):
         for (part, cid), cw1 in zip([("a", "c1"), ("a", "c2"), ("b", "c1")], cw1s, strict=True):
             rows.append(
-                {"experiment": "unseen_groupkfold", "repeat": 0, "part": part, "config_id": cid, "split": "train",
-                 "kept": True, "predictor": pred, "seed": seed, "cw1": cw1, "r2": 0.5, "ok_true": 1.0, "ok_pred": 0.9}
+                {
+                    "experiment": "unseen_groupkfold",
+                    "repeat": 0,
+                    "part": part,
+                    "config_id": cid,
+                    "split": "train",
+                    "kept": True,
+                    "predictor": pred,
+                    "seed": seed,
+                    "cw1": cw1,
+                    "r2": 0.5,
+                    "ok_true": 1.0,
+                    "ok_pred": 0.9,
+                }
             )
-    rows.append({**rows[-1], "config_id": "jam", "kept": False, "cw1": np.nan, "r2": np.nan, "ok_true": 0.0, "ok_pred": 0.5})
+    rows.append(
+        {**rows[-1], "config_id": "jam", "kept": False, "cw1": np.nan, "r2": np.nan, "ok_true": 0.0, "ok_pred": 0.5}
+    )
     long = pd.DataFrame(rows)
     s = unit_scores(long, "unseen_groupkfold", "structured", "cw1")
     assert s.to_dict() == {"a": 3.0, "b": 6.0}  # a: (2 + 4) / 2 over its configurations
@@ -317,3 +334,18 @@ def test_unit_scores_and_comparison_by_hand():
     assert row["diff"] == pytest.approx(-4.0)  # a: 3 - 5, b: 6 - 12
     assert row.diff_low == pytest.approx(-6.0) and row.diff_high == pytest.approx(-2.0)  # both parts, either
     assert row.verdict == "better"
+
+
+@pytest.mark.parametrize("kind", ["candidates", "variants"])
+def test_an_untrained_network_started_on_the_analytic_pmf_answers_it(kind):
+    pytest.importorskip("torch")
+    from feeder.learn.structured import DIFFUSE, LOGIT_FLOOR, Fitted, NetSettings, make_nets, predict
+
+    a = _toy_arrays()
+    s = NetSettings(4, 4.0, 0.5, 1.5, 6.0, kind, "analytic")
+    net, ok = make_nets(3, a["cf"].shape[2], len(DIFFUSE), s, n_variants=3)
+    pmf, _ = predict(Fitted(net, ok, 0, 0, math.nan, math.nan, "analytic"), a, np.arange(4), a["pmf"].mean(axis=0))
+    others = (2 if kind == "candidates" else 3) + len(DIFFUSE) - 1  # components at the floor
+    off = others * LOGIT_FLOOR / (1.0 + others * LOGIT_FLOOR)  # their share of the mass
+    assert circular_w1(np.cumsum(a["analytic"][:4], axis=1), np.cumsum(pmf, axis=1)).max() < 180.0 * off
+    assert pmf == pytest.approx(a["analytic"][:4], abs=off)

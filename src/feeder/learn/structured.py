@@ -10,10 +10,11 @@ model and its variants), ``g`` a wrapped Gaussian normalised over the bins, ``δ
 most ``max_offset_deg`` and ``σ_k ≥ sigma_min_deg``, and ``D_d`` the diffuse components (the
 analytic PMF, the analytic PMF widened, the uniform PMF and the training-mean PMF:
 :func:`diffuse_components`). The weights are one softmax over candidates and diffuse components,
-started at the analytic model's own masses (:func:`prior_logits`) so an untrained network is the
-analytic PMF. A small network reads the configuration's push and fence inputs and each candidate's
-masses under the variants. It is trained by circular W1 on the CDF (:func:`circular_w1_loss`),
-full batch, early-stopped on validation rows (patience counted in optimiser steps).
+started (``model.start``, :func:`prior_logits`) either on the analytic PMF itself or on the base
+variant's masses over the candidates, so an untrained network is (close to) the analytic PMF.
+A small network reads the configuration's push and fence inputs and each candidate's masses
+under the variants. It is trained by circular W1 on the CDF (:func:`circular_w1_loss`), full
+batch, early-stopped on validation rows (patience counted in optimiser steps).
 
 The ok mass (the share of drops that neither jam nor fall off) is a separate small network
 (:class:`OkNet`, binary cross-entropy on the ok share) trained on every configuration, those the
@@ -41,6 +42,9 @@ DIFFUSE = ("analytic", "analytic_wide", "uniform", "mean")  # the diffuse compon
 # variants: one weight per variant (and diffuse component) from the configuration, each candidate
 # getting the variants' masses so weighed, one shared width and no offset (far fewer outputs)
 KINDS = ("candidates", "variants")
+# where the weights start: the analytic PMF itself (candidates and other components at a floor), or
+# the base variant's masses on the candidates (their Gaussians at bin centres cost ~0.5 deg cW1)
+STARTS = ("analytic", "candidates")
 VARIANT_START_LOGIT = -4.0  # starting logit of every variant but the base, and of the diffuse components
 
 
@@ -68,16 +72,25 @@ def mixture_pmf(weights_cand, centres_deg, sigmas_deg, weights_diffuse, diffuse)
     )
 
 
-def prior_logits(base_masses, mask, floor: float = LOGIT_FLOOR, diffuse_floor: float = LOGIT_FLOOR) -> tuple:
-    """Starting logits: per candidate ``log(m_k + floor)`` of the base variant's basin masses
-    ``base_masses`` (N, K; ``-inf`` where ``mask`` is False), and per diffuse component (in the
-    order of :data:`DIFFUSE`) the analytic PMF's mass left outside the candidates for
-    ``analytic`` and ``diffuse_floor`` for the others."""
+def prior_logits(
+    base_masses, mask, start: str = "candidates", floor: float = LOGIT_FLOOR, diffuse_floor: float = LOGIT_FLOOR
+) -> tuple:
+    """Starting logits (``-inf`` where ``mask`` is False) per candidate and per diffuse component
+    (in the order of :data:`DIFFUSE`). ``start`` ``candidates``: ``log(m_k + floor)`` of the base
+    variant's basin masses ``base_masses`` (N, K), the analytic PMF's mass left outside the
+    candidates for ``analytic`` and ``diffuse_floor`` for the other components; ``analytic``:
+    every candidate ``log(floor)``, the analytic component ``log(1)`` and the others
+    ``log(diffuse_floor)`` (the untrained network is the analytic PMF up to those floors)."""
+    if start not in STARTS:
+        raise FeederError(f"model.start must be one of {STARTS}, got {start!r}")
     m = np.asarray(base_masses, dtype=np.float64)
     mask = np.asarray(mask, dtype=bool)
+    diff = np.full((m.shape[0], len(DIFFUSE)), math.log(diffuse_floor))
+    if start == "analytic":
+        diff[:, 0] = 0.0
+        return np.where(mask, math.log(floor), -np.inf), diff
     cand = np.where(mask, np.log(np.where(mask, m, 0.0) + floor), -np.inf)
     rest = np.clip(1.0 - np.where(mask, m, 0.0).sum(axis=1), 0.0, 1.0)
-    diff = np.full((m.shape[0], len(DIFFUSE)), math.log(diffuse_floor))
     diff[:, 0] = np.log(rest + floor)
     return cand, diff
 
@@ -112,8 +125,11 @@ class NetSettings:
     sigma_init_deg: float
     sigma_max_deg: float
     kind: str = "candidates"  # one of KINDS
+    start: str = "candidates"  # one of STARTS
 
     def __post_init__(self) -> None:
+        if self.start not in STARTS:
+            raise FeederError(f"model: start must be one of {STARTS}, got {self.start!r}")
         if self.kind not in KINDS:
             raise FeederError(f"model: kind must be one of {KINDS}, got {self.kind!r}")
         if not 0 < self.sigma_min_deg < self.sigma_init_deg < self.sigma_max_deg:
@@ -183,8 +199,10 @@ def make_nets(d_cfg: int, d_cand: int, n_diffuse: int, s: NetSettings, n_variant
             self.net = nn.Sequential(nn.Linear(d_cfg, h), nn.ReLU(), nn.Linear(h, n_variants + n_diffuse))
             nn.init.zeros_(self.net[-1].weight)
             nn.init.zeros_(self.net[-1].bias)
-            start = torch.full((n_variants + n_diffuse,), VARIANT_START_LOGIT)
-            start[0] = 0.0
+            # the base variant (others at VARIANT_START_LOGIT), or the analytic PMF (others at the floor)
+            rest = VARIANT_START_LOGIT if s.start == "candidates" else math.log(LOGIT_FLOOR)
+            start = torch.full((n_variants + n_diffuse,), rest)
+            start[0 if s.start == "candidates" else n_variants] = 0.0
             self.register_buffer("start", start)
             self.sigma_raw = nn.Parameter(torch.zeros(()))
 
@@ -253,10 +271,10 @@ class Batch:
     masses: object
 
     @classmethod
-    def of(cls, arrays: dict, rows, diffuse: np.ndarray):
+    def of(cls, arrays: dict, rows, diffuse: np.ndarray, start: str = "candidates"):
         torch = _torch()
         t = lambda a: torch.as_tensor(np.ascontiguousarray(a), dtype=torch.float32)  # noqa: E731
-        lc, ld = prior_logits(arrays["base_mass"][rows], arrays["mask"][rows])
+        lc, ld = prior_logits(arrays["base_mass"][rows], arrays["mask"][rows], start)
         return cls(
             t(arrays["x"][rows]),
             t(arrays["cf"][rows]),
@@ -290,6 +308,7 @@ class Fitted:
     ok_steps: int
     val_cw1: float  # validation circular W1 of the kept state (degrees)
     val_ok_mae: float
+    start: str = "candidates"  # NetSettings.start of the network
 
 
 def _early_stopped(module, loss_fn, val_fn, t: TrainSettings, seed: int):
@@ -319,7 +338,16 @@ def _early_stopped(module, loss_fn, val_fn, t: TrainSettings, seed: int):
 
 
 def fit(
-    arrays: dict, fit_rows, val_rows, fit_ok, val_ok, mean_pmf, net: NetSettings, t: TrainSettings, seed: int, ok_train=None
+    arrays: dict,
+    fit_rows,
+    val_rows,
+    fit_ok,
+    val_ok,
+    mean_pmf,
+    net: NetSettings,
+    t: TrainSettings,
+    seed: int,
+    ok_train=None,
 ) -> Fitted:
     """Train the PMF network on the kept rows ``fit_rows`` (early-stopped by circular W1 on
     ``val_rows``) and the ok network on ``fit_ok`` (early-stopped by the mean absolute error of
@@ -331,11 +359,13 @@ def fit(
     if fit_rows.size == 0 or val_rows.size == 0:
         raise FeederError("the structured predictor needs fit and validation rows")
     torch.manual_seed(int(seed))
-    pmf_net, ok_net = make_nets(arrays["x"].shape[1], arrays["cf"].shape[2], len(DIFFUSE), net, arrays["masses"].shape[2])
+    pmf_net, ok_net = make_nets(
+        arrays["x"].shape[1], arrays["cf"].shape[2], len(DIFFUSE), net, arrays["masses"].shape[2]
+    )
     pmf_net, ok_net = pmf_net.float(), ok_net.float()
     wide = float(arrays["wide_sigma_bins"])
-    bf = Batch.of(arrays, fit_rows, diffuse_components(arrays["analytic"][fit_rows], mean_pmf, wide))
-    bv = Batch.of(arrays, val_rows, diffuse_components(arrays["analytic"][val_rows], mean_pmf, wide))
+    bf = Batch.of(arrays, fit_rows, diffuse_components(arrays["analytic"][fit_rows], mean_pmf, wide), net.start)
+    bv = Batch.of(arrays, val_rows, diffuse_components(arrays["analytic"][val_rows], mean_pmf, wide), net.start)
     cdf_f = torch.as_tensor(arrays["cdf"][fit_rows], dtype=torch.float32)
     cdf_v = torch.as_tensor(arrays["cdf"][val_rows], dtype=torch.float32)
     steps, val_cw1 = _early_stopped(
@@ -357,14 +387,15 @@ def fit(
         ok_train,
         seed + 1,
     )
-    return Fitted(pmf_net, ok_net, steps, ok_steps, val_cw1, float(val_mae))
+    return Fitted(pmf_net, ok_net, steps, ok_steps, val_cw1, float(val_mae), net.start)
 
 
 def predict(fitted: Fitted, arrays: dict, rows, mean_pmf) -> tuple[np.ndarray, np.ndarray]:
     """(PMFs (n, bins), ok shares (n,)) of ``rows``."""
     torch = _torch()
     rows = np.asarray(rows)
-    b = Batch.of(arrays, rows, diffuse_components(arrays["analytic"][rows], mean_pmf, float(arrays["wide_sigma_bins"])))
+    diffuse = diffuse_components(arrays["analytic"][rows], mean_pmf, float(arrays["wide_sigma_bins"]))
+    b = Batch.of(arrays, rows, diffuse, fitted.start)
     with torch.no_grad():
         pmf = fitted.net(*b.args()).numpy().astype(np.float64)
         base = torch.as_tensor(ok_logit(arrays["analytic_ok"][rows]), dtype=torch.float32)

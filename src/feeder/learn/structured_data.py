@@ -136,7 +136,12 @@ def candidate_features(masses, mask, present_mass: float) -> np.ndarray:
     variants giving the candidate at least ``present_mass`` (zeros where ``mask`` is False)."""
     m = np.asarray(masses, dtype=np.float64)
     feats = np.concatenate(
-        [m, m.mean(axis=2, keepdims=True), m.max(axis=2, keepdims=True), (m >= present_mass).mean(axis=2, keepdims=True)],
+        [
+            m,
+            m.mean(axis=2, keepdims=True),
+            m.max(axis=2, keepdims=True),
+            (m >= present_mass).mean(axis=2, keepdims=True),
+        ],
         axis=2,
     )
     return np.where(np.asarray(mask)[..., None], feats, 0.0)
@@ -162,9 +167,7 @@ def structured_arrays(data: dict, cfg, sim_dir, parts_dir, features_dir, cache_p
     frames_of = _frames(data, sorted(set(parts)), features_dir)
     frames = [frames_of[p] for p in parts]
     variants = variants_from_config(cfg.candidates.variants)
-    cand_cfg = {
-        k: cfg.candidates[k] for k in ("min_mass", "window_deg", "merge_deg", "max_candidates", "present_mass")
-    }
+    cand_cfg = {k: cfg.candidates[k] for k in ("min_mass", "window_deg", "merge_deg", "max_candidates", "present_mass")}
     cand_cfg["label_smooth_deg"] = label_smooth_deg(bins, float(labels["sigma_bins"]))
     key = candidates_key(parts, cids, frames, scene, variants, cand_cfg, parts_dir)
     cands = None
@@ -204,16 +207,19 @@ def structured_arrays(data: dict, cfg, sim_dir, parts_dir, features_dir, cache_p
     fences[:, [3, 7]] /= RIGHT_ANGLE_DEG
     x = np.concatenate([push, fences, ok_var], axis=1)
     sim_dir = Path(sim_dir)
-    ok = np.array([_ok_share(sim_dir / p / f"{c}.npz", bins, float(labels["sigma_bins"])) for p, c in zip(parts, cids, strict=True)])
+    ok = np.array(
+        [
+            _ok_share(sim_dir / p / f"{c}.npz", bins, float(labels["sigma_bins"]))
+            for p, c in zip(parts, cids, strict=True)
+        ]
+    )
     n = len(parts)
     pmf = np.zeros((n, bins))
     pmf[:n_kept] = data["pmf"]
     analytic = np.stack([c[4] for c in cands])
     fold_of = {str(p): int(f) for p, f in zip(data["part"], data["group_fold"], strict=True)}
     n_folds = int(np.max(data["group_fold"])) + 1
-    group_fold = np.array(
-        [fold_of.get(p, int(hashlib.sha256(p.encode()).hexdigest(), 16) % n_folds) for p in parts]
-    )
+    group_fold = np.array([fold_of.get(p, int(hashlib.sha256(p.encode()).hexdigest(), 16) % n_folds) for p in parts])
     return {
         "part": np.array(parts),
         "config_id": np.array(cids),

@@ -1,5 +1,6 @@
-"""``feeder structured``: train and score the structured predictor (:mod:`feeder.learn.structured`)
-under a protocol a reviewer can trust (issue #39, item 3).
+"""``feeder structured``: train and score the structured predictor under a protocol a reviewer can trust.
+
+The predictor is :mod:`feeder.learn.structured` (issue #39, items 2 and 3).
 
 * **Locked parts**: ``protocol.locked_fraction`` of the library's parts, ranked by
   sha256(seed:locked:part), take part in no fit and no choice; one model trained on every other
@@ -97,6 +98,7 @@ def _settings(cfg):
             float(m.sigma_init_deg),
             float(m.sigma_max_deg),
             str(hp.get("kind", "candidates")),
+            str(m.start),
         )
 
     def train(weight_decay):
@@ -139,7 +141,9 @@ def fit_protocol(arrays: dict, train: np.ndarray, cfg, key: str) -> dict:
     fits = [first]
     for s in range(1, int(cfg.seeds)):
         seed = derived_seed(base, key, "seed", s)
-        fits.append(fit(scaled, fit_rows, val_rows, fit_ok, val_ok, mean_pmf, net(hp), tr(hp.weight_decay), seed, ok_train))
+        fits.append(
+            fit(scaled, fit_rows, val_rows, fit_ok, val_ok, mean_pmf, net(hp), tr(hp.weight_decay), seed, ok_train)
+        )
     choice = {
         "fit": key,
         "kind": str(hp.get("kind", "candidates")),
@@ -250,7 +254,9 @@ def run_protocol(arrays: dict, cfg, prior_grids, m3_pmf: dict | None = None, pro
             test = main & (arrays["split"] == "test")
         else:
             test = np.zeros(len(parts), dtype=bool)
-            test[resplit_rows(np.flatnonzero(main), float(cfg.protocol.test_fraction), derived_seed(base, "main", r))] = True
+            test[
+                resplit_rows(np.flatnonzero(main), float(cfg.protocol.test_fraction), derived_seed(base, "main", r))
+            ] = True
         train = ~is_locked & ~test & ~fences
         t0 = time.perf_counter()
         fitted = fit_protocol(arrays, train, cfg, f"main:{r}")
@@ -365,7 +371,9 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--parts-dir", type=Path, default=Path("parts"))
     p.add_argument("--features-dir", type=Path, default=Path("results/features"), help="frames of excluded parts")
     p.add_argument("--out-dir", type=Path, default=Path("results/tables"))
-    p.add_argument("--cache", type=Path, default=None, help="candidates cache (.npz; default <out-dir>/structured_candidates.npz)")
+    p.add_argument(
+        "--cache", type=Path, default=None, help="candidates cache (.npz; default <out-dir>/structured_candidates.npz)"
+    )
     p.add_argument("--m3-groupkfold", type=Path, default=None, help="Model 3's GroupKFold table (per-part cW1)")
     p.add_argument("--m3-model", type=Path, nargs="*", default=None, help="Model 3's seed folders (Test, Fences)")
     p.add_argument("overrides", nargs="*", help="Hydra overrides of config/hydra/structured.yaml")

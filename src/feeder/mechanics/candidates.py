@@ -240,7 +240,9 @@ def configuration_candidates(
     configuration, from the PMFs of ``variants`` (:func:`variant_pmf`)."""
     geom = as_geometry(part)
     out = [
-        variant_pmf(geom, loc1, loc2, scene, v, frame_deg=frame_deg, bins=bins, smooth_deg=smooth_deg, responses=responses)
+        variant_pmf(
+            geom, loc1, loc2, scene, v, frame_deg=frame_deg, bins=bins, smooth_deg=smooth_deg, responses=responses
+        )
         for v in variants
     ]
     pmfs = np.stack([p for p, _ in out])
