@@ -35,7 +35,7 @@ import numpy as np
 from feeder.circular import FULL_TURN_DEG
 from feeder.errors import FeederError
 
-OK_FLOOR = 0.02  # the analytic ok mass is clipped to [OK_FLOOR, 1 - OK_FLOOR] before its logit
+OK_FLOOR = 1e-3  # the analytic ok mass is clipped to [OK_FLOOR, 1 - OK_FLOOR] before its logit
 LOGIT_FLOOR = 1e-3  # mass added before the log of the analytic masses (an empty candidate stays reachable)
 DIFFUSE = ("analytic", "analytic_wide", "uniform", "mean")  # the diffuse components, in order
 # candidates: a logit, an offset and a width per candidate from its own masses and the configuration;

@@ -372,7 +372,10 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--features-dir", type=Path, default=Path("results/features"), help="frames of excluded parts")
     p.add_argument("--out-dir", type=Path, default=Path("results/tables"))
     p.add_argument(
-        "--cache", type=Path, default=None, help="candidates cache (.npz; default <out-dir>/structured_candidates.npz)"
+        "--cache",
+        type=Path,
+        default=None,
+        help="candidates cache (.npz; default structured_candidates.npz beside the dataset)",
     )
     p.add_argument("--m3-groupkfold", type=Path, default=None, help="Model 3's GroupKFold table (per-part cW1)")
     p.add_argument("--m3-model", type=Path, nargs="*", default=None, help="Model 3's seed folders (Test, Fences)")
@@ -396,7 +399,7 @@ def main(argv: list[str]) -> int:
     data = load_dataset(args.dataset)
     if "push_raw" not in data:
         raise FeederError(f"{args.dataset}: no push block (build the dataset with the part files)")
-    cache = args.cache or args.out_dir / "structured_candidates.npz"
+    cache = args.cache or args.dataset.with_name("structured_candidates.npz")
     arrays = structured_arrays(data, cfg, args.sim_dir, args.parts_dir, args.features_dir, cache)
     m3 = m3_predictions(data, args.m3_model) if args.m3_model else None
     long, choices = run_protocol(arrays, cfg, prior_grids, m3, progress=lambda m: print(m, flush=True))
