@@ -349,3 +349,60 @@ def test_an_untrained_network_started_on_the_analytic_pmf_answers_it(kind):
     off = others * LOGIT_FLOOR / (1.0 + others * LOGIT_FLOOR)  # their share of the mass
     assert circular_w1(np.cumsum(a["analytic"][:4], axis=1), np.cumsum(pmf, axis=1)).max() < 180.0 * off
     assert pmf == pytest.approx(a["analytic"][:4], abs=off)
+
+
+def _toy_library(n_parts=10, per_part=4, seed=0):
+    """:func:`_toy_arrays` spread over parts: GroupKFold folds by part, Main Train/Test rows, two
+    Fences parts and one jammed (excluded) configuration."""
+    n = n_parts * per_part
+    a = _toy_arrays(n=n, seed=seed)
+    part_idx = np.repeat(np.arange(n_parts), per_part)
+    a["part"] = np.array([f"p{i}" for i in part_idx])
+    a["config_id"] = np.array([f"c{j}" for j in np.tile(np.arange(per_part), n_parts)])
+    split = np.where(np.tile(np.arange(per_part), n_parts) == 0, "test", "train")
+    a["split"] = np.where(part_idx >= n_parts - 2, "fences", split)
+    a["group_fold"] = part_idx % 3
+    a["kept"] = np.ones(n, dtype=bool)
+    a["kept"][1] = False  # jammed: no label, an ok share of 0
+    a["pmf"][1] = 0.0
+    a["cdf"] = np.cumsum(a["pmf"], axis=1)
+    a["ok"][1] = 0.0
+    return a
+
+
+def test_the_protocol_keeps_locked_parts_out_until_the_end():
+    pytest.importorskip("torch")
+    from feeder.config import compose_config
+    from feeder.learn.prior import grids
+    from feeder.learn.structured_protocol import comparison_table, pick_parts, run_protocol
+
+    overrides = [
+        "seeds=2",
+        "train.max_steps=20",
+        "train.patience_steps=10",
+        "train.eval_every=5",
+        "search=[{kind: variants, hidden: 4, weight_decay: 0.01},{kind: candidates, hidden: 4, weight_decay: 0.01}]",
+        "protocol.main_repeats=2",
+        "protocol.locked_fraction=0.2",
+        "protocol.bootstrap.resamples=50",
+    ]
+    cfg = compose_config("structured", overrides)
+    a = _toy_library()
+    long, choices = run_protocol(a, cfg, grids(compose_config("train")["prior"]))
+    locked = pick_parts(a["part"], 0.2, int(cfg.seed), "locked")
+    assert len(locked) == 2
+    in_locked = long.part.isin(locked)
+    assert set(long[in_locked].experiment) == {"unseen_locked"}  # scored once, nowhere else
+    assert set(long[~in_locked].experiment) == {"unseen_groupkfold", "test", "fences"}
+    assert list(choices.fit) == ["groupkfold:0", "groupkfold:1", "groupkfold:2", "main:0", "main:1", "locked"]
+    parts = choices.set_index("fit")["train_parts"]
+    assert parts["locked"] == 10 - len(locked) and (parts < 10 - len(locked) + 1).all()
+    assert set(long[long.predictor == "structured"].seed) == {0, 1}
+    # repeat 0 scores the dataset's own Test rows; the jammed row is scored on its ok share only
+    test0 = long[(long.experiment == "test") & (long.repeat == 0) & (long.predictor == "analytic_pmf")]
+    assert set(test0.config_id) == {"c0"} and not test0.part.isin(locked).any()
+    jam = long[(long.part == "p0") & (long.config_id == "c1")]
+    assert not jam.empty and jam.cw1.isna().all() and (jam.ok_true == 0.0).all()
+    table = comparison_table(long, {"resamples": 50, "level": 0.95, "seed": 0})
+    assert set(table.experiment) == {"unseen_groupkfold", "unseen_locked", "test", "fences"}
+    assert set(table.verdict) <= {"better", "worse", "no clear difference"}
