@@ -70,6 +70,10 @@ COMMANDS: dict[str, tuple[str, str]] = {
         "feeder.learn.generalisation_sets",
         "every predictor on unseen parts by library set: the protocol parts and the wider library",
     ),
+    "structured": (
+        "feeder.learn.structured_protocol",
+        "train and score the structured predictor (candidate masses, offsets, widths, ok mass) under the protocol",
+    ),
     "predict": ("feeder.learn.predict", "predict the orientation PMF of a part and fences"),
     "recommend": ("feeder.learn.recommend", "rank fence configurations by the predicted chance of a target yaw"),
     "export-model": (

@@ -1,0 +1,408 @@
+"""The structured predictor of issue #39: candidates (feeder.mechanics.candidates), the mixture
+model (feeder.learn.structured) and its protocol (feeder.learn.structured_protocol), against
+hand-computed values."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from feeder.errors import FeederError
+from feeder.labels.metrics import circular_w1
+from feeder.mechanics.candidates import (
+    Variant,
+    basin_masses,
+    candidates_from_pmfs,
+    configuration_candidates,
+    merge_positions,
+    pmf_modes,
+    variant_pmf,
+    variants_from_config,
+    window_sums,
+)
+from feeder.mechanics.fence import default_scene
+
+BINS = 360
+
+
+def spikes(masses: dict[int, float], bins: int = BINS) -> np.ndarray:
+    p = np.zeros(bins)
+    for b, m in masses.items():
+        p[b] = m
+    return p
+
+
+# ----------------------------------------------------------------------------------------------
+# Candidates: pure functions
+# ----------------------------------------------------------------------------------------------
+def test_window_sums_wrap_around():
+    p = spikes({0: 0.5, 359: 0.25, 10: 0.25})
+    s = window_sums(p, 2.0)  # +-2 bins
+    assert s[0] == pytest.approx(0.75)  # bins 358..2 hold 359 and 0
+    assert s[358] == pytest.approx(0.75)  # bins 356..0
+    assert s[357] == pytest.approx(0.25)
+    assert s[12] == pytest.approx(0.25) and s[13] == 0.0
+    assert s.sum() == pytest.approx(5.0)  # every bin counted in 5 windows
+
+
+def test_modes_of_two_spikes_including_one_at_the_seam():
+    p = spikes({359: 0.6, 90: 0.4})
+    pos, mass = pmf_modes(p, min_mass=0.1, window_deg=3.0)
+    assert pos.tolist() == [359.5, 90.5]  # heaviest first, bin centres
+    assert mass.tolist() == pytest.approx([0.6, 0.4])
+
+
+def test_a_mode_below_min_mass_and_a_flat_pmf_have_no_mode():
+    pos, _ = pmf_modes(spikes({0: 0.95, 180: 0.05}), min_mass=0.1, window_deg=3.0)
+    assert pos.tolist() == [0.5]
+    pos, _ = pmf_modes(np.full(BINS, 1.0 / BINS), min_mass=0.0, window_deg=3.0)
+    assert pos.size == 0
+
+
+def test_merge_keeps_the_heavier_across_the_seam():
+    kept = merge_positions([359.5, 0.5, 180.0], [0.2, 0.7, 0.1], merge_deg=2.0)
+    assert kept.tolist() == [0.5, 180.0]
+    kept = merge_positions([359.5, 0.5], [0.2, 0.7], merge_deg=0.5)  # 1 deg apart: both stay
+    assert kept.tolist() == [0.5, 359.5]
+
+
+def test_basin_masses_split_by_the_nearer_position_and_cut_at_the_window():
+    p = spikes({0: 0.3, 358: 0.2, 5: 0.1, 20: 0.4})
+    # positions 359.5 and 4.5: bin 0 (0.5) is 1 from the first, 4 from the second; bin 5 (5.5)
+    # is 1 from the second; bin 358 (358.5) is 1 from the first; bin 20 is outside both windows
+    m = basin_masses(p, [359.5, 4.5], window_deg=3.0)
+    assert m.tolist() == pytest.approx([0.5, 0.1])
+    assert basin_masses(p, [], 3.0).size == 0
+
+
+def test_candidates_from_pmfs_merge_variants_and_report_each_variants_masses():
+    a = spikes({10: 0.7, 100: 0.3})
+    b = spikes({11: 0.5, 200: 0.5})  # its first mode 1 deg from a's: merged into a's heavier one
+    pos, masses = candidates_from_pmfs(np.stack([a, b]), min_mass=0.05, window_deg=3.0, merge_deg=2.0, max_candidates=8)
+    assert pos.tolist() == [10.5, 200.5, 100.5]  # by summed mass 1.2, 0.5, 0.3
+    assert masses == pytest.approx(np.array([[0.7, 0.5], [0.0, 0.5], [0.3, 0.0]]))
+    pos, masses = candidates_from_pmfs(np.stack([a, b]), 0.05, 3.0, 2.0, max_candidates=1)
+    assert pos.tolist() == [10.5] and masses.shape == (1, 2)
+
+
+def test_variants_are_checked():
+    vs = variants_from_config([{"name": "base"}, {"name": "slip", "mu": 0.2, "exit_turns": False, "fences": "loc1"}])
+    assert vs[1] == Variant("slip", 0.2, False, True, "loc1")
+    with pytest.raises(FeederError):
+        variants_from_config([{"name": "a"}, {"name": "a"}])
+    with pytest.raises(FeederError):
+        Variant("x", fences="loc3")
+    with pytest.raises(FeederError):
+        Variant("x", mu=-1.0)
+
+
+# ----------------------------------------------------------------------------------------------
+# Candidates of a real configuration
+# ----------------------------------------------------------------------------------------------
+RECT = np.array([(0.0, 0.0), (0.04, 0.0), (0.04, 0.02), (0.0, 0.02)])
+
+
+def test_rectangle_on_one_fence_candidates_are_its_analytic_modes():
+    scene = default_scene()
+    variants = (Variant("base"), Variant("loc2_alone", fences="loc2"))
+    c = configuration_candidates(
+        RECT, "straight:30", "none", scene, variants, min_mass=0.05, window_deg=5.0, merge_deg=2.0, max_candidates=8
+    )
+    base, _ = variant_pmf(RECT, "straight:30", "none", scene, variants[0])
+    assert c.positions.size >= 1
+    # every candidate of the base variant holds its base mass, and together the modes hold the base PMF
+    assert c.masses[:, 0].sum() == pytest.approx(1.0, abs=1e-9)
+    for p, m in zip(c.positions, c.masses[:, 0], strict=True):
+        assert base[int(p)] > 0 or m == 0
+    # loc2 alone has no fence: the initial yaw is uniform, every window of 11 bins holds 11/360
+    assert c.pmfs[1] == pytest.approx(np.full(BINS, 1.0 / BINS))
+    assert c.masses[:, 1] == pytest.approx(np.full(c.positions.size, 11.0 / BINS))
+    assert c.ok.tolist() == pytest.approx([1.0, 1.0])
+
+
+def test_the_frame_turns_the_candidates():
+    scene = default_scene()
+    kw = dict(min_mass=0.05, window_deg=5.0, merge_deg=2.0, max_candidates=8)
+    a = configuration_candidates(RECT, "straight:30", "none", scene, (Variant("base"),), **kw)
+    b = configuration_candidates(RECT, "straight:30", "none", scene, (Variant("base"),), frame_deg=30.0, **kw)
+    assert np.sort(np.mod(a.positions + 30.0, 360.0)) == pytest.approx(np.sort(b.positions))
+
+
+# ----------------------------------------------------------------------------------------------
+# The mixture model
+# ----------------------------------------------------------------------------------------------
+def test_wrapped_gaussian_bins_sum_to_one_and_wrap():
+    from feeder.learn.structured import wrapped_gaussian_bins
+
+    g = wrapped_gaussian_bins(0.0, 2.0, BINS)  # centred on the seam
+    assert g.sum() == pytest.approx(1.0)
+    assert g[0] == pytest.approx(g[359])  # bin centres 0.5 and 359.5: both 0.5 from 0
+    assert g[1] == pytest.approx(g[358])
+    ratio = math.exp(-0.5 * (1.5**2 - 0.5**2) / 4.0)  # bins 1 and 0 at 1.5 and 0.5 deg
+    assert g[1] / g[0] == pytest.approx(ratio)
+
+
+def test_prior_logits_start_at_the_base_masses():
+    from feeder.learn.structured import DIFFUSE, LOGIT_FLOOR, prior_logits
+
+    cand, diff = prior_logits([[0.6, 0.3, 0.0]], [[True, True, False]])
+    assert cand[0, :2] == pytest.approx(np.log([0.6 + LOGIT_FLOOR, 0.3 + LOGIT_FLOOR]))
+    assert cand[0, 2] == -np.inf
+    assert diff.shape == (1, len(DIFFUSE))
+    assert diff[0, 0] == pytest.approx(math.log(0.1 + LOGIT_FLOOR))  # the analytic mass off the candidates
+    assert diff[0, 1:] == pytest.approx(np.full(len(DIFFUSE) - 1, math.log(LOGIT_FLOOR)))
+
+
+def test_torch_loss_is_the_metric():
+    torch = pytest.importorskip("torch")
+    from feeder.learn.structured import circular_w1_loss
+
+    rng = np.random.default_rng(0)
+    p = rng.dirichlet(np.ones(BINS), size=4)
+    q = rng.dirichlet(np.ones(BINS), size=4)
+    want = circular_w1(np.cumsum(q, axis=1), np.cumsum(p, axis=1)).mean()
+    got = circular_w1_loss(torch.as_tensor(p), torch.as_tensor(np.cumsum(q, axis=1)))
+    assert float(got) == pytest.approx(want, rel=1e-9)
+
+
+def _toy_arrays(n=12, seed=0):
+    """Configurations with two candidates 90 deg apart; the truth puts its mass on the first
+    candidate when x > 0 and on the second otherwise, the analytic model always 50/50."""
+    from feeder.learn.structured import wrapped_gaussian_bins
+
+    rng = np.random.default_rng(seed)
+    x = rng.normal(size=(n, 3))
+    pos = np.tile([[40.5, 130.5]], (n, 1))
+    masses = np.tile([[[0.5, 0.9, 0.1], [0.5, 0.1, 0.9]]], (n, 1, 1))  # (N, K=2, V=3)
+    first = x[:, 0] > 0
+    pmf = np.where(first[:, None], wrapped_gaussian_bins(40.5, 1.0, BINS), wrapped_gaussian_bins(130.5, 1.0, BINS))
+    from feeder.learn.structured_data import candidate_features
+
+    mask = np.ones((n, 2), dtype=bool)
+    analytic = 0.5 * wrapped_gaussian_bins(40.5, 1.0, BINS) + 0.5 * wrapped_gaussian_bins(130.5, 1.0, BINS)
+    return {
+        "x": x,
+        "pos": pos,
+        "mask": mask,
+        "masses": masses,
+        "cf": candidate_features(masses, mask, 0.05),
+        "base_mass": masses[:, :, 0],
+        "pmf": pmf,
+        "cdf": np.cumsum(pmf, axis=1),
+        "analytic": np.tile(analytic, (n, 1)),
+        "ok": np.where(first, 0.9, 0.2),
+        "analytic_ok": np.full(n, 0.5),
+        "wide_sigma_bins": 8.0,
+    }
+
+
+@pytest.mark.parametrize("kind", ["candidates", "variants"])
+def test_an_untrained_network_answers_its_starting_mixture(kind):
+    pytest.importorskip("torch")
+    from feeder.learn.structured import (
+        DIFFUSE,
+        VARIANT_START_LOGIT,
+        Fitted,
+        NetSettings,
+        diffuse_components,
+        make_nets,
+        predict,
+        prior_logits,
+        wrapped_gaussian_bins,
+    )
+
+    a = _toy_arrays()
+    s = NetSettings(4, 4.0, 0.5, 1.5, 6.0, kind)
+    net, ok = make_nets(3, a["cf"].shape[2], len(DIFFUSE), s, n_variants=3)
+    mean = a["pmf"].mean(axis=0)
+    pmf, _ = predict(Fitted(net, ok, 0, 0, math.nan, math.nan), a, np.arange(4), mean)
+    diffuse = diffuse_components(a["analytic"][:4], mean, 8.0)
+    g = wrapped_gaussian_bins(a["pos"][:4], np.full((4, 2), 1.5), BINS)
+    if kind == "candidates":
+        lc, ld = prior_logits(a["base_mass"][:4], a["mask"][:4])
+        z = np.concatenate([lc, ld], axis=1)
+        w = np.exp(z - z.max(axis=1, keepdims=True))
+        w /= w.sum(axis=1, keepdims=True)
+        wc, wd = w[:, :2], w[:, 2:]
+    else:  # variant weights start at softmax(0, -4, -4 | -4 x 4); candidates get the variants' masses
+        z = np.array([0.0] + [VARIANT_START_LOGIT] * (2 + len(DIFFUSE)))
+        av = np.exp(z) / np.exp(z).sum()
+        wc = np.tile(a["masses"][0] @ av[:3], (4, 1))
+        wd = np.tile(av[3:], (4, 1))
+    want = np.einsum("nk,nkb->nb", wc, g) + np.einsum("nc,ncb->nb", wd, diffuse)
+    assert pmf == pytest.approx(want / want.sum(axis=1, keepdims=True), abs=1e-6)
+
+
+@pytest.mark.parametrize("kind", ["candidates", "variants"])
+def test_training_learns_which_candidate_the_inputs_choose(kind):
+    pytest.importorskip("torch")
+    from feeder.learn.structured import NetSettings, TrainSettings, fit, predict
+
+    a = _toy_arrays(n=40)
+    rows = np.arange(40)
+    fitted = fit(
+        a,
+        rows[:30],
+        rows[30:],
+        rows[:30],
+        rows[30:],
+        a["pmf"][:30].mean(axis=0),
+        NetSettings(8, 4.0, 0.5, 1.5, 6.0, kind),
+        TrainSettings(0.03, 0.0, 300, 10, 100),
+        seed=1,
+    )
+    pmf, ok = predict(fitted, a, rows[30:], a["pmf"][:30].mean(axis=0))
+    before = circular_w1(a["cdf"][30:], np.cumsum(a["analytic"][30:], axis=1)).mean()
+    after = circular_w1(a["cdf"][30:], np.cumsum(pmf, axis=1)).mean()
+    assert before == pytest.approx(45.0, abs=1.0)  # half the mass 90 deg away
+    assert after < before / 2
+    assert np.abs(ok - a["ok"][30:]).mean() < 0.2
+    assert fitted.steps > 0
+
+
+def test_settings_are_checked():
+    from feeder.learn.structured import NetSettings
+
+    with pytest.raises(FeederError):
+        NetSettings(4, 4.0, 2.0, 1.5, 6.0)  # sigma_min > sigma_init
+    with pytest.raises(FeederError):
+        NetSettings(4, 4.0, 0.5, 1.5, 6.0, "trees")
+
+
+# ----------------------------------------------------------------------------------------------
+# Protocol
+# ----------------------------------------------------------------------------------------------
+def test_seeds_and_part_picks_derive_from_ids():
+    from feeder.learn.structured_protocol import derived_seed, pick_parts, resplit_rows
+
+    assert derived_seed(39, "main", 1) == derived_seed(39, "main", 1) != derived_seed(39, "main", 2)
+    parts = [f"p{i}" for i in range(20)]
+    locked = pick_parts(parts, 0.15, 39, "locked")
+    assert len(locked) == 3
+    assert locked == pick_parts(parts[::-1] * 2, 0.15, 39, "locked")  # order and repeats do not matter
+    # adding a part never unlocks a locked one that still ranks first
+    more = pick_parts([*parts, "new"], 0.15, 39, "locked")
+    assert len(more) == 3 and len(locked & more) >= 2
+    with pytest.raises(FeederError):
+        pick_parts(["only"], 0.5, 0, "val")
+    test = resplit_rows(np.arange(100), 0.15, 7)
+    assert test.size == 15 and np.all(np.diff(test) > 0)
+    assert resplit_rows(np.arange(100), 0.15, 7).tolist() == test.tolist()
+
+
+def test_unit_scores_and_comparison_by_hand():
+    from feeder.learn.structured_protocol import comparison_table, unit_scores
+
+    rows = []
+    # part a: two configurations, part b: one; structured has two seeds
+    for pred, seed, cw1s in (
+        ("structured", 0, [1.0, 3.0, 5.0]),
+        ("structured", 1, [3.0, 5.0, 7.0]),
+        ("analytic_pmf", -1, [4.0, 6.0, 12.0]),
+    ):
+        for (part, cid), cw1 in zip([("a", "c1"), ("a", "c2"), ("b", "c1")], cw1s, strict=True):
+            rows.append(
+                {
+                    "experiment": "unseen_groupkfold",
+                    "repeat": 0,
+                    "part": part,
+                    "config_id": cid,
+                    "split": "train",
+                    "kept": True,
+                    "predictor": pred,
+                    "seed": seed,
+                    "cw1": cw1,
+                    "r2": 0.5,
+                    "ok_true": 1.0,
+                    "ok_pred": 0.9,
+                }
+            )
+    rows.append(
+        {**rows[-1], "config_id": "jam", "kept": False, "cw1": np.nan, "r2": np.nan, "ok_true": 0.0, "ok_pred": 0.5}
+    )
+    long = pd.DataFrame(rows)
+    s = unit_scores(long, "unseen_groupkfold", "structured", "cw1")
+    assert s.to_dict() == {"a": 3.0, "b": 6.0}  # a: (2 + 4) / 2 over its configurations
+    ok = unit_scores(long, "unseen_groupkfold", "analytic_pmf", "ok_abs_err")
+    assert ok.to_dict() == pytest.approx({"a": 0.1, "b": 0.3})  # b: (0.1 + 0.5) / 2, the jammed one counted
+    t = comparison_table(long, {"resamples": 200, "level": 0.95, "seed": 0})
+    row = t[(t.metric == "cw1") & (t.baseline == "analytic_pmf")].iloc[0]
+    assert row.structured == pytest.approx(4.5) and row.baseline_value == pytest.approx(8.5)
+    assert row["diff"] == pytest.approx(-4.0)  # a: 3 - 5, b: 6 - 12
+    assert row.diff_low == pytest.approx(-6.0) and row.diff_high == pytest.approx(-2.0)  # both parts, either
+    assert row.verdict == "better"
+
+
+@pytest.mark.parametrize("kind", ["candidates", "variants"])
+def test_an_untrained_network_started_on_the_analytic_pmf_answers_it(kind):
+    pytest.importorskip("torch")
+    from feeder.learn.structured import DIFFUSE, LOGIT_FLOOR, Fitted, NetSettings, make_nets, predict
+
+    a = _toy_arrays()
+    s = NetSettings(4, 4.0, 0.5, 1.5, 6.0, kind, "analytic")
+    net, ok = make_nets(3, a["cf"].shape[2], len(DIFFUSE), s, n_variants=3)
+    pmf, _ = predict(Fitted(net, ok, 0, 0, math.nan, math.nan, "analytic"), a, np.arange(4), a["pmf"].mean(axis=0))
+    others = (2 if kind == "candidates" else 3) + len(DIFFUSE) - 1  # components at the floor
+    off = others * LOGIT_FLOOR / (1.0 + others * LOGIT_FLOOR)  # their share of the mass
+    assert circular_w1(np.cumsum(a["analytic"][:4], axis=1), np.cumsum(pmf, axis=1)).max() < 180.0 * off
+    assert pmf == pytest.approx(a["analytic"][:4], abs=off)
+
+
+def _toy_library(n_parts=10, per_part=4, seed=0):
+    """:func:`_toy_arrays` spread over parts: GroupKFold folds by part, Main Train/Test rows, two
+    Fences parts and one jammed (excluded) configuration."""
+    n = n_parts * per_part
+    a = _toy_arrays(n=n, seed=seed)
+    part_idx = np.repeat(np.arange(n_parts), per_part)
+    a["part"] = np.array([f"p{i}" for i in part_idx])
+    a["config_id"] = np.array([f"c{j}" for j in np.tile(np.arange(per_part), n_parts)])
+    split = np.where(np.tile(np.arange(per_part), n_parts) == 0, "test", "train")
+    a["split"] = np.where(part_idx >= n_parts - 2, "fences", split)
+    a["group_fold"] = part_idx % 3
+    a["kept"] = np.ones(n, dtype=bool)
+    a["kept"][1] = False  # jammed: no label, an ok share of 0
+    a["pmf"][1] = 0.0
+    a["cdf"] = np.cumsum(a["pmf"], axis=1)
+    a["ok"][1] = 0.0
+    return a
+
+
+def test_the_protocol_keeps_locked_parts_out_until_the_end():
+    pytest.importorskip("torch")
+    from feeder.config import compose_config
+    from feeder.learn.prior import grids
+    from feeder.learn.structured_protocol import comparison_table, pick_parts, run_protocol
+
+    overrides = [
+        "seeds=2",
+        "train.max_steps=20",
+        "train.patience_steps=10",
+        "train.eval_every=5",
+        "search=[{kind: variants, hidden: 4, weight_decay: 0.01},{kind: candidates, hidden: 4, weight_decay: 0.01}]",
+        "protocol.main_repeats=2",
+        "protocol.locked_fraction=0.2",
+        "protocol.bootstrap.resamples=50",
+    ]
+    cfg = compose_config("structured", overrides)
+    a = _toy_library()
+    long, choices = run_protocol(a, cfg, grids(compose_config("train")["prior"]))
+    locked = pick_parts(a["part"], 0.2, int(cfg.seed), "locked")
+    assert len(locked) == 2
+    in_locked = long.part.isin(locked)
+    assert set(long[in_locked].experiment) == {"unseen_locked"}  # scored once, nowhere else
+    assert set(long[~in_locked].experiment) == {"unseen_groupkfold", "test", "fences"}
+    assert list(choices.fit) == ["groupkfold:0", "groupkfold:1", "groupkfold:2", "main:0", "main:1", "locked"]
+    parts = choices.set_index("fit")["train_parts"]
+    assert parts["locked"] == 10 - len(locked) and (parts < 10 - len(locked) + 1).all()
+    assert set(long[long.predictor == "structured"].seed) == {0, 1}
+    # repeat 0 scores the dataset's own Test rows; the jammed row is scored on its ok share only
+    test0 = long[(long.experiment == "test") & (long.repeat == 0) & (long.predictor == "analytic_pmf")]
+    assert set(test0.config_id) == {"c0"} and not test0.part.isin(locked).any()
+    jam = long[(long.part == "p0") & (long.config_id == "c1")]
+    assert not jam.empty and jam.cw1.isna().all() and (jam.ok_true == 0.0).all()
+    table = comparison_table(long, {"resamples": 50, "level": 0.95, "seed": 0})
+    assert set(table.experiment) == {"unseen_groupkfold", "unseen_locked", "test", "fences"}
+    assert set(table.verdict) <= {"better", "worse", "no clear difference"}
