@@ -17,8 +17,8 @@ from feeder.cli import main as cli
 from feeder.config import load_study_config
 from feeder.errors import FeederError
 from feeder.labels.pmf import level_drops, record_design
-from feeder.labels.pushforward import emulate_drops
 from feeder.sim.adaptive import refine
+from feeder.sim.pushforward import emulate_drops
 
 BUDGET = 64
 

@@ -1,4 +1,4 @@
-"""The label error estimate (feeder.labels.errest), the targeted design and feeder bench-errest's
+"""The label error estimate (feeder.sim.errest), the targeted design and feeder bench-errest's
 bad input, on hand-made maps whose errors are computed by hand."""
 
 from __future__ import annotations
@@ -11,9 +11,9 @@ import pytest
 from feeder.bench import errest as BE
 from feeder.cli import main
 from feeder.errors import FeederError
-from feeder.labels import errest as E
-from feeder.labels.pushforward import pushforward_pmf
+from feeder.sim import errest as E
 from feeder.sim.adaptive import design_from_samples
+from feeder.sim.pushforward import pushforward_pmf
 
 TARGET = dict(E.DEFAULT_TARGET)
 ADAPTIVE = {"n0": 16, "tolerance_deg": 2.0, "min_width_deg": 0.5}

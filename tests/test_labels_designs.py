@@ -14,10 +14,10 @@ from workflow_helpers import ROOT
 from feeder.cli import main as feeder
 from feeder.labels import metrics as L
 from feeder.labels import pmf as P
-from feeder.labels.pushforward import pushforward_pmf
 from feeder.sim import drops as sim
 from feeder.sim import simulate as simulate_cli
 from feeder.sim.adaptive import refine
+from feeder.sim.pushforward import pushforward_pmf
 from feeder.sim.record import SimRecord, load_sim, write_sim
 
 PART = str(ROOT / "parts" / "rect-a2.stl")

@@ -8,8 +8,8 @@ import pytest
 from feeder import circular as C
 from feeder.errors import FeederError
 from feeder.labels import metrics as L
-from feeder.labels import pushforward as P
 from feeder.sim import adaptive as A
+from feeder.sim import pushforward as P
 
 BINS = 360
 NUMERIC = 1e-4  # sup|ΔCDF| slack for the dense-sampling reference (≈ 1/DENSE per jump)

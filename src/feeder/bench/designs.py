@@ -23,7 +23,7 @@ close each design gets to it, and at what cost:
     faithful;
   - ``random``, ``golden`` and ``grid`` at each of ``drop_levels`` drops, ``repeats`` seeded
     realisations each, **emulated** through the reference map (the drops a design would simulate,
-    mapped by :func:`feeder.labels.pushforward.map_yaws`). The paired check says how exact that is.
+    mapped by :func:`feeder.sim.pushforward.map_yaws`). The paired check says how exact that is.
   Columns per configuration and design: simulations, CPU seconds (real for the reference and the
   adaptive design; for emulated designs, drops × the reference's CPU per drop), sup|ΔCDF|, W1 on
   the CDF, circular W1 (:func:`feeder.labels.metrics.circular_w1`), JS (bits) and the label's
@@ -168,7 +168,7 @@ def paired_check(z, ref_design) -> dict[str, float]:
     """The reference map against the real drops of the reference file at the same initial yaws:
     same-status and same-basin fractions, median |Δ final yaw| among same-basin drops
     (:func:`paired_basins`)."""
-    from feeder.labels.pushforward import map_yaws
+    from feeder.sim.pushforward import map_yaws
 
     mapped_final, mapped_status = map_yaws(ref_design, z["paired_initial"])
     check = paired_basins(z["paired_final"], z["paired_status"], mapped_final, mapped_status)
@@ -183,8 +183,8 @@ def emulated_label(ref_design, design: str, drops: int, seed: int, bins: int, si
     """The label ``design`` would give with ``drops`` drops (seeded), its drops mapped through the
     reference; None when every drop fails."""
     from feeder.labels.pmf import sim_label
-    from feeder.labels.pushforward import map_yaws
     from feeder.sim.drops import initial_yaws
+    from feeder.sim.pushforward import map_yaws
     from feeder.sim.record import SimRecord
 
     beta = initial_yaws(seed, drops, design)
@@ -199,9 +199,9 @@ def emulated_adaptive(ref_design, order: int, budget: int, seed: int, adaptive: 
     """The label the adaptive design (``sim.adaptive``, at most ``budget`` simulations, offset from
     ``seed``) would give if the reference map were the simulator: the same refinement as a real
     run (:func:`feeder.sim.simulate.run_design`), each simulation replaced by the reference map at
-    that initial yaw (:func:`feeder.labels.pushforward.map_yaws`). None when every sample failed."""
+    that initial yaw (:func:`feeder.sim.pushforward.map_yaws`). None when every sample failed."""
     from feeder.labels.pmf import Label
-    from feeder.labels.pushforward import label_cdf_bound, map_yaws, pushforward_pmf
+    from feeder.sim.pushforward import label_cdf_bound, map_yaws, pushforward_pmf
     from feeder.sim.simulate import run_design
 
     design = run_design(lambda yaws: map_yaws(ref_design, yaws), seed, budget, adaptive, order)
@@ -251,7 +251,7 @@ def entry_rows(reference: Path, adaptive: Path, settings: dict) -> list[dict]:
     (every initial yaw jams) has no label to compare with: its rows carry NaN distances."""
     from feeder.bench.reference import seed_of
     from feeder.labels.pmf import Label, sim_label
-    from feeder.labels.pushforward import label_cdf_bound, pushforward_pmf
+    from feeder.sim.pushforward import label_cdf_bound, pushforward_pmf
     from feeder.sim.record import SimRecord
 
     db, labels = settings["sim"]["design_bench"], settings["labels"]

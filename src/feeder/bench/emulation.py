@@ -4,7 +4,7 @@ The convergence studies (Figs. 4/5, Table 10) need i.i.d. drops in drop order: J
 between the PMF of a configuration's first N drops and of all of them. A ``grid`` or ``adaptive``
 simulation has no such drops, so the study *emulates* them: ``labels.emulated_drops`` seeded
 uniform initial yaws mapped through the sampled, interpolated drop map
-(:func:`feeder.labels.pmf.level_drops`, :func:`feeder.labels.pushforward.emulate_drops`). This
+(:func:`feeder.labels.pmf.level_drops`, :func:`feeder.sim.pushforward.emulate_drops`). This
 bench checks that the emulated drops behave like real ones:
 
 * ``feeder bench-emulation run --key KEY``, one job per configuration of
@@ -245,7 +245,7 @@ def entry_rows(run: dict, settings: dict) -> list[dict]:
     realisation's, with the configuration's context columns (see the module doc)."""
     from feeder.labels import metrics as L
     from feeder.labels.pmf import record_design, sim_label
-    from feeder.labels.pushforward import emulate_drops
+    from feeder.sim.pushforward import emulate_drops
 
     eb, labels = bench_settings(settings), settings["labels"]
     bins, sigma = int(labels["bins"]), float(labels["sigma_bins"])

@@ -9,7 +9,7 @@ replaced by the map at that initial yaw, as ``feeder bench-designs`` does; nothi
 
 * ``adaptive``: today's adaptive design at the budget ``sim.drops``, then one round of
   ``sim.adaptive_target.audits`` audit drops that only estimate (the label is the budget's);
-* ``targeted``: the design whose budget follows the scene (:func:`feeder.labels.errest.targeted`,
+* ``targeted``: the design whose budget follows the scene (:func:`feeder.sim.errest.targeted`,
   ``sim.adaptive_target``), at its targets times each of ``sim.errest_bench.target_scales``.
 
 Each row: simulations spent (audits included), the label's true sup|ΔCDF| and circular W1 to the
@@ -38,8 +38,8 @@ ROUND_OFF = 1e-9  # an estimate within this of the error covers it (a zero error
 
 def check_errest(settings: dict) -> dict:
     """``sim.errest_bench`` checked: a one-line FeederError for an unknown design or a
-    scale ≤ 0; the targets themselves are checked by :func:`feeder.labels.errest.check_target`."""
-    from feeder.labels.errest import check_target
+    scale ≤ 0; the targets themselves are checked by :func:`feeder.sim.errest.check_target`."""
+    from feeder.sim.errest import check_target
 
     sim = settings["sim"]
     cfg = sim.get("errest_bench")
@@ -67,8 +67,8 @@ def entry_rows(reference: Path, settings: dict, cfg: dict) -> list[dict]:
     """Rows of one configuration's reference file (module docstring)."""
     from feeder.bench.designs import _load, distances, reference_design
     from feeder.bench.reference import seed_of
-    from feeder.labels import errest as E
-    from feeder.labels.pushforward import map_yaws, pushforward_pmf
+    from feeder.sim import errest as E
+    from feeder.sim.pushforward import map_yaws, pushforward_pmf
     from feeder.sim.simulate import run_design
 
     sim, labels = settings["sim"], settings["labels"]

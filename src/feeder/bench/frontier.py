@@ -126,7 +126,7 @@ def entry_rows(reference: Path, settings: dict, frontier: dict, models: dict, me
     """Every answer's rows for one configuration (module docstring)."""
     from feeder.bench.designs import _load, distances, emulated_adaptive, reference_design
     from feeder.bench.reference import seed_of
-    from feeder.labels.pushforward import pushforward_pmf
+    from feeder.sim.pushforward import pushforward_pmf
 
     labels, adaptive = settings["labels"], settings["sim"]["adaptive"]
     bins, sigma = int(labels["bins"]), float(labels["sigma_bins"])

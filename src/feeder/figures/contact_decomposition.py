@@ -10,6 +10,8 @@ labels' circular W1. Right: CPU per drop of each model, with its verdicts on top
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 
 from feeder.figures import style
@@ -33,8 +35,15 @@ COLUMNS = (
 _FLOOR_AT_LEAST = 1e-4  # deg: where a floor or a distance of zero is drawn on the log axes
 
 
-def model_order(name: str) -> tuple[int, int]:
-    return (0, 0) if name == "pieces" else (1, int(name[4:]))
+def model_order(name: str) -> tuple[str, int, int]:
+    """Pieces first, then pad models by what meets walls and fences (``+outline``), by pad count."""
+    hit = re.fullmatch(r"pads([1-9][0-9]*)(.*)", name)
+    return ("", 0, 0) if hit is None else (hit.group(2), 1, int(hit.group(1)))
+
+
+def tick(name: str) -> str:
+    """A model's tick label: a wall-contact suffix on its own line."""
+    return name.replace("+", "\n+")
 
 
 def _truthy(value) -> bool:
@@ -49,7 +58,7 @@ def draw(table):
     colours = dict(
         zip(parts, ["tab:blue", "tab:orange", "tab:green", "tab:purple", "tab:brown", "tab:olive"] * 4, strict=False)
     )
-    fig, (paired, label, cost) = style.subplots(1, 3, figsize=(13, 3.9))
+    fig, (paired, label, cost) = style.subplots(1, 3, figsize=(max(13.0, 2.2 * len(models) + 2.0), 4.2))
     rng = np.random.default_rng(0)  # horizontal jitter only
     for ax, col, title in (
         (paired, "median_dyaw_deg", "Paired: median |Δ final yaw|"),
@@ -68,7 +77,7 @@ def draw(table):
                 ax.plot(x - 0.15, cross, "o", color=colours[part], ms=4, label=part if k == 0 else None)
                 ax.plot(x + 0.15, floor, "o", mfc="none", color=colours[part], ms=5)
         ax.set_yscale("log")
-        ax.set_xticks(range(len(models)), models)
+        ax.set_xticks(range(len(models)), [tick(m) for m in models], fontsize=7)
         ax.set_ylabel("degrees: filled across decompositions,\nopen the model's floor", fontsize=8)
         ax.set_title(title)
         ax.grid(True, axis="y")
@@ -85,8 +94,8 @@ def draw(table):
             f"({int(v[f'rows_passed_{what}'])}/{int(v['rows'])} rows pass)"
             for what in ("paired", "label")
         )
-        cost.text(k, bar.get_height(), text, ha="center", va="bottom", fontsize=7)
-    cost.set_xticks(range(len(models)), models)
+        cost.text(k, bar.get_height(), text.replace(" (", "\n("), ha="center", va="bottom", fontsize=6)
+    cost.set_xticks(range(len(models)), [tick(m) for m in models], fontsize=7)
     cost.set_ylabel("CPU per drop (ms)")
     cost.set_title("Cost, and the verdict across decompositions")
     cost.margins(y=0.25)

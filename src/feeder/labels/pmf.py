@@ -5,7 +5,7 @@ One function, :func:`sim_label`, turns a simulation record into the label the wo
 * drawn designs (``random``, ``golden``): the histogram of the ok drops' final yaws, smoothed
   (:func:`feeder.labels.metrics.pmf_from_yaws`); each drop carries 1/N of the probability;
 * sampled maps (``grid``, ``adaptive``): the push-forward of the uniform initial yaw through the
-  interpolated drop map (:func:`feeder.labels.pushforward.pushforward_pmf`), with a bound on
+  interpolated drop map (:func:`feeder.sim.pushforward.pushforward_pmf`), with a bound on
   sup|ΔCDF| from what the design left unresolved.
 
 Failed drops (jammed, fell_off, ...) are probability mass too: ``masses`` maps every status to
@@ -31,8 +31,8 @@ from pathlib import Path
 import numpy as np
 
 from feeder.labels import metrics as L
-from feeder.labels.pushforward import DEFAULT_BINS, DEFAULT_SIGMA, emulate_drops, label_cdf_bound, pushforward_pmf
 from feeder.sim.adaptive import DEFAULT_TOLERANCE_DEG, Design, design_from_samples
+from feeder.sim.pushforward import DEFAULT_BINS, DEFAULT_SIGMA, emulate_drops, label_cdf_bound, pushforward_pmf
 from feeder.sim.record import BadData, SimRecord, load_sim
 
 DRAWN_DESIGNS = ("random", "golden")  # drops are samples: the label is their histogram

@@ -282,49 +282,10 @@ def orientation_summary(frame, top: int = TOP_ORIENTATIONS) -> str:
     return "most likely final yaws (part frame): " + ", ".join(f"{yaw:.1f} deg p={mass:.2f}" for yaw, mass in modes)
 
 
-def simulated_frame(geom, loc1: str, loc2: str, budget: int, study: dict) -> tuple[pd.DataFrame | None, dict]:
-    """The answer of the simulator: ``geom`` through (``loc1``, ``loc2``) with the study's adaptive
-    design at most ``budget`` drops (below ``sim.adaptive.n0`` an evenly spaced grid of ``budget``
-    drops), labelled as the workflow labels (part frame). Returns the PMF/CDF frame (None when
-    every drop jammed or fell off) and ``{ok_mass, statuses, simulations, cpu_s}``."""
-    from feeder.labels.pmf import sim_label
-    from feeder.lane.fences import parse_location
-    from feeder.learn.recommend import status_counts, verify_settings
-    from feeder.sim.record import record_of
-    from feeder.sim.simulate import simulate
-
-    if isinstance(budget, bool) or int(budget) != budget or budget < 2:
-        raise FeederError(f"--simulate: a budget of at least 2 drops (got {budget!r})")
-    settings = verify_settings(study)
-    adaptive = dict(settings["adaptive"], n0=min(int(settings["adaptive"]["n0"]), int(budget)))
-    result = simulate(
-        geom,
-        parse_location(loc1),
-        parse_location(loc2),
-        int(budget),
-        settings["seed"],
-        settings["scene"],
-        settings["preset"],
-        settings["preset_name"],
-        yaw_sampling="adaptive",
-        adaptive=adaptive,
-    )
-    rec = record_of(result)
-    info = {"ok_mass": 0.0, "statuses": status_counts(rec.status), "simulations": int(rec.status.size)}
-    info["cpu_s"] = float(result["cpu_s"])
-    if not rec.ok.any():
-        return None, info
-    label = sim_label(rec, settings["bins"], settings["sigma"])
-    info["ok_mass"] = float(label.ok_mass)
-    bins = label.pmf.size
-    frame = pd.DataFrame({"angle_deg": np.arange(bins) * (360.0 / bins), "pmf": label.pmf, "cdf": np.cumsum(label.pmf)})
-    return frame, info
-
-
 def _main_simulated(args) -> int:
     """``feeder predict --simulate BUDGET``: the simulator's answer, written like a model's."""
     from feeder.config import study_settings
-    from feeder.learn.recommend import verify_part
+    from feeder.learn.simulated import simulated_frame, verify_part
 
     if args.model is not None:
         raise FeederError("give --model or --simulate, not both")

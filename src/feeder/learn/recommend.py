@@ -37,6 +37,7 @@ import pandas as pd
 
 from feeder.errors import FeederError
 from feeder.labels.metrics import FULL_TURN_DEG
+from feeder.learn.simulated import status_counts, verify_part, verify_settings
 
 DEFAULT_TOP = 10  # configurations printed
 # --verify adds these; ``statuses``: the simulated drops by status ("ok 20, jammed 12")
@@ -122,27 +123,6 @@ def rank(
     return frame.sort_values(key, ascending=False, kind="stable").reset_index(drop=True)
 
 
-def verify_settings(study: dict) -> dict:
-    """What ``--verify`` simulates with, from the study config: the scene, ``sim.preset``,
-    ``sim.base_seed``, the adaptive design's settings (``sim.adaptive``) and budget (``sim.drops``
-    when the study's design is adaptive, else the adaptive default), and the labels' bins and
-    smoothing."""
-    from feeder.sim.adaptive import DEFAULT_BUDGET
-    from feeder.sim.drops import get_preset
-
-    sim = study["sim"]
-    return {
-        "scene": study["scene"],
-        "preset_name": sim["preset"],
-        "preset": get_preset(sim["presets"], sim["preset"]),
-        "seed": int(sim["base_seed"]),
-        "budget": int(sim["drops"]) if sim["yaw_sampling"] == "adaptive" else DEFAULT_BUDGET,
-        "adaptive": dict(sim["adaptive"]),
-        "bins": int(study["labels"]["bins"]),
-        "sigma": float(study["labels"]["sigma_bins"]),
-    }
-
-
 def verify(geom, config_ids, settings: dict, target_deg, tolerance_deg, order, log=None) -> pd.DataFrame:
     """Simulate each configuration of ``config_ids`` with the adaptive design and ``settings``
     (:func:`verify_settings`) and return, per configuration, the simulated probability of the
@@ -195,14 +175,6 @@ def verify(geom, config_ids, settings: dict, target_deg, tolerance_deg, order, l
         if log is not None:
             log(f"verify {k}/{len(config_ids)} {cid}: {rec.status.size} simulations ({statuses}), {cpu:.1f} s CPU")
     return pd.DataFrame(rows, columns=["config_id", *VERIFY_COLUMNS])
-
-
-def status_counts(status) -> str:
-    """The simulated drops by status, most frequent first (ties by name): ``"jammed 32"``,
-    ``"ok 20, fell_off 12"``."""
-    names, counts = np.unique(np.asarray(status).astype(str), return_counts=True)
-    pairs = sorted(zip(names.tolist(), counts.tolist()), key=lambda nc: (-nc[1], nc[0]))
-    return ", ".join(f"{name} {count}" for name, count in pairs)
 
 
 def main(argv: list[str]) -> int:
@@ -279,18 +251,6 @@ def main(argv: list[str]) -> int:
     table = ranked.head(shown).rename(columns={"probability": "predicted", "simulated_probability": "simulated"})
     print(table.to_string(index=False, float_format=lambda v: f"{v:.3f}", na_rep="-"))
     return 0
-
-
-def verify_part(part: Path | None):
-    """The part ``--verify`` simulates: ``--part`` as an STL (a one-line FeederError otherwise,
-    before any other work)."""
-    if part is None or part.suffix.lower() != ".stl":
-        raise FeederError("--verify simulates the part: give it as --part PART.stl")
-    if not part.is_file():
-        raise FeederError(f"part file {part} not found")
-    from feeder.parts.geometry import load_part
-
-    return load_part(part, "auto")
 
 
 def symmetry_order(setting: str, part: Path | None) -> int:

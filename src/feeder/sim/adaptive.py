@@ -5,7 +5,7 @@ is a map ``f(β) = (final yaw, status)``. ``f`` is piecewise smooth (basins that
 slowly drifting range of final yaws; jumps between basins; arcs of failed drops) and sometimes
 has chaotic bands. :func:`refine` samples ``f`` adaptively where it jumps (``feeder simulate
 --yaw-sampling adaptive``, :mod:`feeder.sim.simulate`); the label of the samples is their
-push-forward (:func:`feeder.labels.pushforward.pushforward_pmf`).
+push-forward (:func:`feeder.sim.pushforward.pushforward_pmf`).
 
 Everything is a pure numpy function. Conventions:
 
@@ -46,7 +46,7 @@ Everything is a pure numpy function. Conventions:
 
   The bound holds for the map as sampled: a basin or band that no sample touched is not in it
   (the midpoint checks of ``max_width_deg`` limit how wide such a thing can be). See
-  :func:`feeder.labels.pushforward.label_cdf_bound` for the bound on the normalised, smoothed label's CDF.
+  :func:`feeder.sim.pushforward.label_cdf_bound` for the bound on the normalised, smoothed label's CDF.
 """
 
 from __future__ import annotations

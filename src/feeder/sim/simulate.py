@@ -108,10 +108,10 @@ def simulate_adaptive(run, geom, seed: int, budget: int, preset: dict, adaptive:
     if stop == "budget":
         design = run_design(evaluate, seed, budget, adaptive, order)
     elif stop == "target":
-        from feeder.labels.errest import targeted
-        from feeder.labels.pushforward import DEFAULT_BINS, DEFAULT_SIGMA
+        from feeder.circular import LABEL_BINS, LABEL_SIGMA_BINS
+        from feeder.sim.errest import targeted
 
-        design, estimate, _ = targeted(evaluate, seed, adaptive, order, DEFAULT_BINS, DEFAULT_SIGMA)
+        design, estimate, _ = targeted(evaluate, seed, adaptive, order, LABEL_BINS, LABEL_SIGMA_BINS)
     else:
         raise FeederError(f"sim.adaptive.stop must be budget or target, got {stop!r}")
     out = {"final_yaw_deg": design.final, "status": design.status, "diag": diags}
@@ -268,10 +268,10 @@ def _parser() -> argparse.ArgumentParser:
         "--stop",
         default="budget",
         help="budget: at most --drops simulations; target: stop once the error estimate is within the targets "
-        "(sim.adaptive_stop, sim.adaptive_target; feeder.labels.errest)",
+        "(sim.adaptive_stop, sim.adaptive_target; feeder.sim.errest)",
     )
     target = parser.add_argument_group("targeted design (--stop target; sim.adaptive_target)")
-    from feeder.labels.errest import DEFAULT_TARGET
+    from feeder.sim.errest import DEFAULT_TARGET
 
     for key, default in DEFAULT_TARGET.items():
         name, kind = key.replace("_", "-"), type(default)

@@ -1,6 +1,6 @@
 """An estimate of a sampled-map label's own error, from a few stratified random audit drops.
 
-A sampled-map label (:func:`feeder.labels.pushforward.pushforward_pmf`) is the push-forward of
+A sampled-map label (:func:`feeder.sim.pushforward.pushforward_pmf`) is the push-forward of
 the uniform initial yaw β through the *interpolated* map ``g`` of a design's samples; the label
 it stands for is the push-forward through the simulator's map ``f``. Coupling the two by β gives
 upper bounds on their distance that are expectations over β, so a few audit drops — initial yaws
@@ -15,7 +15,7 @@ them without bias (stratification only lowers the variance):
 * **sup|ΔCDF|** ≤ max over the bin edges e of P_β(the mass at β crosses e) / m̂ (mass moving from
   bin a to bin b changes the CDF at every edge between them; a drop ok in one map only changes
   it everywhere), estimated on the audits that fall outside the design's unresolved intervals;
-  inside those the half split is already bounded by :func:`feeder.labels.pushforward.label_cdf_bound`
+  inside those the half split is already bounded by :func:`feeder.sim.pushforward.label_cdf_bound`
   (the measure of the unresolved intervals), which is added.
 
 Each estimate is the audit mean plus ``z`` standard errors (``z`` from the setting
@@ -247,8 +247,8 @@ def estimate_error(
     design: Design, pmf: np.ndarray, ok_mass: float, beta, final, status, confidence: float, sigma: float
 ) -> ErrorEstimate:
     """The error estimate of a design's label from audit drops (see the module docstring)."""
-    from feeder.labels.pushforward import map_yaws
     from feeder.sim.adaptive import intervals
+    from feeder.sim.pushforward import map_yaws
 
     beta = np.asarray(beta, dtype=np.float64)
     k = beta.size
@@ -321,7 +321,7 @@ def targeted(evaluate, seed: int, adaptive: dict, order: int, bins: int, sigma: 
 
 def estimate_or_worst(design, beta, final, status, bins, sigma, confidence) -> ErrorEstimate:
     """:func:`estimate_error` of the design's label; the worst values when it has no ok mass."""
-    from feeder.labels.pushforward import pushforward_pmf
+    from feeder.sim.pushforward import pushforward_pmf
 
     if not (design.status == OK).any():
         return ErrorEstimate(1.0, FULL_TURN_DEG / 2, int(np.size(beta)), int(np.size(beta)), 1.0)

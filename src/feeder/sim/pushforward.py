@@ -14,12 +14,11 @@ import math
 
 import numpy as np
 
-from feeder.circular import FULL_TURN_DEG, normalize_yaw, wrap180, wrapped_gaussian_smooth
+from feeder.circular import FULL_TURN_DEG, LABEL_BINS, LABEL_SIGMA_BINS, normalize_yaw, wrap180, wrapped_gaussian_smooth
 from feeder.errors import FeederError
 from feeder.sim.adaptive import OK, Design, intervals, unfold
 
-DEFAULT_BINS = 360
-DEFAULT_SIGMA = 1.0  # bins, as the workflow's labels
+DEFAULT_BINS, DEFAULT_SIGMA = LABEL_BINS, LABEL_SIGMA_BINS  # the labels' defaults
 _POINT_IMAGE_DEG = 1e-12  # a linear segment shorter than this is a point mass
 _ALL_OK_SLACK = 1e-12  # ok mass this close to 1 means every sampled drop was ok
 
