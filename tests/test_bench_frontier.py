@@ -21,7 +21,7 @@ def _settings(**frontier):
     cfg = load_study_config("config/config.yaml")
     fb = {"models": ["analytic"], "budgets": [8, 16], "repeats": 1, "resamples": 200, "seed": 0} | frontier
     cfg["sim"]["frontier_bench"] = fb
-    return {k: cfg[k] for k in ("scene", "sim", "labels", "parts")}
+    return {k: cfg[k] for k in ("scene", "sim", "labels", "parts", "models")}
 
 
 def test_a_budget_below_n0_is_a_grid_without_refinement():

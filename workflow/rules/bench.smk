@@ -347,13 +347,17 @@ rule bench_errest:
         " --out-csv {output.rows} --out-summary {output.summary} > {log} 2>&1"
 
 
+# the frontier's predictors: the analytic PMF and those of sim.frontier_bench.models the run ships
+FRONTIER_MODELS = [m for m in config["sim"]["frontier_bench"]["models"] if m == "analytic" or m in SHIPPED]
+
+
 rule bench_frontier:
     """Every predictor and simulation budget: its error against the dense labels, its cost (feeder bench-frontier)."""
     input:
         code("bench-frontier"),
         references=expand(f"{DESIGN_DIR}/reference/{{key}}.npz", key=DESIGN_KEYS),
         dataset=DATASET,
-        models=[m for m in config["sim"]["frontier_bench"]["models"] if m != "analytic"],
+        models=[f"{EXPORT_DIR}/{m}" for m in FRONTIER_MODELS if m != "analytic"],
     output:
         raw=f"{RESULTS}/bench/frontier/frontier_answers.csv",
         csv=f"{RESULTS}/tables/frontier.csv",
@@ -366,10 +370,18 @@ rule bench_frontier:
         "../envs/feeder.yaml"
     params:
         settings=settings_json(
-            "scene", "labels", "parts", "sim.frontier_bench", "sim.adaptive", "sim.bench", "sim.min_ok_mass"
+            "scene",
+            "labels",
+            "parts",
+            "sim.frontier_bench",
+            "sim.adaptive",
+            "sim.bench",
+            "sim.min_ok_mass",
+            "models.export_dir",
         ),
+        models=" ".join(FRONTIER_MODELS),
     shell:
-        "feeder bench-frontier --references {input.references} --dataset {input.dataset}"
+        "feeder bench-frontier --references {input.references} --dataset {input.dataset} --models {params.models}"
         " --settings '{params.settings}' --out-raw {output.raw} --out-csv {output.csv} --out-fig {output.fig}"
         " > {log} 2>&1"
 

@@ -7,8 +7,8 @@ dense map by circular W1 (and sup|ΔCDF|), beside what one answer costs in CPU s
 
 * the predictors, each timed in this process over ``repeats`` calls (the part's features or its
   push PMF, then the model; a fresh process adds its start-up, about 0.4 s, measured by
-  ``feeder bench-predict``): the analytic push PMF and the shipped models named in
-  ``sim.frontier_bench.models``; with ``--dataset``, the mean training PMF too (cost: a lookup);
+  ``feeder bench-predict``): the analytic push PMF and the shipped models (``models.export_dir``)
+  named in ``sim.frontier_bench.models``; with ``--dataset``, the mean training PMF too (cost: a lookup);
 * ``feeder simulate`` at each budget of ``sim.frontier_bench.budgets``: the study's adaptive design
   emulated through the dense map (:func:`feeder.bench.designs.emulated_adaptive`, seeded repeats
   as the design bench has them), below ``sim.adaptive.n0`` an evenly spaced grid of that many drops
@@ -241,8 +241,9 @@ def figure(table: pd.DataFrame):
     return fig
 
 
-def load_models(names, bins: int) -> dict:
-    """``{name: model}``: ``analytic`` or a model folder of the project (:func:`feeder.config.project_path`)."""
+def load_models(names, bins: int, export_dir: str) -> dict:
+    """``{name: model}``: ``analytic``, or a shipped model's folder ``<export_dir>/<name>`` of the
+    project (:func:`feeder.config.project_path`)."""
     from feeder.config import project_path
     from feeder.learn.analytic import AnalyticModel
     from feeder.learn.predict import load_model
@@ -251,11 +252,11 @@ def load_models(names, bins: int) -> dict:
     for name in names:
         if name == ANALYTIC:
             out[name] = AnalyticModel(bins)
-        else:
-            path = project_path(name)
-            if not Path(path).is_dir():
-                raise FeederError(f"sim.frontier_bench.models: {name} is not a model folder ({path})")
-            out[Path(name).name] = load_model(Path(path))
+            continue
+        path = project_path(Path(export_dir) / name)
+        if not path.is_dir():
+            raise FeederError(f"--models: {name} is not a shipped model folder ({path})")
+        out[name] = load_model(path)
     return out
 
 
@@ -266,6 +267,12 @@ def main(argv: list[str]) -> int:
         "--references", nargs="+", required=True, type=Path, help="the design bench's dense maps (.npz)"
     )
     parser.add_argument("--dataset", type=Path, default=None, help="dataset.npz: adds the mean training PMF")
+    parser.add_argument(
+        "--models",
+        nargs="+",
+        default=None,
+        help="analytic and/or shipped model names in models.export_dir (default: sim.frontier_bench.models)",
+    )
     parser.add_argument("--out-raw", required=True, type=Path, help="one row per configuration and answer (CSV)")
     parser.add_argument("--out-csv", required=True, type=Path, help="the summary per answer (CSV)")
     parser.add_argument("--out-fig", required=True, type=Path, help="error against cost (PNG)")
@@ -274,13 +281,14 @@ def main(argv: list[str]) -> int:
     from feeder.io import check_figure_path, save_figure, write_csv
 
     check_figure_path(args.out_fig)
-    settings = parse_settings(args.settings, "scene", "sim", "labels", "parts")
+    settings = parse_settings(args.settings, "scene", "sim", "labels", "parts", "models")
     frontier = check_frontier(settings)
     missing = [str(p) for p in args.references if not p.is_file()]
     if missing:
         raise FeederError(f"--references: missing {', '.join(missing)}")
     bins = int(settings["labels"]["bins"])
-    models = load_models(frontier["models"], bins)
+    names = frontier["models"] if args.models is None else args.models
+    models = load_models(names, bins, str(settings["models"]["export_dir"]))
     mean = None if args.dataset is None else mean_pmf(args.dataset, bins)
     rows = []
     for k, ref in enumerate(sorted(args.references), 1):
