@@ -318,6 +318,29 @@ def _decomposition(path):
     pd.DataFrame(rows).to_csv(path, index=False)
 
 
+def _frontier(path):
+    # two predictors (one a lookup at 0 s) and one budget, both sets of configurations
+    rows = [
+        {
+            "configurations": subset,
+            "answer": answer,
+            "kind": kind,
+            "n": 3,
+            "cpu_s_mean": cpu,
+            "circular_w1_deg": w1,
+            "circular_w1_low": w1 - 1.0,
+            "circular_w1_high": w1 + 2.0,
+        }
+        for subset in ("all", "unseen")
+        for answer, kind, cpu, w1 in (
+            ("mean_pmf", "predictor", 0.0, 29.0),
+            ("analytic", "predictor", 0.1, 18.0),
+            ("simulate8", "simulate", 3.0, 6.0),
+        )
+    ]
+    pd.DataFrame(rows).to_csv(path, index=False)
+
+
 def _step(path):
     # one part: the bare world (no configuration, no fit) and two configurations' drops
     rows = [
@@ -344,6 +367,7 @@ def _step(path):
 
 CASES = {
     "step_cost": ("step.csv", _step, []),
+    "frontier": ("frontier.csv", _frontier, []),
     "label_designs": ("label_designs_summary.csv", _label_designs, []),
     "label_emulation": ("label_emulation.csv", _label_emulation, []),
     "fig6_dft_reconstruction": ("fig6.npz", _fig6, []),

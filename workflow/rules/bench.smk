@@ -360,8 +360,7 @@ rule bench_frontier:
         models=[f"{EXPORT_DIR}/{m}" for m in FRONTIER_MODELS if m != "analytic"],
     output:
         raw=f"{RESULTS}/bench/frontier/frontier_answers.csv",
-        csv=f"{RESULTS}/tables/frontier.csv",
-        fig=f"{RESULTS}/figures/frontier.png",
+        csv=report(f"{RESULTS}/tables/frontier.csv", caption="../report/frontier.rst", category="Cost"),
     log:
         f"{LOGS}/bench_frontier/table.log",
     benchmark:
@@ -382,7 +381,7 @@ rule bench_frontier:
         models=" ".join(FRONTIER_MODELS),
     shell:
         "feeder bench-frontier --references {input.references} --dataset {input.dataset} --models {params.models}"
-        " --settings '{params.settings}' --out-raw {output.raw} --out-csv {output.csv} --out-fig {output.fig}"
+        " --settings '{params.settings}' --out-raw {output.raw} --out-csv {output.csv}"
         " > {log} 2>&1"
 
 

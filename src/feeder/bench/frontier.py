@@ -20,8 +20,8 @@ smoothed as the study's. A configuration whose dense map leaves less ok mass tha
 library parts that the networks trained on (crescent-a, lshape-a, ...) with generated shapes no
 model has seen: ``seen_by_models`` says which. Writes one row per configuration and answer
 (``--out-raw``; a new statistic needs no rerun) and a summary per answer: mean circular W1 with a
-95 % bootstrap interval over configurations, mean CPU seconds, and a figure (error against cost,
-log scale).
+95 % bootstrap interval over configurations, and mean CPU seconds (the figure:
+``feeder figure frontier``).
 """
 
 from __future__ import annotations
@@ -214,33 +214,6 @@ def summary(raw: pd.DataFrame, resamples: int, seed: int) -> pd.DataFrame:
     return pd.DataFrame(rows).sort_values(["configurations", "cpu_s_mean"], ignore_index=True)
 
 
-def figure(table: pd.DataFrame):
-    """Circular W1 (95 % interval) against CPU seconds per answer, log scale; all configurations."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    t = table[table["configurations"] == "all"]
-    fig, ax = plt.subplots(figsize=(7.0, 4.5))
-    for kind, marker in (("predictor", "o"), ("simulate", "s")):
-        g = t[t["kind"] == kind]
-        x = np.maximum(g["cpu_s_mean"].to_numpy(), 1e-4)  # the mean PMF costs a lookup
-        y = g["circular_w1_deg"].to_numpy()
-        err = np.vstack([y - g["circular_w1_low"].to_numpy(), g["circular_w1_high"].to_numpy() - y])
-        ax.errorbar(x, y, yerr=err, fmt=marker, capsize=3, label=kind)
-        for xi, yi, name in zip(x, y, g["answer"]):
-            ax.annotate(name, (xi, yi), textcoords="offset points", xytext=(5, 4), fontsize=8)
-    ax.set_xscale("log")
-    ax.set_xlabel("CPU seconds per answer (log)")
-    ax.set_ylabel("circular W1 to the dense label (deg)")
-    ax.set_title(f"What an answer costs and how close it is ({int(t['n'].max())} configurations)")
-    ax.grid(alpha=0.3)
-    ax.legend()
-    fig.tight_layout()
-    return fig
-
-
 def load_models(names, bins: int, export_dir: str) -> dict:
     """``{name: model}``: ``analytic``, or a shipped model's folder ``<export_dir>/<name>`` of the
     project (:func:`feeder.config.project_path`)."""
@@ -275,12 +248,10 @@ def main(argv: list[str]) -> int:
     )
     parser.add_argument("--out-raw", required=True, type=Path, help="one row per configuration and answer (CSV)")
     parser.add_argument("--out-csv", required=True, type=Path, help="the summary per answer (CSV)")
-    parser.add_argument("--out-fig", required=True, type=Path, help="error against cost (PNG)")
     args = parser.parse_args(argv)
     from feeder.config import parse_settings
-    from feeder.io import check_figure_path, save_figure, write_csv
+    from feeder.io import write_csv
 
-    check_figure_path(args.out_fig)
     settings = parse_settings(args.settings, "scene", "sim", "labels", "parts", "models")
     frontier = check_frontier(settings)
     missing = [str(p) for p in args.references if not p.is_file()]
@@ -298,5 +269,4 @@ def main(argv: list[str]) -> int:
     table = summary(raw, frontier["resamples"], frontier["seed"])
     write_csv(args.out_raw, raw)
     write_csv(args.out_csv, table)
-    save_figure(args.out_fig, figure(table))
     return 0

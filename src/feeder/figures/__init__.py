@@ -38,6 +38,8 @@ module (= PNG name)            figure                                    data fi
                                jobs, by part                             (``feeder bench-cost``)
 ``cost_by_stage``              wall/CPU seconds per workflow stage       ``results/tables/cost_by_stage.csv``
                                                                          (``feeder cost``)
+``frontier``                   error against CPU per answer: predictors  ``results/tables/frontier.csv``
+                               and simulation budgets                    (``feeder bench-frontier``)
 =============================  ========================================  =============================================
 
 Figure modules import only :mod:`feeder.figures.style`, the core (``feeder.io``,

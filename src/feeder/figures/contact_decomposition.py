@@ -94,7 +94,7 @@ def draw(table):
             f"({int(v[f'rows_passed_{what}'])}/{int(v['rows'])} rows pass)"
             for what in ("paired", "label")
         )
-        cost.text(k, bar.get_height(), text.replace(" (", "\n("), ha="center", va="bottom", fontsize=6)
+        cost.text(k, bar.get_height(), text, ha="center", va="bottom", fontsize=5)
     cost.set_xticks(range(len(models)), [tick(m) for m in models], fontsize=7)
     cost.set_ylabel("CPU per drop (ms)")
     cost.set_title("Cost, and the verdict across decompositions")
