@@ -190,14 +190,24 @@ def test_the_table_by_hand():
     assert per.loc["s1|none", "floor_circular_w1_deg"] == pytest.approx(1.0)  # offset b: one bin later
     assert per.loc["s1|none", "floor_median_dyaw_deg"] == pytest.approx(0.05)
     assert per.loc["s1|none", "ok_nan"] == 0 and per.loc["s1|none", "ok_rate"] == 1.0
+    assert per.loc["s2|none", "circular_w1_to_floor"] == pytest.approx(4.0)
     f = table[table["kind"] == "factor"].iloc[0]
     assert f["factor"] == "f" and f["path"] == "scene.part.friction" and f["level"] == "x0.8"
     assert f["circular_w1_deg_median"] == pytest.approx(3.0) and f["circular_w1_deg_mean"] == pytest.approx(3.0)
     assert 2.0 - 1e-9 <= f["circular_w1_deg_median_low"] <= 3.0 <= f["circular_w1_deg_median_high"] <= 4.0 + 1e-9
     assert f["cpu_ratio"] == pytest.approx(2.0) and f["configurations"] == 2
+    assert f["circular_w1_to_floor_median"] == pytest.approx(3.0)
     floor = table[table["kind"] == "floor"].iloc[0]
     assert floor["circular_w1_deg_median"] == pytest.approx(1.0) and floor["median_dyaw_deg_median"] == pytest.approx(0.05)
     assert list(table["kind"].drop_duplicates()) == ["factor", "floor", "configuration"]
+
+
+def test_a_floor_of_zero_is_raised_to_the_labels_resolution():
+    raw = _raw({"s1|none": 2.0, "s2|none": 2.0})
+    raw.loc[(raw["offset"] == "b"), "final_yaw_deg"] -= 1.0  # offset b ends exactly where offset a does
+    per = T.configuration_rows(raw, 360, 1.0)
+    assert (per["floor_circular_w1_deg"] == 0).all()
+    assert per["circular_w1_to_floor"].to_numpy() == pytest.approx(2.0 / (1.0 / 4))  # one drop of 4 moved one bin
 
 
 def test_the_table_counts_jams_and_an_ok_drop_without_a_yaw():

@@ -345,7 +345,7 @@ def _step(path):
 
 def _physics(path):
     # two factors, the floor and two model errors (rows of other kinds carry NaN in the others' columns)
-    stats = ("circular_w1_deg", "same_basin")
+    stats = ("circular_w1_deg", "same_basin", "circular_w1_to_floor")
     rows = [
         {"kind": "factor", "factor": name}
         | {f"{k}_median{s}": v * m for k in stats for s, m in (("", 1.0), ("_low", 0.5), ("_high", 1.5))}

@@ -8,7 +8,9 @@ under each factor with the same initial yaws and keeps every drop; this module c
   (same-basin fraction and median |Δ final yaw|, paired drop by drop; sup|ΔCDF| and circular W1 of
   the labels; :func:`feeder.bench.decomposition_table.compare`), beside that configuration's noise
   floor (``floor_*``: the baseline nudged for the paired metrics, the baseline at offset ``b`` for
-  the label's), the ok rates and how many ok drops had no final yaw (``ok_nan``, never expected);
+  the label's), the circular W1 shift over that floor (``circular_w1_to_floor``; the floor taken
+  at least at the label's resolution, one drop moved one bin), the ok rates and how many ok drops
+  had no final yaw (``ok_nan``, never expected);
 * one ``factor`` row per factor: each metric's median and mean over the configurations with a
   95 % percentile bootstrap interval (configurations resampled, ``bootstrap`` times), the floor's
   medians beside it;
@@ -28,11 +30,13 @@ import sys
 import numpy as np
 import pandas as pd
 
-from feeder.bench.decomposition_table import METRICS, compare
+from feeder.bench.decomposition_table import METRICS, compare, label_resolution
 from feeder.bench.physics import BASELINE
 from feeder.errors import FeederError
 
 STATS = ("median", "mean")
+RATIO = "circular_w1_to_floor"  # a configuration's circular W1 shift over its floor (at least the label's resolution)
+SUMMED = (*METRICS, RATIO)
 CONFIDENCE = 0.95  # the intervals' coverage (percentile bootstrap)
 
 
@@ -102,8 +106,10 @@ def configuration_rows(raw: pd.DataFrame, bins: int, sigma: float) -> pd.DataFra
         }
         base_counts = status_counts(c.loc[plain.index])
         floor_nan = sum(status_counts(c.loc[r.index])["ok_nan"] for r in (plain, nudged, other))
+        least = label_resolution(bins, len(plain))["circular_w1_deg"]
         for factor, f in g[g["factor"] != BASELINE].groupby("factor", sort=True):
             counts = status_counts(c.loc[f.index])
+            shift = compare(plain, f, bins, sigma)
             rows.append(
                 {
                     "kind": "configuration",
@@ -116,8 +122,11 @@ def configuration_rows(raw: pd.DataFrame, bins: int, sigma: float) -> pd.DataFra
                     "ok_rate_baseline": base_counts["ok_rate"],
                     "ok_rate": counts["ok_rate"],
                     "ok_nan": counts["ok_nan"] + floor_nan,
-                    **compare(plain, f, bins, sigma),
+                    **shift,
                     **{f"floor_{k}": v for k, v in floor.items()},
+                    RATIO: shift["circular_w1_deg"] / max(floor["circular_w1_deg"], least)
+                    if not math.isnan(floor["circular_w1_deg"])
+                    else math.nan,
                     "cpu_s": float(f["cpu_s"].iloc[0]),
                     "cpu_s_baseline": float(plain["cpu_s"].iloc[0]),
                 }
@@ -127,7 +136,7 @@ def configuration_rows(raw: pd.DataFrame, bins: int, sigma: float) -> pd.DataFra
 
 def _summary(kind: str, factor: str, path: str, level: str, values: dict, resamples: int, seed: int) -> dict:
     row = {"kind": kind, "part": "all", "configuration": "all", "factor": factor, "path": path, "level": level}
-    for k in METRICS:
+    for k in [m for m in SUMMED if m in values]:
         x = np.asarray(values[k], np.float64)
         row[f"n_{k}"] = int(np.isfinite(x).sum())
         for stat in STATS:
