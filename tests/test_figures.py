@@ -365,6 +365,25 @@ def _step(path):
     pd.DataFrame(rows).to_csv(path, index=False)
 
 
+
+def _physics(path):
+    # two factors, the floor and two model errors (rows of other kinds carry NaN in the others' columns)
+    stats = ("circular_w1_deg", "same_basin", "circular_w1_to_floor")
+    rows = [
+        {"kind": "factor", "factor": name}
+        | {f"{k}_median{s}": v * m for k in stats for s, m in (("", 1.0), ("_low", 0.5), ("_high", 1.5))}
+        | {"circular_w1_deg_mean": v}
+        for name, v in (("part_friction_x0.8", 4.0), ("restitution_0.1", 0.0))
+    ]
+    rows.append(
+        {"kind": "floor", "factor": "floor"}
+        | {f"{k}_median{s}": 0.5 * m for k in stats for s, m in (("", 1.0), ("_low", 0.5), ("_high", 1.5))}
+        | {"circular_w1_deg_mean": 0.5}
+    )
+    rows += [{"kind": "model_error", "factor": n, "circular_w1_deg_mean": v} for n, v in (("m3", 24.0), ("pmf", 15.0))]
+    rows.append({"kind": "configuration", "factor": "part_friction_x0.8", "circular_w1_deg_mean": np.nan})
+    pd.DataFrame(rows).to_csv(path, index=False)
+
 CASES = {
     "step_cost": ("step.csv", _step, []),
     "frontier": ("frontier.csv", _frontier, []),
@@ -387,6 +406,7 @@ CASES = {
     "sim_cost": ("sim_cost.csv", _sim_cost, []),
     "contact_model": ("contact.csv", _contact, []),
     "contact_decomposition": ("decomposition.csv", _decomposition, []),
+    "physics_sensitivity": ("physics.csv", _physics, []),
 }
 
 

@@ -51,6 +51,14 @@ COMMANDS: dict[str, tuple[str, str]] = {
         "feeder.bench.decomposition_table",
         "the decomposition test's table and verdicts from its raw drops (no simulation)",
     ),
+    "bench-physics": (
+        "feeder.bench.physics",
+        "how far the labels move with the physics: one factor at a time, the same drops, raw drops kept",
+    ),
+    "bench-physics-table": (
+        "feeder.bench.physics_table",
+        "the physics sensitivity table (shifts with intervals, floor, model errors) from its raw drops",
+    ),
     "bench-step": (
         "feeder.bench.step",
         "what one simulation step costs against a bare one-box world, and what it is spent on",

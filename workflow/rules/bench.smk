@@ -11,6 +11,7 @@
 #   results/tables/contact_model.csv          (+ figure)  the belt footprint: pieces against pads
 #   results/tables/contact_decomposition.csv  (+ figure)  each contact model under other convex decompositions
 #   results/tables/step_cost.csv              (+ figure)  CPU of one step against a bare one-box world
+#   results/tables/physics_sensitivity.csv    (+ figure)  how far the labels move with each physical parameter
 
 from feeder.bench.emulation import entries as emulation_bench_entries, run_settings as emulation_run_settings
 from feeder.bench.predict import DEFAULT_PARTS as PREDICT_BENCH_DEFAULT_PARTS
@@ -40,6 +41,8 @@ BENCH_TARGETS = [
     f"{RESULTS}/figures/contact_decomposition.png",
     f"{RESULTS}/tables/step_cost.csv",
     f"{RESULTS}/figures/step_cost.png",
+    f"{RESULTS}/tables/physics_sensitivity.csv",
+    f"{RESULTS}/figures/physics_sensitivity.png",
 ]
 # the design bench's configurations: one simulation job each (resumable), raw data kept, in a
 # directory named by the preset and the reference's resolution, so a smaller run (smoke) never
@@ -177,6 +180,56 @@ rule bench_decomposition_table:
         settings=settings_json("sim.decomposition_bench", "labels.bins", "labels.sigma_bins"),
     shell:
         "feeder bench-decomposition-table --settings '{params.settings}'"
+        " --raw {input.raw} --out-csv {output.table} > {log} 2>&1"
+
+
+rule bench_physics:
+    """Each configuration's drops under the default scene and one physical factor at a time, kept raw (feeder bench-physics)."""
+    input:
+        code("bench-physics"),
+        parts=expand(
+            "{dir}/{part}.stl",
+            dir=config["parts"]["dir"],
+            part=sorted({p for p, _ in config["sim"]["physics_bench"]["configurations"]}),
+        ),
+    output:
+        raw=f"{RESULTS}/bench/physics/physics_drops.csv",
+    log:
+        f"{LOGS}/bench_physics/bench_physics.log",
+    benchmark:
+        f"{BENCHMARKS}/bench_physics/bench_physics.tsv"
+    conda:
+        "../envs/feeder.yaml"
+    threads: config["sim"]["physics_bench"]["workers"]
+    params:
+        settings=settings_json("scene", "sim.presets", "sim.physics_bench", "parts.dir"),
+    shell:
+        "feeder bench-physics --settings '{params.settings}' --out-raw {output.raw} > {log} 2>&1"
+
+
+rule bench_physics_table:
+    """The label shift of each physical factor beside the floor and the models' errors, from the raw drops (feeder bench-physics-table).
+    The models' errors are read from the committed tables named in sim.physics_bench.model_errors, not
+    declared as inputs: the bench never rebuilds the study's models."""
+    input:
+        code("bench-physics-table"),
+        raw=f"{RESULTS}/bench/physics/physics_drops.csv",
+    output:
+        table=report(
+            f"{RESULTS}/tables/physics_sensitivity.csv",
+            caption="../report/physics_sensitivity.rst",
+            category="Simulation",
+        ),
+    log:
+        f"{LOGS}/bench_physics/bench_physics_table.log",
+    benchmark:
+        f"{BENCHMARKS}/bench_physics/bench_physics_table.tsv"
+    conda:
+        "../envs/feeder.yaml"
+    params:
+        settings=settings_json("sim.physics_bench", "labels.bins", "labels.sigma_bins"),
+    shell:
+        "feeder bench-physics-table --settings '{params.settings}'"
         " --raw {input.raw} --out-csv {output.table} > {log} 2>&1"
 
 

@@ -62,6 +62,7 @@ FIGURE_TABLE = {
     "contact_model": (f"{TABLES}/contact_model.csv", "contact_model_figure", "Simulation", {}),
     "contact_decomposition": (f"{TABLES}/contact_decomposition.csv", "contact_decomposition_figure", "Simulation", {}),
     "step_cost": (f"{TABLES}/step_cost.csv", "step_cost_figure", "Simulation", {}),
+    "physics_sensitivity": (f"{TABLES}/physics_sensitivity.csv", "physics_sensitivity_figure", "Simulation", {}),
     "yaw_sampling": (f"{TABLES}/yaw_sampling.csv", "yaw_sampling", "Simulation", {}),
     "sim_cost": (f"{TABLES}/sim_cost_sample.csv", "sim_cost_figure", "Cost", {}),
     "frontier": (f"{TABLES}/frontier.csv", "frontier_figure", "Cost", {}),
