@@ -198,7 +198,9 @@ def test_the_table_by_hand():
     assert f["cpu_ratio"] == pytest.approx(2.0) and f["configurations"] == 2
     assert f["circular_w1_to_floor_median"] == pytest.approx(3.0)
     floor = table[table["kind"] == "floor"].iloc[0]
-    assert floor["circular_w1_deg_median"] == pytest.approx(1.0) and floor["median_dyaw_deg_median"] == pytest.approx(0.05)
+    assert floor["circular_w1_deg_median"] == pytest.approx(1.0) and floor["median_dyaw_deg_median"] == pytest.approx(
+        0.05
+    )
     assert list(table["kind"].drop_duplicates()) == ["factor", "floor", "configuration"]
 
 
@@ -221,7 +223,9 @@ def test_the_table_counts_jams_and_an_ok_drop_without_a_yaw():
 
 
 def test_model_errors_are_read_from_the_committed_tables(tmp_path):
-    errors = T.model_errors([{"name": "m3 Test", "table": "results/tables/table6.csv", "row": "m3", "column": "cw1_mean"}])
+    errors = T.model_errors(
+        [{"name": "m3 Test", "table": "results/tables/table6.csv", "row": "m3", "column": "cw1_mean"}]
+    )
     t6 = pd.read_csv("results/tables/table6.csv").set_index("model")
     assert errors[0]["value"] == pytest.approx(t6.loc["m3", "cw1_mean"]) and "table6.csv" in errors[0]["source"]
     with pytest.raises(FeederError, match="no row"):

@@ -365,7 +365,6 @@ def _step(path):
     pd.DataFrame(rows).to_csv(path, index=False)
 
 
-
 def _physics(path):
     # two factors, the floor and two model errors (rows of other kinds carry NaN in the others' columns)
     stats = ("circular_w1_deg", "same_basin", "circular_w1_to_floor")
@@ -383,6 +382,7 @@ def _physics(path):
     rows += [{"kind": "model_error", "factor": n, "circular_w1_deg_mean": v} for n, v in (("m3", 24.0), ("pmf", 15.0))]
     rows.append({"kind": "configuration", "factor": "part_friction_x0.8", "circular_w1_deg_mean": np.nan})
     pd.DataFrame(rows).to_csv(path, index=False)
+
 
 CASES = {
     "step_cost": ("step.csv", _step, []),

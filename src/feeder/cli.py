@@ -34,6 +34,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
         "each initial-yaw design's label against a dense reference, and its cost",
     ),
     "bench-errest": ("feeder.bench.errest", "does a label's error estimate cover its error (emulated designs)"),
+    "bench-mirror": ("feeder.bench.mirror", "a fence at Location 2 against its mirror image at Location 1, paired"),
     "bench-frontier": ("feeder.bench.frontier", "each predictor and simulation budget: its error against its cost"),
     "bench-emulation": (
         "feeder.bench.emulation",

@@ -31,6 +31,7 @@ BENCH_TARGETS = [
     f"{RESULTS}/tables/design_error_estimate.csv",
     f"{RESULTS}/tables/design_error_estimate_summary.csv",
     f"{RESULTS}/tables/frontier.csv",
+    f"{RESULTS}/tables/mirror_locations.csv",
     f"{RESULTS}/figures/frontier.png",
     f"{RESULTS}/tables/label_emulation.csv",
     f"{RESULTS}/tables/label_emulation_summary.csv",
@@ -398,6 +399,26 @@ rule bench_errest:
     shell:
         "feeder bench-errest --references {input.references} --settings '{params.settings}'"
         " --out-csv {output.rows} --out-summary {output.summary} > {log} 2>&1"
+
+
+rule bench_mirror:
+    """A fence at Location 2 against its mirror image at Location 1, drop by drop (feeder bench-mirror)."""
+    input:
+        code("bench-mirror"),
+        catalog=f"{config['parts']['dir']}/catalog.csv",
+    output:
+        raw=f"{RESULTS}/bench/mirror/mirror_drops.csv",
+        csv=report(f"{RESULTS}/tables/mirror_locations.csv", caption="../report/mirror_locations.rst", category="Cost"),
+    log:
+        f"{LOGS}/bench_mirror/bench.log",
+    benchmark:
+        f"{BENCHMARKS}/bench_mirror/bench.tsv"
+    conda:
+        "../envs/feeder.yaml"
+    params:
+        settings=settings_json("scene", "labels", "parts", "sim.mirror_bench", "sim.presets", "sim.base_seed"),
+    shell:
+        "feeder bench-mirror --settings '{params.settings}' --out-raw {output.raw} --out-csv {output.csv} > {log} 2>&1"
 
 
 # the frontier's predictors: the analytic PMF and those of sim.frontier_bench.models the run ships

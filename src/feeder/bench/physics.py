@@ -84,7 +84,9 @@ def check_factor(factor) -> dict:
     if name == BASELINE:
         raise FeederError(f"factor {name!r}: the name is the unmoved scene's")
     if not isinstance(path, str) or not path:
-        raise FeederError(f"factor {name!r}: needs a path (scene.<key>, preset.<key>, part.thickness or {CONTACT_MODEL})")
+        raise FeederError(
+            f"factor {name!r}: needs a path (scene.<key>, preset.<key>, part.thickness or {CONTACT_MODEL})"
+        )
     if ("scale" in factor) == ("value" in factor):
         raise FeederError(f"factor {name!r}: give a scale or a value, not {'both' if 'scale' in factor else 'neither'}")
     if "scale" in factor:
@@ -100,7 +102,9 @@ def check_factor(factor) -> dict:
             f"factor {name!r}: unknown path {path!r} (scene.<key>, preset.<key>, part.thickness or {CONTACT_MODEL})"
         )
     elif head == "part" and path[5:] not in PART_FIELDS:
-        raise FeederError(f"factor {name!r}: unknown path {path!r} (the part's: {', '.join('part.' + f for f in PART_FIELDS)})")
+        raise FeederError(
+            f"factor {name!r}: unknown path {path!r} (the part's: {', '.join('part.' + f for f in PART_FIELDS)})"
+        )
     return factor
 
 
@@ -170,7 +174,12 @@ def plan_runs(bench: dict) -> list[dict]:
     ``nudge_deg`` and at offset ``b``, then each factor at offset ``a``."""
     from feeder.sim.drops import drop_seed, initial_yaws
 
-    drops, sampling, nudge, seed = int(bench["drops"]), str(bench["sampling"]), float(bench["nudge_deg"]), int(bench["seed"])
+    drops, sampling, nudge, seed = (
+        int(bench["drops"]),
+        str(bench["sampling"]),
+        float(bench["nudge_deg"]),
+        int(bench["seed"]),
+    )
     runs = []
     for part, config in parse_configurations(bench["configurations"]):
         yaws = {

@@ -145,14 +145,17 @@ def _summary(kind: str, factor: str, path: str, level: str, values: dict, resamp
     return row
 
 
-def summarize(raw: pd.DataFrame, bins: int, sigma: float, resamples: int, seed: int, errors=(), order=()) -> pd.DataFrame:
+def summarize(
+    raw: pd.DataFrame, bins: int, sigma: float, resamples: int, seed: int, errors=(), order=()
+) -> pd.DataFrame:
     """The table (see the module's docstring) from the raw drops and the models' errors
     (``errors``: dicts of ``name``, ``value`` and ``source``): the factor rows in ``order`` (factor
     names; any other after them, by name), the floor, the model errors, then the configuration rows."""
     per = configuration_rows(raw, bins, sigma)
     rank = {name: k for k, name in enumerate(order)}
     per = per.sort_values(
-        ["factor", "part", "configuration"], key=lambda s: s.map(lambda f: (rank.get(f, len(rank)), f)) if s.name == "factor" else s
+        ["factor", "part", "configuration"],
+        key=lambda s: s.map(lambda f: (rank.get(f, len(rank)), f)) if s.name == "factor" else s,
     ).reset_index(drop=True)
     summary = []
     for factor, g in per.groupby("factor", sort=False):
@@ -200,7 +203,9 @@ def model_errors(entries) -> list[dict]:
         hit = t[t.iloc[:, 0].astype(str) == key]
         if hit.empty or column not in t.columns:
             raise FeederError(f"model error {name!r}: {path} has no row {key!r} with a column {column!r}")
-        out.append({"name": name, "value": float(hit[column].iloc[0]), "source": f"{path}: {t.columns[0]}={key}, {column}"})
+        out.append(
+            {"name": name, "value": float(hit[column].iloc[0]), "source": f"{path}: {t.columns[0]}={key}, {column}"}
+        )
     return out
 
 
@@ -215,7 +220,19 @@ def read_raw(path) -> pd.DataFrame:
         )
     except (OSError, pd.errors.ParserError, pd.errors.EmptyDataError) as err:
         raise FeederError(f"--raw {path}: {err}") from None
-    need = {"part", "configuration", "factor", "path", "level", "offset", "yaw_shift_deg", "drop", "final_yaw_deg", "status", "cpu_s"}
+    need = {
+        "part",
+        "configuration",
+        "factor",
+        "path",
+        "level",
+        "offset",
+        "yaw_shift_deg",
+        "drop",
+        "final_yaw_deg",
+        "status",
+        "cpu_s",
+    }
     missing = sorted(need - set(raw.columns))
     if missing:
         raise FeederError(f"--raw {path}: lacks the column(s) {', '.join(missing)}")
@@ -226,7 +243,9 @@ def main(argv: list[str]) -> int:
     parser = argparse.ArgumentParser(prog="feeder bench-physics-table", description=__doc__.splitlines()[0])
     parser.add_argument("--settings", required=True, help="JSON {sim, labels} config sections")
     parser.add_argument("--raw", required=True, help="the raw drops of feeder bench-physics (CSV)")
-    parser.add_argument("--out-csv", required=True, help="the table: per configuration, per factor, floor, model errors (CSV)")
+    parser.add_argument(
+        "--out-csv", required=True, help="the table: per configuration, per factor, floor, model errors (CSV)"
+    )
     args = parser.parse_args(argv)
     from feeder.config import parse_settings
     from feeder.io import write_csv
@@ -249,7 +268,8 @@ def main(argv: list[str]) -> int:
         print(
             f"{v['factor']:>24}: circular W1 median {v['circular_w1_deg_median']:.2f} deg "
             f"[{v['circular_w1_deg_median_low']:.2f}, {v['circular_w1_deg_median_high']:.2f}], sup|dCDF| "
-            f"{v['sup_cdf_median']:.3f}, same basin {v['same_basin_median']:.2f}, |dyaw| {v['median_dyaw_deg_median']:.2f} deg",
+            f"{v['sup_cdf_median']:.3f}, same basin {v['same_basin_median']:.2f}, "
+            f"|dyaw| {v['median_dyaw_deg_median']:.2f} deg",
             file=sys.stderr,
         )
     for e in errors:
