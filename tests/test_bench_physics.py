@@ -230,8 +230,10 @@ def test_model_errors_are_read_from_the_committed_tables(tmp_path):
     assert errors[0]["value"] == pytest.approx(t6.loc["m3", "cw1_mean"]) and "table6.csv" in errors[0]["source"]
     with pytest.raises(FeederError, match="no row"):
         T.model_errors([{"name": "x", "table": "results/tables/table6.csv", "row": "m99", "column": "cw1_mean"}])
+    assert T.model_errors([{"name": "x", "table": str(tmp_path / "none.csv"), "row": "m3", "column": "cw1_mean"}]) == []
+    (tmp_path / "bad.csv").write_text("model,cw1_mean\nm3,1.0\n")
     with pytest.raises(FeederError, match="x"):
-        T.model_errors([{"name": "x", "table": str(tmp_path / "none.csv"), "row": "m3", "column": "cw1_mean"}])
+        T.model_errors([{"name": "x", "table": str(tmp_path / "bad.csv"), "row": "m3", "column": "other"}])
 
 
 # ----------------------------------------------------------------------------------------------

@@ -378,8 +378,16 @@ rule bench_errest:
         code("bench-errest"),
         references=expand(f"{DESIGN_DIR}/reference/{{key}}.npz", key=DESIGN_KEYS),
     output:
-        rows=f"{RESULTS}/tables/design_error_estimate.csv",
-        summary=f"{RESULTS}/tables/design_error_estimate_summary.csv",
+        rows=report(
+            f"{RESULTS}/tables/design_error_estimate.csv",
+            caption="../report/design_error_estimate.rst",
+            category="Simulation",
+        ),
+        summary=report(
+            f"{RESULTS}/tables/design_error_estimate_summary.csv",
+            caption="../report/design_error_estimate_summary.rst",
+            category="Simulation",
+        ),
     log:
         f"{LOGS}/bench_errest/table.log",
     benchmark:
