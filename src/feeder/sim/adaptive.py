@@ -412,18 +412,20 @@ def refine(
     )
     yaws = _grid(n0, offset, period)
     final, status = _check_evaluation(yaws, evaluate(normalize_yaw(yaws)))
-    evaluations, calls = n0, 1
-
-    while evaluations < budget:
-        iv = intervals(yaws, final, status, period, tolerance_deg)
-        new = _next_midpoints(iv, min_width_deg, max_width, band_gap, edge_check, budget - evaluations, offset, period)
-        if new.size == 0:
-            break
-        f_new, s_new = _check_evaluation(new, evaluate(normalize_yaw(new)))
-        evaluations += new.size
-        calls += 1
-        yaws, final, status = _merge_samples((yaws, final, status), (new, f_new, s_new))
-
+    (yaws, final, status), evaluations, calls = _rounds(
+        evaluate,
+        (yaws, final, status),
+        n0,
+        1,
+        budget,
+        period,
+        offset,
+        tolerance_deg,
+        min_width_deg,
+        max_width,
+        band_gap,
+        edge_check,
+    )
     return _finish(
         yaws,
         final,
@@ -438,6 +440,25 @@ def refine(
         band_gap,
         edge_check,
     )
+
+
+def _rounds(
+    evaluate, samples, evaluations, calls, budget, period, offset, tolerance, min_width, max_width, band_gap, edge_check
+):
+    """The refinement rounds shared by :func:`refine` and :func:`extend`: while the budget allows,
+    simulate the midpoints the intervals ask for and merge them in. Returns ``((yaws, final,
+    status), evaluations, calls)``."""
+    yaws, final, status = samples
+    while evaluations < budget:
+        iv = intervals(yaws, final, status, period, tolerance)
+        new = _next_midpoints(iv, min_width, max_width, band_gap, edge_check, budget - evaluations, offset, period)
+        if new.size == 0:
+            break
+        f_new, s_new = _check_evaluation(new, evaluate(normalize_yaw(new)))
+        evaluations += new.size
+        calls += 1
+        yaws, final, status = _merge_samples((yaws, final, status), (new, f_new, s_new))
+    return (yaws, final, status), evaluations, calls
 
 
 def extend(
@@ -459,25 +480,21 @@ def extend(
         raise FeederError(f"extend: budget ({budget!r}) must be an integer >= the evaluations spent ({evaluations})")
     max_width = design.max_width_deg if max_width_deg is None else min(float(max_width_deg), design.max_width_deg)
     max_width = max(max_width, design.min_width_deg)
-    period, offset, calls = design.period_deg, design.offset_deg, design.calls
-    while evaluations < budget:
-        iv = intervals(yaws, final, status, period, design.tolerance_deg)
-        new = _next_midpoints(
-            iv,
-            design.min_width_deg,
-            max_width,
-            design.band_gap_deg,
-            design.edge_check_deg,
-            int(budget) - evaluations,
-            offset,
-            period,
-        )
-        if new.size == 0:
-            break
-        f_new, s_new = _check_evaluation(new, evaluate(normalize_yaw(new)))
-        evaluations += new.size
-        calls += 1
-        yaws, final, status = _merge_samples((yaws, final, status), (new, f_new, s_new))
+    period, offset = design.period_deg, design.offset_deg
+    (yaws, final, status), evaluations, calls = _rounds(
+        evaluate,
+        (yaws, final, status),
+        evaluations,
+        design.calls,
+        int(budget),
+        period,
+        offset,
+        design.tolerance_deg,
+        design.min_width_deg,
+        max_width,
+        design.band_gap_deg,
+        design.edge_check_deg,
+    )
     return _finish(
         yaws,
         final,
