@@ -77,7 +77,10 @@ def test_the_contact_model_factor_sets_pads_and_outline_walls(study):
     _, s, _ = P.apply_factor(f, _geom(), cfg["scene"], preset)
     assert s["belt"]["footprint"]["model"] == "pads" and s["belt"]["footprint"]["pads"] == 16
     assert s["part"]["wall_contact"]["model"] == "outline"
-    assert cfg["scene"]["belt"]["footprint"]["model"] == "pieces"
+    assert cfg["scene"]["belt"]["footprint"]["pads"] == 8  # the default's, untouched
+    _, s, _ = P.apply_factor(dict(f, value="pieces"), _geom(), cfg["scene"], preset)
+    assert s["belt"]["footprint"]["model"] == "pieces" and s["part"]["wall_contact"]["model"] == "pieces"
+    assert cfg["scene"]["belt"]["footprint"]["model"] == "pads"
 
 
 @pytest.mark.parametrize(
@@ -126,7 +129,7 @@ def test_the_plan_pairs_every_run_on_the_same_initial_yaws(study):
     np.testing.assert_allclose(nudged["yaws"] - a[0]["yaws"], 0.01)
     b = next(r for r in runs if r["offset"] == "b")
     assert not np.allclose(b["yaws"], a[0]["yaws"])
-    assert {r["level"] for r in a} >= {"x0.8", "x1.2", "=0.1", "=pads16+outline", "x2"}
+    assert {r["level"] for r in a} >= {"x0.8", "x1.2", "=0.1", "=pieces", "x2"}
 
 
 # ----------------------------------------------------------------------------------------------
@@ -333,8 +336,10 @@ def _every_factor(study, part, config, drops=2, base_model=None):
 
 
 def test_a_bar_near_tipping_over_on_pads_under_every_factor(study):
-    # rect-a8 (112 x 14 x 10 mm): its 16 pads' hull is 5 mm from its centroid, half its thickness
-    # (the least of the library); on pads under every factor, thickness x 1.2 included
+    # rect-a8 (112 x 14 x 10 mm): the default's 8 pads' hull is 3.5 mm from its centroid, a third of its
+    # thickness (16 pads: 5.2 mm); on pads under every factor, thickness x 1.2 included, and on 16 pads
+    assert study[0]["scene"]["belt"]["footprint"] == dict(study[0]["scene"]["belt"]["footprint"], model="pads", pads=8)
+    _every_factor(study, "rect-a8", "straight:45|none")
     _every_factor(study, "rect-a8", "straight:45|none", base_model="pads16+outline")
 
 

@@ -179,9 +179,9 @@ def test_overlays_of_committed_paper_scale_results_keep_the_59_protocol_parts(ov
     assert len(G.wide_parts(cfg, every)) == 62 and set(every) - set(G.wide_parts(cfg, every)) == set(parts)
 
 
-@pytest.mark.parametrize("overlay", [None, "config/full.yaml"], ids=["default", "full"])
+@pytest.mark.parametrize("overlay", [None, "config/quick.yaml"], ids=["default", "quick"])
 def test_config_matches_table4_scale(overlay):
-    """The default's cut grid and the paper-scale grid (config/full.yaml) have the datasets of
+    """The default (the paper-scale grid) and the cut grid (config/quick.yaml) have the datasets of
     Table 4: holdout parts, Main rows per part, a Fences set over its own parts."""
     from feeder.config import load_study_config
 
@@ -192,8 +192,9 @@ def test_config_matches_table4_scale(overlay):
     assert sizes.loc["main", "parts"] == 38 and sizes.loc["main", "n"] == 38 * cfg["fences"]["main_per_part"]
     fences = sizes.loc["fences"]
     assert fences.n == cfg["datasets"]["fences_samples"] and fences.parts == cfg["datasets"]["fences_parts"]
-    if overlay:  # the paper's scale: 19 Main configurations per part, 78 Fences rows over 18 parts
+    if not overlay:  # the paper's scale: 19 Main configurations per part, 78 Fences rows over 18 parts
         assert cfg["fences"]["main_per_part"] == 19 and (fences.n, fences.parts) == (78, 18)
+        assert sizes.loc["parts", "n"] == 3 * 37
     assert sizes.loc["parts", "parts"] == 3
     # no straight fence at an angle where parts jam (tan(90 - angle) <= 0.5)
     assert max(cfg["fences"]["straight_angles"]) < 63.4
