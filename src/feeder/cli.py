@@ -79,6 +79,10 @@ COMMANDS: dict[str, tuple[str, str]] = {
         "feeder.learn.generalisation_sets",
         "every predictor on unseen parts by library set: the protocol parts and the wider library",
     ),
+    "neighbour": (
+        "feeder.learn.neighbour",
+        "known parts at new angles: the part's nearest simulated angle (shifted by the analytic model) against the baselines",
+    ),
     "structured": (
         "feeder.learn.structured_protocol",
         "train and score the structured predictor (candidate masses, offsets, widths, ok mass) under the protocol",

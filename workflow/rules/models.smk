@@ -10,6 +10,7 @@
 # The §3.4.1 grid search is not part of the DAG: `feeder train -m hparams_search=grid model=m3`.
 import shlex
 
+from feeder.config import resolved_yaml
 from feeder.learn.export import shipped_models
 from feeder.learn.train import resolved_config_yaml
 
@@ -35,6 +36,7 @@ MODELS_TARGETS = [
     *expand(f"{RESULTS}/tables/breakdown_{{split}}.{{ext}}", split=["fences", "parts"], ext=["csv", "md"]),
     f"{RESULTS}/tables/generalisation.csv",
     f"{RESULTS}/tables/generalisation_by_set.csv",
+    f"{RESULTS}/tables/neighbour.csv",
     f"{RESULTS}/figures/fig12_test_predictions.png",
     f"{RESULTS}/figures/fig13_parts_predictions.png",
     *expand(f"{EXPORT_DIR}/{{model}}", model=SHIPPED),
@@ -192,6 +194,28 @@ rule generalisation_by_set:
     shell:
         "feeder generalisation-sets --groupkfold {input.groupkfold} --configurations {input.configurations}"
         " --out {output.csv} {params.bootstrap} > {log} 2>&1"
+
+
+rule neighbour:
+    """Known parts at new angles: each Test configuration from the part's nearest simulated angle
+    (rolled by the analytic model's shift), against the analytic and mean PMFs on the repeated Main
+    splits of the structured protocol (feeder neighbour; config/hydra/structured.yaml)."""
+    input:
+        code("neighbour"),
+        dataset=DATASET,
+    output:
+        csv=report(f"{RESULTS}/tables/neighbour.csv", caption="../report/neighbour.rst", category="Models"),
+        rows=f"{RESULTS}/tables/neighbour_rows.csv",
+    log:
+        f"{LOGS}/models/neighbour.log",
+    benchmark:
+        f"{BENCHMARKS}/models/neighbour.tsv"
+    conda:
+        "../envs/feeder.yaml"
+    params:
+        settings=resolved_yaml("structured", drop=("candidates", "model", "train", "search")),
+    shell:
+        "feeder neighbour --dataset {input.dataset} --out-csv {output.csv} --out-rows {output.rows} > {log} 2>&1"
 
 
 rule prediction_figure_data:

@@ -1,0 +1,254 @@
+"""The part's own neighbour: a known part at a new fence angle, predicted from its nearest simulated angle.
+
+Issue #39's baseline for "known parts at new angles". Between two transitions of its basins a part's
+PMF moves smoothly with the fence angle: the same basins, with masses and offsets that shift a
+little. So the label of the same part under the same fence types at the nearest angles is already
+a prediction, and a strong one on a grid as dense as the paper's (19 configurations per part).
+
+* :func:`neighbour_index`: for each target row, the training row of the same part and the same
+  fence-type combination at the least angle distance ``|Δθ1| + |Δθ2|`` (degrees; ``none`` has no
+  angle), ties to the earlier row; -1 where the part has none.
+* **neighbour**: that row's label as it is.
+* **neighbour_shift** (angle-equivariant): that row's label rolled by the whole-bin shift that best
+  carries the neighbour's analytic PMF onto the target's (least circular W1, within
+  ``max_shift_deg``; ties to the smaller shift). The analytic push model knows how a resting
+  orientation follows the fence angle; the simulated label supplies the masses. No label of a
+  target row is read.
+
+Where a part has no training row of its combination, both fall back to the analytic PMF and the
+row is counted (``fallback``). :func:`run_neighbour` scores them with the analytic PMF, the
+training-mean PMF and the labels' own neighbour on the repeated Main splits of the structured
+protocol (:mod:`feeder.learn.structured_protocol`), paired.
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from feeder.errors import FeederError
+
+NEIGHBOUR = "neighbour"
+SHIFTED = "neighbour_shift"
+ANALYTIC = "analytic_pmf"
+MEAN = "mean_pmf"
+PREDICTORS = (SHIFTED, NEIGHBOUR, ANALYTIC, MEAN)
+
+
+# ----------------------------------------------------------------------------------------------
+# Pure functions
+# ----------------------------------------------------------------------------------------------
+def fence_key(config_id: str) -> tuple[tuple[str, str], tuple[float, float]]:
+    """(the type combination, the two angles) of a configuration id; ``none`` has angle 0."""
+    from feeder.lane.fences import parse_config_id
+
+    a, b = parse_config_id(str(config_id))
+    return (a.type, b.type), (float(a.angle), float(b.angle))
+
+
+def neighbour_index(parts, config_ids, train, rows) -> np.ndarray:
+    """For each of ``rows``: the index of the nearest training row (``train``, a boolean mask) of
+    the same part and type combination, by ``|Δθ1| + |Δθ2|``, ties to the lower index; -1 if none.
+    A row is never its own neighbour."""
+    parts = np.asarray(parts).astype(str)
+    keys = [fence_key(c) for c in config_ids]
+    train = np.asarray(train, dtype=bool)
+    by_group: dict[tuple, list[int]] = {}
+    for j in np.flatnonzero(train):
+        by_group.setdefault((parts[j], keys[j][0]), []).append(int(j))
+    out = np.full(len(rows), -1, dtype=np.int64)
+    for n, i in enumerate(rows):
+        pool = [j for j in by_group.get((parts[i], keys[i][0]), []) if j != i]
+        if pool:
+            angles = np.array([keys[j][1] for j in pool])
+            dist = np.abs(angles - np.array(keys[i][1])).sum(axis=1)
+            out[n] = pool[int(np.argmin(dist))]  # argmin: the first of equals, pools are in index order
+    return out
+
+
+def roll_pmf(pmf, shift_bins: int) -> np.ndarray:
+    """``pmf`` moved ``shift_bins`` bins up the circle (wrapping at 360°)."""
+    return np.roll(np.asarray(pmf, dtype=np.float64), int(shift_bins), axis=-1)
+
+
+def best_shift(target, source, max_shift_bins: int) -> int:
+    """The whole-bin shift ``s`` in ``[-max_shift_bins, max_shift_bins]`` whose ``roll(source, s)``
+    lies nearest ``target`` by circular W1; ties go to the smaller ``|s|``, then the negative one.
+    0 where either PMF holds no mass (an analytic model that jams every drop)."""
+    from feeder.labels.metrics import circular_w1
+
+    target, source = np.asarray(target, np.float64), np.asarray(source, np.float64)
+    if not (target.sum() > 0 and source.sum() > 0):
+        return 0
+    m = int(max_shift_bins)
+    shifts = np.array(sorted(range(-m, m + 1), key=lambda s: (abs(s), s)))
+    rolled = np.stack([np.roll(source / source.sum(), s) for s in shifts])
+    w1 = circular_w1(np.cumsum(target / target.sum()), np.cumsum(rolled, axis=1))
+    return int(shifts[int(np.argmin(w1))])
+
+
+def neighbour_pmfs(pmf, analytic, parts, config_ids, train, rows, max_shift_bins: int) -> dict:
+    """The neighbour predictions of ``rows`` (module doc): ``neighbour`` and ``neighbour_shift``
+    PMFs, each row's neighbour ``index`` (-1: none), its ``shift`` in bins and ``fallback``."""
+    rows = np.asarray(rows, dtype=np.int64)
+    idx = neighbour_index(parts, config_ids, train, rows)
+    plain = np.asarray(analytic, np.float64)[rows].copy()
+    shifted = plain.copy()
+    shift = np.zeros(rows.size, dtype=np.int64)
+    for n, (i, j) in enumerate(zip(rows, idx, strict=True)):
+        if j < 0:
+            continue
+        shift[n] = best_shift(analytic[i], analytic[j], max_shift_bins)
+        plain[n] = pmf[j]
+        shifted[n] = roll_pmf(pmf[j], shift[n])
+    return {NEIGHBOUR: plain, SHIFTED: shifted, "index": idx, "shift": shift, "fallback": idx < 0}
+
+
+# ----------------------------------------------------------------------------------------------
+# The experiment
+# ----------------------------------------------------------------------------------------------
+def main_splits(split, repeats: int, test_fraction: float, seed: int) -> list[np.ndarray]:
+    """Boolean Test masks of the repeated Main splits: repeat 0 the dataset's own Test rows, then
+    ``test_fraction`` of the Main rows re-drawn per repeat (the structured protocol's splits)."""
+    from feeder.learn.structured_protocol import derived_seed, resplit_rows
+
+    split = np.asarray(split).astype(str)
+    main = np.isin(split, ["train", "test"])
+    out = [main & (split == "test")]
+    for r in range(1, int(repeats)):
+        test = np.zeros(split.size, dtype=bool)
+        test[resplit_rows(np.flatnonzero(main), float(test_fraction), derived_seed(int(seed), "main", r))] = True
+        out.append(test)
+    return out
+
+
+def score_repeats(data: dict, repeats: int, test_fraction: float, seed: int, max_shift_bins: int) -> pd.DataFrame:
+    """One row per Test configuration, repeat and predictor: circular W1 and the paper's R²,
+    the neighbour, its angle distance and shift. Training rows are the repeat's other Main rows."""
+    from feeder.labels.metrics import circular_w1, r2_cdf
+
+    pmf, analytic = np.asarray(data["pmf"], np.float64), np.asarray(data["pmf_analytic"], np.float64)
+    parts, cids, split = (np.asarray(data[k]).astype(str) for k in ("part", "config_id", "split"))
+    main = np.isin(split, ["train", "test"])
+    cdf = np.cumsum(pmf, axis=1)
+    out = []
+    for r, test in enumerate(main_splits(split, repeats, test_fraction, seed)):
+        train = main & ~test
+        rows = np.flatnonzero(test)
+        nb = neighbour_pmfs(pmf, analytic, parts, cids, train, rows, max_shift_bins)
+        preds = {
+            SHIFTED: nb[SHIFTED],
+            NEIGHBOUR: nb[NEIGHBOUR],
+            ANALYTIC: analytic[rows],
+            MEAN: np.broadcast_to(pmf[train].mean(axis=0), (rows.size, pmf.shape[1])),
+        }
+        dist = np.array(
+            [
+                np.nan if j < 0 else float(np.abs(np.subtract(fence_key(cids[i])[1], fence_key(cids[j])[1])).sum())
+                for i, j in zip(rows, nb["index"], strict=True)
+            ]
+        )
+        for name, p in preds.items():
+            pc = np.cumsum(p, axis=1)
+            cw1, r2 = circular_w1(cdf[rows], pc), r2_cdf(cdf[rows], pc)
+            for n, i in enumerate(rows):
+                out.append(
+                    {
+                        "repeat": r,
+                        "part": parts[i],
+                        "config_id": cids[i],
+                        "predictor": name,
+                        "cw1": float(cw1[n]),
+                        "r2": float(r2[n]),
+                        "neighbour": "" if nb["index"][n] < 0 else cids[nb["index"][n]],
+                        "angle_distance_deg": dist[n],
+                        "shift_deg": float(nb["shift"][n]) * 360.0 / pmf.shape[1],
+                        "fallback": bool(nb["fallback"][n]),
+                    }
+                )
+    return pd.DataFrame(out)
+
+
+def summary_table(long: pd.DataFrame, bootstrap: dict) -> pd.DataFrame:
+    """Per predictor: mean circular W1 and R² over configurations (each averaged over its
+    repeats), and its paired difference from the analytic PMF with a bootstrap interval."""
+    from feeder.learn.evaluate import paired_bootstrap, verdict
+
+    per = {p: long[long.predictor == p].groupby(["part", "config_id"])[["cw1", "r2"]].mean() for p in PREDICTORS}
+    base = per[ANALYTIC]
+    fallback = long[long.predictor == SHIFTED].groupby(["part", "config_id"]).fallback.mean()
+    rows = []
+    for p in PREDICTORS:
+        d = per[p]
+        for metric, sign in (("cw1", -1), ("r2", 1)):
+            diff = (d[metric] - base[metric]).to_numpy()
+            mean, lo, hi = paired_bootstrap(diff, bootstrap["resamples"], bootstrap["level"], bootstrap["seed"])
+            rows.append(
+                {
+                    "predictor": p,
+                    "metric": metric,
+                    "configurations": len(d),
+                    "repeats": int(long.repeat.nunique()),
+                    "value": float(d[metric].mean()),
+                    "median": float(d[metric].median()),
+                    "baseline": ANALYTIC,
+                    "baseline_value": float(base[metric].mean()),
+                    "diff": mean,
+                    "diff_low": lo,
+                    "diff_high": hi,
+                    "level": float(bootstrap["level"]),
+                    "verdict": "baseline" if p == ANALYTIC else verdict(lo, hi, sign),
+                    "fallback_share": float(fallback.mean()),
+                }
+            )
+    return pd.DataFrame(rows)
+
+
+def run_neighbour(data: dict, cfg) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """The long rows and the summary of the neighbour experiment under ``cfg`` (the structured
+    predictor's Hydra config: its ``protocol`` and ``neighbour`` nodes)."""
+    if "pmf_analytic" not in data:
+        raise FeederError("the dataset has no analytic PMFs (pmf_analytic): rebuild it with the part files")
+    bins = np.asarray(data["pmf"]).shape[1]
+    max_shift = float(cfg.neighbour.max_shift_deg)
+    if not 0 <= max_shift <= 180:
+        raise FeederError(f"neighbour.max_shift_deg must lie in [0, 180], got {max_shift}")
+    if not (np.isin(np.asarray(data["split"]).astype(str), ["train", "test"]).any()):
+        raise FeederError("the dataset has no Main rows (train/test)")
+    long = score_repeats(
+        data,
+        int(cfg.protocol.main_repeats),
+        float(cfg.protocol.test_fraction),
+        int(cfg.seed),
+        int(round(max_shift * bins / 360.0)),
+    )
+    return long, summary_table(long, dict(cfg.protocol.bootstrap))
+
+
+def _parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(
+        prog="feeder neighbour",
+        description="known parts at new angles: the part's nearest simulated angle against the analytic PMF",
+    )
+    p.add_argument("--dataset", type=Path, required=True, help="results/datasets/dataset.npz")
+    p.add_argument("--out-rows", type=Path, required=True, help="one row per configuration, repeat and predictor")
+    p.add_argument("--out-csv", type=Path, required=True, help="the summary (paired against the analytic PMF)")
+    p.add_argument("overrides", nargs="*", help="Hydra overrides of config/hydra/structured.yaml")
+    return p
+
+
+def main(argv: list[str]) -> int:
+    from feeder import io
+    from feeder.config import compose_config
+    from feeder.labels.dataset import load_dataset
+
+    args = _parser().parse_args(argv)
+    cfg = compose_config("structured", args.overrides)
+    long, table = run_neighbour(load_dataset(args.dataset), cfg)
+    io.write_csv(args.out_rows, long)
+    io.write_csv(args.out_csv, table)
+    print(table[table.metric == "cw1"].to_string(index=False))
+    return 0
