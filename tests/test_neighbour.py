@@ -8,6 +8,7 @@ from omegaconf import OmegaConf
 
 from feeder.errors import FeederError
 from feeder.learn import neighbour as N
+from feeder.learn.prior import Grids
 
 BINS = 360
 
@@ -113,14 +114,18 @@ def _cfg(**neighbour):
     )
 
 
+GRIDS = Grids(sigmas_bins=(0.0, 2.0), weights=(1.0, 0.5))
+
+
 def test_the_experiment_on_a_part_whose_basin_follows_the_angle():
-    long, table = N.run_neighbour(_data(), _cfg())
-    cw1 = table[table.metric == "cw1"].set_index("predictor")
+    long, table = N.run_neighbour(_data(), _cfg(), GRIDS)
+    cw1 = table[table.metric == "cw1"].set_index(["predictor", "baseline"])
     # the shifted neighbour carries the 10-deg-per-5-deg step exactly; the analytic PMF is 4 deg off
-    assert cw1.loc[N.SHIFTED, "value"] == pytest.approx(0.0, abs=1e-9)
-    assert cw1.loc[N.ANALYTIC, "value"] == pytest.approx(4.0)
-    assert cw1.loc[N.NEIGHBOUR, "value"] > 5.0  # the nearest angle's label as it is: 10 deg or more off
-    assert cw1.loc[N.SHIFTED, "verdict"] == "better" and cw1.loc[N.ANALYTIC, "verdict"] == "baseline"
+    assert cw1.loc[(N.SHIFTED, N.ANALYTIC), "value"] == pytest.approx(0.0, abs=1e-9)
+    assert cw1.loc[(N.SHIFTED, N.ANALYTIC), "baseline_value"] == pytest.approx(4.0)
+    assert cw1.loc[(N.NEIGHBOUR, N.ANALYTIC), "value"] > 5.0  # the nearest angle as it is: 10 deg or more off
+    assert set(cw1.loc[N.SHIFTED, "verdict"]) == {"better"}  # against every baseline and the plain neighbour
+    assert len(table) == 2 * len(N.COMPARISONS)
     assert set(long.repeat) == {0, 1} and not long.fallback.any()
     # repeat 0 is the dataset's own Test split
     own = set(zip(*(_data()[k][_data()["split"] == "test"] for k in ("part", "config_id")), strict=True))
@@ -137,4 +142,4 @@ def test_the_experiment_on_a_part_whose_basin_follows_the_angle():
 )
 def test_bad_input_is_one_clear_error(data, cfg, message):
     with pytest.raises(FeederError, match=message):
-        N.run_neighbour(data, cfg)
+        N.run_neighbour(data, cfg, GRIDS)

@@ -18,7 +18,8 @@ a prediction, and a strong one on a grid as dense as the paper's (19 configurati
 Where a part has no training row of its combination, both fall back to the analytic PMF and the
 row is counted (``fallback``). :func:`run_neighbour` scores them with the analytic PMF, the
 training-mean PMF and the labels' own neighbour on the repeated Main splits of the structured
-protocol (:mod:`feeder.learn.structured_protocol`), paired.
+protocol (:mod:`feeder.learn.structured_protocol`), paired: the analytic PMF, the analytic prior
+((σ, λ) fitted on the repeat's training rows, :mod:`feeder.learn.prior`) and the training-mean PMF.
 """
 
 from __future__ import annotations
@@ -34,8 +35,11 @@ from feeder.errors import FeederError
 NEIGHBOUR = "neighbour"
 SHIFTED = "neighbour_shift"
 ANALYTIC = "analytic_pmf"
+PRIOR = "analytic_prior"
 MEAN = "mean_pmf"
-PREDICTORS = (SHIFTED, NEIGHBOUR, ANALYTIC, MEAN)
+PREDICTORS = (SHIFTED, NEIGHBOUR, ANALYTIC, PRIOR, MEAN)
+# (predictor, baseline) pairs of the summary: the neighbours against every baseline, and each other
+COMPARISONS = tuple((p, b) for p in (SHIFTED, NEIGHBOUR) for b in (ANALYTIC, PRIOR, MEAN)) + ((SHIFTED, NEIGHBOUR),)
 
 
 # ----------------------------------------------------------------------------------------------
@@ -125,10 +129,13 @@ def main_splits(split, repeats: int, test_fraction: float, seed: int) -> list[np
     return out
 
 
-def score_repeats(data: dict, repeats: int, test_fraction: float, seed: int, max_shift_bins: int) -> pd.DataFrame:
+def score_repeats(
+    data: dict, repeats: int, test_fraction: float, seed: int, max_shift_bins: int, prior_grids
+) -> pd.DataFrame:
     """One row per Test configuration, repeat and predictor: circular W1 and the paper's R²,
     the neighbour, its angle distance and shift. Training rows are the repeat's other Main rows."""
     from feeder.labels.metrics import circular_w1, r2_cdf
+    from feeder.learn.prior import blend, fit_blend
 
     pmf, analytic = np.asarray(data["pmf"], np.float64), np.asarray(data["pmf_analytic"], np.float64)
     parts, cids, split = (np.asarray(data[k]).astype(str) for k in ("part", "config_id", "split"))
@@ -139,11 +146,14 @@ def score_repeats(data: dict, repeats: int, test_fraction: float, seed: int, max
         train = main & ~test
         rows = np.flatnonzero(test)
         nb = neighbour_pmfs(pmf, analytic, parts, cids, train, rows, max_shift_bins)
+        mean_pmf = pmf[train].mean(axis=0)
+        prior = fit_blend(pmf, analytic, train, prior_grids.sigmas_bins, prior_grids.weights)
         preds = {
             SHIFTED: nb[SHIFTED],
             NEIGHBOUR: nb[NEIGHBOUR],
             ANALYTIC: analytic[rows],
-            MEAN: np.broadcast_to(pmf[train].mean(axis=0), (rows.size, pmf.shape[1])),
+            PRIOR: blend(analytic[rows], mean_pmf, prior.sigma_bins, prior.weight),
+            MEAN: np.broadcast_to(mean_pmf, (rows.size, pmf.shape[1])),
         }
         dist = np.array(
             [
@@ -173,43 +183,48 @@ def score_repeats(data: dict, repeats: int, test_fraction: float, seed: int, max
 
 
 def summary_table(long: pd.DataFrame, bootstrap: dict) -> pd.DataFrame:
-    """Per predictor: mean circular W1 and R² over configurations (each averaged over its
-    repeats), and its paired difference from the analytic PMF with a bootstrap interval."""
+    """Per comparison of ``COMPARISONS`` and metric: both means over configurations (each averaged
+    over the repeats that hold it out), the predictor's median, and their paired difference with a
+    bootstrap interval over configurations."""
     from feeder.learn.evaluate import paired_bootstrap, verdict
 
     per = {p: long[long.predictor == p].groupby(["part", "config_id"])[["cw1", "r2"]].mean() for p in PREDICTORS}
-    base = per[ANALYTIC]
     fallback = long[long.predictor == SHIFTED].groupby(["part", "config_id"]).fallback.mean()
     rows = []
-    for p in PREDICTORS:
-        d = per[p]
+    for p, b in COMPARISONS:
         for metric, sign in (("cw1", -1), ("r2", 1)):
-            diff = (d[metric] - base[metric]).to_numpy()
-            mean, lo, hi = paired_bootstrap(diff, bootstrap["resamples"], bootstrap["level"], bootstrap["seed"])
+            mean, lo, hi = paired_bootstrap(
+                (per[p][metric] - per[b][metric]).to_numpy(),
+                bootstrap["resamples"],
+                bootstrap["level"],
+                bootstrap["seed"],
+            )
             rows.append(
                 {
                     "predictor": p,
+                    "baseline": b,
                     "metric": metric,
-                    "configurations": len(d),
+                    "configurations": len(per[p]),
                     "repeats": int(long.repeat.nunique()),
-                    "value": float(d[metric].mean()),
-                    "median": float(d[metric].median()),
-                    "baseline": ANALYTIC,
-                    "baseline_value": float(base[metric].mean()),
+                    "value": float(per[p][metric].mean()),
+                    "median": float(per[p][metric].median()),
+                    "baseline_value": float(per[b][metric].mean()),
+                    "baseline_median": float(per[b][metric].median()),
                     "diff": mean,
                     "diff_low": lo,
                     "diff_high": hi,
                     "level": float(bootstrap["level"]),
-                    "verdict": "baseline" if p == ANALYTIC else verdict(lo, hi, sign),
+                    "verdict": verdict(lo, hi, sign),
                     "fallback_share": float(fallback.mean()),
                 }
             )
     return pd.DataFrame(rows)
 
 
-def run_neighbour(data: dict, cfg) -> tuple[pd.DataFrame, pd.DataFrame]:
+def run_neighbour(data: dict, cfg, prior_grids) -> tuple[pd.DataFrame, pd.DataFrame]:
     """The long rows and the summary of the neighbour experiment under ``cfg`` (the structured
-    predictor's Hydra config: its ``protocol`` and ``neighbour`` nodes)."""
+    predictor's Hydra config: its ``protocol`` and ``neighbour`` nodes) and the analytic prior's
+    ``prior_grids`` (:func:`feeder.learn.prior.grids`)."""
     if "pmf_analytic" not in data:
         raise FeederError("the dataset has no analytic PMFs (pmf_analytic): rebuild it with the part files")
     bins = np.asarray(data["pmf"]).shape[1]
@@ -224,6 +239,7 @@ def run_neighbour(data: dict, cfg) -> tuple[pd.DataFrame, pd.DataFrame]:
         float(cfg.protocol.test_fraction),
         int(cfg.seed),
         int(round(max_shift * bins / 360.0)),
+        prior_grids,
     )
     return long, summary_table(long, dict(cfg.protocol.bootstrap))
 
@@ -244,11 +260,14 @@ def main(argv: list[str]) -> int:
     from feeder import io
     from feeder.config import compose_config
     from feeder.labels.dataset import load_dataset
+    from feeder.learn.prior import grids
 
     args = _parser().parse_args(argv)
     cfg = compose_config("structured", args.overrides)
-    long, table = run_neighbour(load_dataset(args.dataset), cfg)
+    prior_grids = grids(compose_config("train")["prior"])
+    long, table = run_neighbour(load_dataset(args.dataset), cfg, prior_grids)
     io.write_csv(args.out_rows, long)
     io.write_csv(args.out_csv, table)
-    print(table[table.metric == "cw1"].to_string(index=False))
+    cols = ["predictor", "baseline", "value", "baseline_value", "diff", "diff_low", "diff_high", "verdict"]
+    print(table.loc[table.metric == "cw1", cols].to_string(index=False))
     return 0
