@@ -109,7 +109,7 @@ def _cfg(**neighbour):
                 "test_fraction": 0.25,
                 "bootstrap": {"resamples": 200, "level": 0.95, "seed": 0},
             },
-            "neighbour": {"max_shift_deg": 30.0, **neighbour},
+            "neighbour": {"max_shift_deg": 30.0, "gates_deg": [0, 5, 90], **neighbour},
         }
     )
 
@@ -143,3 +143,26 @@ def test_the_experiment_on_a_part_whose_basin_follows_the_angle():
 def test_bad_input_is_one_clear_error(data, cfg, message):
     with pytest.raises(FeederError, match=message):
         N.run_neighbour(data, cfg, GRIDS)
+
+
+def test_the_gate_is_chosen_on_training_rows_by_hand():
+    # part a: the label does not move with the angle (the neighbour is exact), the analytic PMF is
+    # 4 deg off; angles 5 deg apart, so every gate from 5 on scores 0 and 5 is the smallest
+    parts = ["a"] * 4
+    cids = ["straight20_none", "straight25_none", "straight30_none", "straight35_none"]
+    pmf = np.stack([spike(50)] * 4)
+    analytic = np.stack([spike(54)] * 4)
+    train = np.ones(4, bool)
+    assert N.choose_gate(pmf, analytic, parts, cids, train, [0, 2.5, 5, 10]) == 5.0
+    assert N.choose_gate(pmf, analytic, parts, cids, train, [10, 0]) == 10.0
+    # the analytic PMF exact instead: no neighbour is better, gate 0 (the analytic PMF everywhere)
+    assert N.choose_gate(analytic, analytic, parts, cids, train, [0, 5, 10]) == 0.0
+    assert N.angle_distance("straight30_curved20", "straight35_curved40") == 25.0
+
+
+def test_the_gated_neighbour_follows_its_gate():
+    long, _ = N.run_neighbour(_data(), _cfg(gates_deg=[0, 5]), GRIDS)
+    # on _data the neighbour (10 deg off) is worse than the analytic PMF (4 deg): gate 0, the analytic PMF
+    gated = long[long.predictor == N.GATED]
+    assert set(gated.gate_deg) == {0.0}
+    assert gated.cw1.to_numpy() == pytest.approx(long[long.predictor == N.ANALYTIC].cw1.to_numpy())

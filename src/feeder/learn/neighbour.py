@@ -15,6 +15,11 @@ a prediction, and a strong one on a grid as dense as the paper's (19 configurati
   orientation follows the fence angle; the simulated label supplies the masses. No label of a
   target row is read.
 
+* **neighbour_gated**: the neighbour's label where it lies within ``gate`` degrees of angle distance,
+  the analytic PMF elsewhere. ``gate`` is chosen from ``neighbour.gates_deg`` on the training rows
+  alone (each training row predicted from its own nearest other training row; the least mean
+  circular W1, ties to the smaller gate), never on the rows it is scored on.
+
 Where a part has no training row of its combination, both fall back to the analytic PMF and the
 row is counted (``fallback``). :func:`run_neighbour` scores them with the analytic PMF, the
 training-mean PMF and the labels' own neighbour on the repeated Main splits of the structured
@@ -34,12 +39,15 @@ from feeder.errors import FeederError
 
 NEIGHBOUR = "neighbour"
 SHIFTED = "neighbour_shift"
+GATED = "neighbour_gated"
 ANALYTIC = "analytic_pmf"
 PRIOR = "analytic_prior"
 MEAN = "mean_pmf"
-PREDICTORS = (SHIFTED, NEIGHBOUR, ANALYTIC, PRIOR, MEAN)
+PREDICTORS = (GATED, NEIGHBOUR, SHIFTED, ANALYTIC, PRIOR, MEAN)
 # (predictor, baseline) pairs of the summary: the neighbours against every baseline, and each other
-COMPARISONS = tuple((p, b) for p in (SHIFTED, NEIGHBOUR) for b in (ANALYTIC, PRIOR, MEAN)) + ((SHIFTED, NEIGHBOUR),)
+COMPARISONS = tuple((p, b) for p in (GATED, NEIGHBOUR, SHIFTED) for b in (ANALYTIC, PRIOR, MEAN)) + (
+    (SHIFTED, NEIGHBOUR),
+)
 
 
 # ----------------------------------------------------------------------------------------------
@@ -111,6 +119,32 @@ def neighbour_pmfs(pmf, analytic, parts, config_ids, train, rows, max_shift_bins
     return {NEIGHBOUR: plain, SHIFTED: shifted, "index": idx, "shift": shift, "fallback": idx < 0}
 
 
+def angle_distance(config_a: str, config_b: str) -> float:
+    """``|Δθ1| + |Δθ2|`` in degrees between two configurations (of one type combination)."""
+    return float(np.abs(np.subtract(fence_key(config_a)[1], fence_key(config_b)[1])).sum())
+
+
+def choose_gate(pmf, analytic, parts, config_ids, train, gates) -> float:
+    """The gate of ``gates`` (degrees) whose gated neighbour scores the least mean circular W1 on the
+    training rows, each predicted from its nearest *other* training row; ties to the smaller gate."""
+    from feeder.labels.metrics import circular_w1
+
+    rows = np.flatnonzero(np.asarray(train, dtype=bool))
+    if not len(gates):
+        raise FeederError("neighbour.gates_deg must hold at least one gate")
+    idx = neighbour_index(parts, config_ids, train, rows)
+    have = idx >= 0
+    cdf = np.cumsum(pmf[rows], axis=1)
+    w_nb = np.full(rows.size, np.inf)
+    w_nb[have] = circular_w1(cdf[have], np.cumsum(pmf[idx[have]], axis=1))
+    w_an = circular_w1(cdf, np.cumsum(analytic[rows], axis=1))
+    dist = np.array(
+        [angle_distance(config_ids[i], config_ids[j]) if j >= 0 else np.inf for i, j in zip(rows, idx, strict=True)]
+    )
+    scores = [float(np.where(dist <= g, w_nb, w_an).mean()) for g in sorted(gates)]
+    return float(sorted(gates)[int(np.argmin(scores))])
+
+
 # ----------------------------------------------------------------------------------------------
 # The experiment
 # ----------------------------------------------------------------------------------------------
@@ -130,7 +164,7 @@ def main_splits(split, repeats: int, test_fraction: float, seed: int) -> list[np
 
 
 def score_repeats(
-    data: dict, repeats: int, test_fraction: float, seed: int, max_shift_bins: int, prior_grids
+    data: dict, repeats: int, test_fraction: float, seed: int, max_shift_bins: int, prior_grids, gates=(0.0,)
 ) -> pd.DataFrame:
     """One row per Test configuration, repeat and predictor: circular W1 and the paper's R²,
     the neighbour, its angle distance and shift. Training rows are the repeat's other Main rows."""
@@ -148,19 +182,19 @@ def score_repeats(
         nb = neighbour_pmfs(pmf, analytic, parts, cids, train, rows, max_shift_bins)
         mean_pmf = pmf[train].mean(axis=0)
         prior = fit_blend(pmf, analytic, train, prior_grids.sigmas_bins, prior_grids.weights)
+        gate = choose_gate(pmf, analytic, parts, cids, train, [float(g) for g in gates])
+        dist = np.array(
+            [np.nan if j < 0 else angle_distance(cids[i], cids[j]) for i, j in zip(rows, nb["index"], strict=True)]
+        )
+        near = (dist <= gate)[:, None]  # NaN (no neighbour) compares False: the analytic PMF
         preds = {
+            GATED: np.where(near, nb[NEIGHBOUR], analytic[rows]),
             SHIFTED: nb[SHIFTED],
             NEIGHBOUR: nb[NEIGHBOUR],
             ANALYTIC: analytic[rows],
             PRIOR: blend(analytic[rows], mean_pmf, prior.sigma_bins, prior.weight),
             MEAN: np.broadcast_to(mean_pmf, (rows.size, pmf.shape[1])),
         }
-        dist = np.array(
-            [
-                np.nan if j < 0 else float(np.abs(np.subtract(fence_key(cids[i])[1], fence_key(cids[j])[1])).sum())
-                for i, j in zip(rows, nb["index"], strict=True)
-            ]
-        )
         for name, p in preds.items():
             pc = np.cumsum(p, axis=1)
             cw1, r2 = circular_w1(cdf[rows], pc), r2_cdf(cdf[rows], pc)
@@ -177,6 +211,7 @@ def score_repeats(
                         "angle_distance_deg": dist[n],
                         "shift_deg": float(nb["shift"][n]) * 360.0 / pmf.shape[1],
                         "fallback": bool(nb["fallback"][n]),
+                        "gate_deg": gate,
                     }
                 )
     return pd.DataFrame(out)
@@ -240,6 +275,7 @@ def run_neighbour(data: dict, cfg, prior_grids) -> tuple[pd.DataFrame, pd.DataFr
         int(cfg.seed),
         int(round(max_shift * bins / 360.0)),
         prior_grids,
+        list(cfg.neighbour.gates_deg),
     )
     return long, summary_table(long, dict(cfg.protocol.bootstrap))
 
