@@ -58,14 +58,18 @@ def test_summary_pairs_each_footprint_with_the_pieces_and_the_reference():
 
 
 def test_footprint_scene_sets_the_model_and_the_pad_count():
-    scene = {"belt": {"speed": 0.1}}
+    scene = {"belt": {"speed": 0.1}, "part": {"wall_contact": {"model": "outline", "depth": 0.002}}}
+    assert contact.footprint_scene(scene, "pads24", 0.002)["part"]["wall_contact"] == {
+        "model": "pieces",
+        "depth": 0.002,
+    }
     assert contact.footprint_scene(scene, "pads24", 0.002)["belt"]["footprint"] == {
         "model": "pads",
         "pads": 24,
         "pad_radius": 0.002,
     }
     assert contact.footprint_scene(scene, "pieces", 0.002)["belt"]["footprint"]["model"] == "pieces"
-    assert "footprint" not in scene["belt"]  # the caller's scene is left alone
+    assert "footprint" not in scene["belt"] and scene["part"]["wall_contact"]["model"] == "outline"  # left alone
 
 
 @pytest.mark.parametrize(

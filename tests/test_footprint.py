@@ -22,6 +22,10 @@ from feeder.sim.scene import footprint_setting
 
 ROOT = Path(__file__).resolve().parents[1]
 CFG = yaml.safe_load((ROOT / "config" / "config.yaml").read_text())
+# the pieces contact (config/pieces.yaml), which these tests were written for; the default's (pads and
+# outline slabs) is pinned in tests/test_sim_pinned.py and covered by tests/test_outline_contact.py
+CFG["scene"]["belt"]["footprint"]["model"] = "pieces"
+CFG["scene"]["part"]["wall_contact"]["model"] = "pieces"
 SCENE, FAST = CFG["scene"], CFG["sim"]["presets"]["fast"]
 RECT = PartGeometry.from_polygon("rect", [(0, 0), (0.04, 0), (0.04, 0.02), (0, 0.02)], 0.005)
 

@@ -26,6 +26,11 @@ from feeder.sim.simulate import simulate
 
 ROOT = Path(__file__).resolve().parents[1]
 CFG = yaml.safe_load((ROOT / "config" / "config.yaml").read_text())
+DEFAULT_SCENE = copy.deepcopy(CFG["scene"])  # config/config.yaml's own
+# the pieces contact (config/pieces.yaml), which these tests were written for; the default's (pads and
+# outline slabs) is pinned in tests/test_sim_pinned.py and covered by tests/test_outline_contact.py
+CFG["scene"]["belt"]["footprint"]["model"] = "pieces"
+CFG["scene"]["part"]["wall_contact"]["model"] = "pieces"
 SCENE, PRESETS = CFG["scene"], CFG["sim"]["presets"]
 FAST = PRESETS["fast"]
 RECT = PartGeometry.from_polygon("rect", [(0, 0), (0.04, 0), (0.04, 0.02), (0, 0.02)], 0.005)
@@ -262,7 +267,7 @@ def test_load_settings_without_json_reads_the_study_config_of_root_or_cwd(tmp_pa
     monkeypatch.chdir(study)
     assert load_settings() == (scene, {"fast": FAST})
     monkeypatch.chdir(tmp_path)  # no config here: the repository's
-    assert load_settings() == (SCENE, PRESETS)
+    assert load_settings() == (DEFAULT_SCENE, PRESETS)
 
 
 def test_load_settings_without_a_config_is_a_one_line_error(tmp_path):

@@ -81,7 +81,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     ),
     "neighbour": (
         "feeder.learn.neighbour",
-        "known parts at new angles: the part's nearest simulated angle (shifted by the analytic model) against the baselines",
+        "known parts at new angles: the part's nearest simulated angle against the analytic PMF and the mean PMF",
     ),
     "structured": (
         "feeder.learn.structured_protocol",

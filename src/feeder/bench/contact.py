@@ -28,8 +28,10 @@ PIECES = "pieces"
 
 
 def footprint_scene(scene: dict, footprint: str, pad_radius: float) -> dict:
-    """The scene with ``scene.belt.footprint`` set to ``pieces`` or ``padsK``."""
+    """The scene with ``scene.belt.footprint`` set to ``pieces`` or ``padsK``, walls and fences met
+    through the convex pieces (the bench compares belt footprints alone; the outline needs pads)."""
     scene = copy.deepcopy(scene)
+    scene["part"]["wall_contact"] = dict(scene["part"]["wall_contact"], model="pieces")
     if footprint == PIECES:
         scene["belt"]["footprint"] = {"model": "pieces", "pads": 1, "pad_radius": pad_radius}
     else:

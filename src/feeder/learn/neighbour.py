@@ -283,7 +283,7 @@ def run_neighbour(data: dict, cfg, prior_grids) -> tuple[pd.DataFrame, pd.DataFr
 def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="feeder neighbour",
-        description="known parts at new angles: the part's nearest simulated angle against the analytic PMF",
+        description=__doc__.split("\n")[0],
     )
     p.add_argument("--dataset", type=Path, required=True, help="results/datasets/dataset.npz")
     p.add_argument("--out-rows", type=Path, required=True, help="one row per configuration, repeat and predictor")
