@@ -205,7 +205,7 @@ rule neighbour:
         dataset=DATASET,
     output:
         csv=report(f"{RESULTS}/tables/neighbour.csv", caption="../report/neighbour.rst", category="Models"),
-        rows=f"{RESULTS}/tables/neighbour_rows.csv",
+        rows=f"{RESULTS}/neighbour/neighbour_rows.csv",  # every row kept: raw data, not a report table
     log:
         f"{LOGS}/models/neighbour.log",
     benchmark:
