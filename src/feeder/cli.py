@@ -93,6 +93,10 @@ COMMANDS: dict[str, tuple[str, str]] = {
         "feeder.learn.export",
         "copy a trained model into the repository's shipped-model folder with its model card",
     ),
+    "export-study": (
+        "feeder.learn.study",
+        "write models/study: the study's simulated labels, which predict and recommend answer from by default",
+    ),
     "vae": ("feeder.learn.vae", "VAE training and the partial-iteration study"),
     "delta": ("feeder.learn.delta", "delta-to-full correction sweep"),
     "cost": ("feeder.report", "gather workflow benchmarks into cost_by_stage"),

@@ -40,6 +40,7 @@ MODELS_TARGETS = [
     f"{RESULTS}/figures/fig12_test_predictions.png",
     f"{RESULTS}/figures/fig13_parts_predictions.png",
     *expand(f"{EXPORT_DIR}/{{model}}", model=SHIPPED),
+    f"{EXPORT_DIR}/study",
 ]
 # resolved Hydra settings of every model the DAG can train (composed once, at parse time)
 HYDRA_SETTINGS = {
@@ -218,6 +219,35 @@ rule neighbour:
         "feeder neighbour --dataset {input.dataset} --out-csv {output.csv} --out-rows {output.rows} > {log} 2>&1"
 
 
+rule export_study:
+    """The study's answer (models/study, committed): every simulated configuration as raw drops and
+    the neighbour gate, chosen on every labelled configuration. `feeder predict` and `feeder recommend`
+    answer from it without --model (feeder export-study; feeder.learn.study)."""
+    input:
+        code("export-study"),
+        configurations=f"{RESULTS}/datasets/configurations.csv",
+        sims=[sim_path(p, c) for p, c in zip(CONFIGS["part"], CONFIGS["config_id"])],
+        parts=expand("{dir}/{part}.stl", dir=config["parts"]["dir"], part=sorted(set(CONFIGS["part"]))),
+        dataset=DATASET,
+        neighbour=f"{RESULTS}/tables/neighbour.csv",
+    output:
+        directory(f"{EXPORT_DIR}/study"),
+    log:
+        f"{LOGS}/models/export_study.log",
+    benchmark:
+        f"{BENCHMARKS}/models/export_study.tsv"
+    conda:
+        "../envs/feeder.yaml"
+    params:
+        settings=resolved_yaml(
+            "structured", drop=("seed", "seeds", "candidates", "model", "train", "search", "protocol")
+        ),
+    shell:
+        "feeder export-study --configurations {input.configurations} --sim-dir $(dirname $(dirname {input.sims[0]}))"
+        " --parts-dir $(dirname {input.parts[0]}) --dataset {input.dataset} --neighbour-table {input.neighbour}"
+        " --out {output} > {log} 2>&1"
+
+
 rule prediction_figure_data:
     """Data of Figs. 12 (Test) and 13 (Parts): four representative CDF predictions of Model 3 each."""
     input:
@@ -241,7 +271,7 @@ rule prediction_figure_data:
 rule export_model:
     """A shipped model (models/<model>/, committed): the first seed's model with its scaler and a
     model card (training data, metrics on Test / Fences / Parts and unseen parts, the features'
-    version). `feeder predict` and `feeder recommend` use models/m3 when no --model is given."""
+    version). `feeder predict --model models/m3` and `feeder recommend --model models/m3` use it."""
     input:
         code("export-model"),
         model=f"{RESULTS}/models/{{model}}/seed{SEEDS[0]}/model.pt",

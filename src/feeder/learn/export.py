@@ -95,9 +95,12 @@ def add_model_option(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--model",
         type=Path,
-        help=f"trained model directory, or `analytic` for the untrained analytic push PMF (needs --part as "
-        f"an STL; the best answer for a new part by circular W1, docs/results.md) (default: the shipped "
-        f"model {shipped_model_dir()}, written by `feeder export-model`; ${MODEL_DIR_ENV} points elsewhere)",
+        help="`study` (the default): the study's simulated label of a part and configuration it simulated, "
+        "else the label of the part's nearest simulated angle within the gate, else the analytic push PMF "
+        "(models/study, written by `feeder export-study`; needs --part as an STL); `analytic`: the untrained "
+        "analytic push PMF alone, the best answer for a new part by circular W1 (docs/results.md); or a trained "
+        f"model directory, e.g. {shipped_model_dir()} (the paper's Model 3, `feeder export-model`; "
+        f"${MODEL_DIR_ENV}, when set, names the model folder used without --model)",
     )
 
 
@@ -398,8 +401,7 @@ def _card_purpose(card: dict) -> list[str]:
     name, spec = card["model"], card["spec"]
     seed = "unknown" if card["seed"] is None else card["seed"]
     inputs = str(spec.get("inputs") or "paper")  # a paper model's spec leaves it out
-    default = name == SHIPPED_MODEL  # the model predict and recommend use without --model
-    model_option = "" if default else f" --model {SHIPPED_ROOT}/{name}"
+    model_option = f" --model {SHIPPED_ROOT}/{name}"  # without --model the study answers (feeder.learn.study)
     return [
         f"# Model card: {name} (seed {seed})",
         "",
@@ -423,8 +425,8 @@ def _card_purpose(card: dict) -> list[str]:
         f"feeder recommend{model_option} --part my.stl --target 0 --tolerance 10",
         "```",
         "",
-        ("Both use this folder when `--model` is not given. " if default else "")
-        + "Predictions are only as good as the tables "
+        "Without `--model` both answer from the study's own simulations (`models/study`) and the analytic "
+        "push PMF instead, which the tables support better. Predictions are only as good as the tables "
         "below: check an important configuration with `feeder simulate`.",
         "",
         f"- label frame: `{card['label_frame']}` (yaws of a `principal`-frame model are moved back to the "

@@ -4,9 +4,13 @@ trained regression model, without simulating.
     feeder predict [--model results/models/m3/seed0] --part parts/<id>.stl --loc1 straight:30 --loc2 none \\
         [--out pmf.csv] [--plot pmf.png]
 
-Without ``--model`` the shipped model is used (``models/m3``, written by ``feeder export-model``;
-:func:`feeder.learn.export.shipped_model_dir`). A model folder with a card (``card.json``) whose
-features version is not the code's is refused (:func:`feeder.learn.export.check_card`).
+Without ``--model`` (or with ``--model study``) the study answers (:mod:`feeder.learn.study`, the
+folder ``models/study``): the simulated label of a part and configuration it simulated, the label of
+the part's nearest simulated angle within its gate, else the untrained analytic push PMF; it needs
+``--part`` as an STL and says on stderr which answer it gave. ``--model analytic`` is the analytic
+PMF alone; ``--model models/m3`` the paper's Model 3 (written by ``feeder export-model``). A model
+folder with a card (``card.json``) whose features version is not the code's is refused
+(:func:`feeder.learn.export.check_card`).
 
 The part's 45 DFT features come from its ``.stl``/``.xyz`` (:func:`feeder.parts.features.features_of_file`)
 or from a precomputed ``--features results/features/<id>.json``; the fences are parsed by
@@ -58,7 +62,16 @@ def choose_model(model_arg, prog: str, study: dict):
     trained model folder (:func:`load_model`; the shipped one without ``--model``). The choice is
     said on stderr."""
     from feeder.learn.analytic import AnalyticModel, is_analytic
+    from feeder.learn.study import is_study, study_model
 
+    if is_study(model_arg):
+        model = study_model(study)
+        print(
+            f"{prog}: the study's answer (its simulated labels where it has the part, else the analytic "
+            "push PMF; --model study)",
+            file=sys.stderr,
+        )
+        return model
     if is_analytic(model_arg):
         print(f"{prog}: the analytic push PMF (untrained; --model analytic)", file=sys.stderr)
         return AnalyticModel(int(study["labels"]["bins"]))
@@ -359,11 +372,19 @@ def main(argv: list[str]) -> int:
     check_push_source(model, args.part)
     t0 = time.perf_counter()
     part_raw, frame_deg = part_vector(args.part, args.features, scene=study.get("scene"))
+    if hasattr(model, "bind"):  # the study's predictor: what it knows of this part and configuration
+        from feeder.lane.fences import config_id, parse_location
+
+        known = model.bind(args.part, [config_id(parse_location(args.loc1), parse_location(args.loc2))])
+        print(f"feeder predict: {known}; answer: {model.describe(0)}", file=sys.stderr)
     t_dft = time.perf_counter()
     push_raw, analytic = push_inputs(model, args.part, [(args.loc1, args.loc2)], frame_deg, study)
     t1 = time.perf_counter()
     frame = predict_frame(model, part_raw, args.loc1, args.loc2, frame_deg, push_raw, analytic)
     t2 = time.perf_counter()
+    source = model.sources()[0] if hasattr(model, "sources") else "analytic"
+    if source != "analytic" and not frame["pmf"].sum() > 0:
+        raise FeederError(f"no orientation to give: in {model.describe(0)} no drop left the fences (ok mass 0)")
     if args.out is not None:
         from feeder.io import write_csv
 
@@ -373,7 +394,8 @@ def main(argv: list[str]) -> int:
     # the summary a person reads: on stdout unless stdout carries the table
     summary = orientation_summary(frame)
     if hasattr(model, "ok_mass") and push_raw is not None:
-        summary += f"\nshare of drops that leave without jamming (analytic): {float(model.ok_mass(push_raw)[0]):.2f}"
+        how = "simulated" if source != "analytic" else "analytic"
+        summary += f"\nshare of drops that leave without jamming ({how}): {float(model.ok_mass(push_raw)[0]):.2f}"
     print(summary, file=sys.stdout if args.out is not None else sys.stderr)
     if args.plot is not None:
         from feeder.io import save_figure

@@ -10,8 +10,10 @@ them by the predicted probability that the final yaw lies within ``--tolerance``
 
     feeder recommend [--model results/models/m3/seed0] --part my.stl --target 0 --tolerance 10
 
-Without ``--model`` the shipped model is used (``models/m3``, written by ``feeder export-model``;
-:func:`feeder.learn.export.shipped_model_dir`).
+Without ``--model`` the study answers (:mod:`feeder.learn.study`): its simulated labels for the
+configurations it simulated with this part, its nearest simulated angle within the gate, else the
+analytic push PMF; the column ``answer`` says which (``simulated``, ``neighbour``, ``analytic``).
+``--model models/m3`` ranks by the paper's Model 3 (``feeder export-model``).
 
 Predictions are only as good as the model (its card says how it did on unseen parts).
 ``--verify K`` checks the top K: each is simulated with the adaptive design and the study's
@@ -120,6 +122,8 @@ def rank(
         frame["predicted_ok_mass"] = model.ok_mass(push_raw)
         frame["probability_overall"] = frame["probability"] * frame["predicted_ok_mass"]
         key = "probability_overall"  # a configuration that always jams does not top the ranking
+    if hasattr(model, "sources"):  # the study's predictor: where each answer comes from
+        frame["answer"] = model.sources()
     return frame.sort_values(key, ascending=False, kind="stable").reset_index(drop=True)
 
 
@@ -225,6 +229,8 @@ def main(argv: list[str]) -> int:
     model = choose_model(args.model, "feeder recommend", study)
     check_push_source(model, args.part)
     part_raw, frame_deg = part_vector(args.part, args.features, "feeder recommend", study.get("scene"))
+    if hasattr(model, "bind"):  # the study's predictor: which configurations it has simulated for this part
+        print(f"feeder recommend: {model.bind(args.part, config_ids)}", file=sys.stderr)
     push_raw = analytic = None
     if model.needs_push or model.needs_analytic:
         from feeder.lane.fences import parse_config_id

@@ -1,0 +1,497 @@
+"""The study's own answer: its simulations where it has the part, the analytic push PMF elsewhere.
+
+``feeder predict`` and ``feeder recommend`` answer with this predictor when no ``--model`` is given
+(``--model study``). It is what the committed tables support (docs/results.md):
+
+* **a part the study simulated, at a configuration it simulated**: that configuration's label, as
+  the workflow labels it (the simulator's own answer, at no cost);
+* **a part the study simulated, at a new angle**: the label of its nearest simulated angle of the
+  same fence types, when that lies within the gate (``neighbour_gated`` of
+  ``results/tables/neighbour.csv``, which beats the analytic PMF on Test by a paired interval);
+* **anything else** (a new part, a fence-type combination the part was not simulated with, a
+  neighbour beyond the gate, another scene): the untrained analytic push PMF, which no trained
+  network beats on unseen parts (``results/tables/groupkfold_*_paired.csv``).
+
+A part is known by the SHA-256 of its STL file's bytes: the study's own ``parts/<id>.stl`` (or a
+byte-identical copy) is known, a re-exported one is new. The labels are the study's only for the
+scene they were simulated in: a study config with another scene gets the analytic PMF throughout.
+
+``feeder export-study`` writes the folder ``models/study`` (committed): ``labels.npz`` with every
+configuration's raw drops (final and initial yaws, statuses, design metadata: the labels are
+recomputed from them at the caller's bins and smoothing) and ``card.json`` with the gate, chosen on
+every labelled configuration (each from its nearest other one; :func:`feeder.learn.neighbour.choose_gate`),
+and the evidence it rests on.
+"""
+
+from __future__ import annotations
+
+import argparse
+import hashlib
+import json
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from feeder.errors import FeederError
+from feeder.learn.analytic import AnalyticModel, AnalyticSpec
+
+STUDY_MODEL = "study"  # the --model value that names this predictor (the default)
+STUDY_DIR = "study"  # its folder under the shipped-model root (models/study)
+LABELS_FILE = "labels.npz"
+CARD_FILE = "card.json"
+CARD_MARKDOWN = "MODEL_CARD.md"
+LIBRARY_FORMAT = 1  # version of the layout of labels.npz and card.json
+# how a row was answered (StudyModel.sources)
+SIMULATED, NEIGHBOUR, ANALYTIC = "simulated", "neighbour", "analytic"
+
+
+# ----------------------------------------------------------------------------------------------
+# Pure functions
+# ----------------------------------------------------------------------------------------------
+def file_digest(path) -> str:
+    """SHA-256 (hex) of a file's bytes: how the library knows a part."""
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+def scene_digest(scene: dict) -> str:
+    """SHA-256 (hex) of a scene as canonical JSON (sorted keys): two scenes that differ in any
+    value differ here."""
+    return hashlib.sha256(json.dumps(scene, sort_keys=True, separators=(",", ":")).encode()).hexdigest()
+
+
+def nearest_configuration(config_id: str, pool: list[str]) -> tuple[int, float]:
+    """The position in ``pool`` of the configuration of ``config_id``'s fence types nearest to it by
+    ``|Δθ1| + |Δθ2|`` (ties to the earlier one; :func:`feeder.learn.neighbour.neighbour_index`'s rule)
+    and that distance in degrees; ``(-1, inf)`` when no configuration of ``pool`` has its types."""
+    from feeder.learn.neighbour import fence_key
+
+    types, angles = fence_key(config_id)
+    best, dist = -1, float("inf")
+    for k, other in enumerate(pool):
+        t, a = fence_key(other)
+        if t != types:
+            continue
+        d = float(np.abs(np.subtract(a, angles)).sum())
+        if d < dist:
+            best, dist = k, d
+    return best, dist
+
+
+def check_gates(gates) -> list[float]:
+    """The candidate gates (degrees) as floats: at least one, each finite and >= 0; a one-line
+    FeederError otherwise."""
+    try:
+        out = [float(g) for g in gates]
+    except (TypeError, ValueError):
+        raise FeederError(f"neighbour.gates_deg: a list of angles in degrees, got {gates!r}") from None
+    if not out or not all(np.isfinite(out)) or min(out) < 0:
+        raise FeederError(f"neighbour.gates_deg: at least one finite angle >= 0, got {gates!r}")
+    return out
+
+
+def pad_rows(rows: list[np.ndarray], fill, dtype) -> np.ndarray:
+    """Ragged 1-D arrays as one (len(rows), longest) array, short rows filled with ``fill``."""
+    width = max((r.size for r in rows), default=0)
+    out = np.full((len(rows), width), fill, dtype=dtype)
+    for i, r in enumerate(rows):
+        out[i, : r.size] = r
+    return out
+
+
+# ----------------------------------------------------------------------------------------------
+# The library (models/study)
+# ----------------------------------------------------------------------------------------------
+@dataclass
+class Library:
+    """Every simulated configuration of the study, as raw drops (``labels.npz``) and its card."""
+
+    part: np.ndarray  # (n,) part id of each configuration
+    config_id: np.ndarray  # (n,)
+    kept: np.ndarray  # (n,) bool: a row of the dataset (not excluded as jammed): may serve as a neighbour
+    final_yaw_deg: np.ndarray  # (n, drops) NaN beyond a row's drops
+    initial_yaw_deg: np.ndarray  # (n, drops)
+    status: np.ndarray  # (n, drops) '' beyond a row's drops
+    drops: np.ndarray  # (n,) drops of each row
+    meta: np.ndarray  # (n,) the simulation file's design metadata (JSON)
+    part_ids: np.ndarray  # (p,) every part of the library ...
+    part_digests: np.ndarray  # (p,) ... and the SHA-256 of its STL
+    card: dict
+
+    def record(self, i: int):
+        """Row ``i`` as the :class:`feeder.sim.record.SimRecord` its simulation file held."""
+        from feeder.sim.record import record_of
+
+        n = int(self.drops[i])
+        return record_of(
+            {
+                "final_yaw_deg": self.final_yaw_deg[i, :n],
+                "initial_yaw_deg": self.initial_yaw_deg[i, :n],
+                "status": self.status[i, :n],
+                "meta": str(self.meta[i]),
+            }
+        )
+
+    def part_of(self, digest: str) -> str | None:
+        """The library's part id of an STL digest, or None."""
+        hit = np.flatnonzero(self.part_digests == digest)
+        return str(self.part_ids[hit[0]]) if hit.size else None
+
+
+def build_library(configurations: pd.DataFrame, sim_dir, parts_dir, dataset: dict) -> dict:
+    """The arrays of ``labels.npz`` from the study's simulation files (``sim_dir/<part>/<config>.npz``,
+    one per row of ``configurations``: columns ``part``, ``config_id``), its parts' STLs and the
+    dataset's kept rows (``part``, ``config_id``)."""
+    from feeder.sim.record import load_sim
+
+    if configurations.empty:
+        raise FeederError("export-study: the configuration table has no row")
+    kept_pairs = set(zip(np.asarray(dataset["part"]).astype(str), np.asarray(dataset["config_id"]).astype(str)))
+    parts, cids, kept, finals, initials, statuses, metas = [], [], [], [], [], [], []
+    for part, cid in zip(configurations["part"].astype(str), configurations["config_id"].astype(str), strict=True):
+        rec = load_sim(Path(sim_dir) / part / f"{cid}.npz", min_ok_drops=0)
+        if rec.initial is None:
+            raise FeederError(f"simulation file {sim_dir}/{part}/{cid}.npz has no initial yaws: rerun its simulation")
+        parts.append(part)
+        cids.append(cid)
+        kept.append((part, cid) in kept_pairs)
+        finals.append(np.where(rec.ok, rec.yaws, np.nan))
+        initials.append(rec.initial)
+        statuses.append(rec.status)
+        metas.append(json.dumps(rec.meta, sort_keys=True))
+    part_ids = sorted(set(parts))
+    digests = []
+    for p in part_ids:
+        stl = Path(parts_dir) / f"{p}.stl"
+        if not stl.is_file():
+            raise FeederError(f"export-study: part file {stl} is missing")
+        digests.append(file_digest(stl))
+    return {
+        "part": np.array(parts),
+        "config_id": np.array(cids),
+        "kept": np.array(kept, dtype=bool),
+        "final_yaw_deg": pad_rows(finals, np.nan, np.float64),
+        "initial_yaw_deg": pad_rows(initials, np.nan, np.float64),
+        "status": pad_rows(statuses, "", "<U16"),
+        "drops": np.array([f.size for f in finals], dtype=np.int64),
+        "meta": np.array(metas),
+        "part_ids": np.array(part_ids),
+        "part_digests": np.array(digests),
+    }
+
+
+def gate_scores(dataset: dict, gates) -> pd.DataFrame:
+    """Mean circular W1 of the gated neighbour at each gate over every labelled configuration of the
+    dataset, each predicted from its nearest other one of the same part and fence types
+    (:func:`feeder.learn.neighbour.choose_gate`'s score); one row per gate."""
+    from feeder.labels.metrics import circular_w1
+    from feeder.learn.neighbour import angle_distance, neighbour_index
+
+    pmf, analytic = np.asarray(dataset["pmf"], np.float64), np.asarray(dataset["pmf_analytic"], np.float64)
+    parts, cids = np.asarray(dataset["part"]).astype(str), np.asarray(dataset["config_id"]).astype(str)
+    rows = np.arange(pmf.shape[0])
+    idx = neighbour_index(parts, cids, np.ones(rows.size, dtype=bool), rows)
+    have = idx >= 0
+    cdf = np.cumsum(pmf, axis=1)
+    w_nb = np.full(rows.size, np.inf)
+    w_nb[have] = circular_w1(cdf[have], np.cumsum(pmf[idx[have]], axis=1))
+    w_an = circular_w1(cdf, np.cumsum(analytic, axis=1))
+    dist = np.array([angle_distance(cids[i], cids[j]) if j >= 0 else np.inf for i, j in zip(rows, idx, strict=True)])
+    out = []
+    for g in sorted(float(x) for x in gates):
+        use = dist <= g
+        out.append(
+            {
+                "gate_deg": g,
+                "configurations": int(rows.size),
+                "neighbour_share": float(use.mean()),
+                "circular_w1_deg": float(np.where(use, w_nb, w_an).mean()),
+            }
+        )
+    return pd.DataFrame(out)
+
+
+def neighbour_evidence(table: pd.DataFrame) -> dict:
+    """The Test comparison the card quotes: ``neighbour_gated`` against the analytic PMF by circular
+    W1 (``results/tables/neighbour.csv``)."""
+    hit = table[(table.predictor == "neighbour_gated") & (table.baseline == "analytic_pmf") & (table.metric == "cw1")]
+    if len(hit) != 1:
+        raise FeederError("export-study: the neighbour table has no neighbour_gated / analytic_pmf / cw1 row")
+    r = hit.iloc[0]
+    keys = ("configurations", "repeats", "value", "baseline_value", "diff", "diff_low", "diff_high", "level", "verdict")
+    return {k: (r[k].item() if hasattr(r[k], "item") else r[k]) for k in keys}
+
+
+def export_study(configurations, sim_dir, parts_dir, dataset_path, neighbour_table, gates, out) -> dict:
+    """Write ``out`` (``labels.npz``, ``card.json``, ``MODEL_CARD.md``) atomically; returns the card."""
+    with np.load(dataset_path, allow_pickle=False) as z:
+        dataset = {k: z[k] for k in ("part", "config_id", "pmf", "pmf_analytic", "settings")}
+    settings = json.loads(str(dataset["settings"]))
+    arrays = build_library(configurations, sim_dir, parts_dir, dataset)
+    scores = gate_scores(dataset, gates)
+    best = scores.loc[scores.circular_w1_deg.idxmin()]  # idxmin: the first (smallest) of equal gates
+    card = {
+        "format": LIBRARY_FORMAT,
+        "predictor": STUDY_MODEL,
+        "configurations": int(arrays["part"].size),
+        "labelled": int(arrays["kept"].sum()),
+        "parts": int(arrays["part_ids"].size),
+        "gate_deg": float(best.gate_deg),
+        "gate_scores": scores.to_dict(orient="records"),
+        "scene_sha256": scene_digest(settings["scene"]),
+        "sim": settings.get("sim", {}),
+        "test_evidence": neighbour_evidence(pd.read_csv(neighbour_table)),
+    }
+    _write_folder(Path(out), arrays, card)
+    return card
+
+
+def _write_folder(out: Path, arrays: dict, card: dict) -> None:
+    """``out`` with the library's files, all or nothing: written in a sibling folder, then swapped in
+    (:func:`feeder.learn.export.replace_dir`). Only an earlier export (or an empty folder) is replaced."""
+    import os
+    import shutil
+    import tempfile
+
+    from feeder.io import write_json, write_npz, write_text
+    from feeder.learn.export import _umask, replace_dir
+
+    if out.exists() and (not out.is_dir() or (not (out / CARD_FILE).is_file() and any(out.iterdir()))):
+        raise FeederError(f"--out {out} exists and is not an exported study folder (no {CARD_FILE}): not replacing it")
+    try:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        work = Path(tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".tmp", dir=out.parent))
+    except OSError as err:
+        raise FeederError(f"cannot write {out} ({err.strerror})") from None
+    try:
+        write_npz(work / LABELS_FILE, **arrays)
+        write_json(work / CARD_FILE, card)
+        write_text(work / CARD_MARKDOWN, card_markdown(card))
+        os.chmod(work, 0o777 & ~_umask())
+        try:
+            replace_dir(work, out)
+        except OSError as err:
+            raise FeederError(f"cannot write {out} ({err.strerror})") from None
+    finally:
+        if work.exists():
+            shutil.rmtree(work, ignore_errors=True)
+
+
+def card_markdown(card: dict) -> str:
+    """The human-readable card of the study's labels."""
+    ev = card["test_evidence"]
+    lines = [
+        "# The study's answer (`feeder predict` / `feeder recommend` without `--model`)",
+        "",
+        f"{card['configurations']} simulated configurations of {card['parts']} parts "
+        f"({card['labelled']} labelled, the rest excluded as jammed), as raw drops (`labels.npz`).",
+        "",
+        "- A configuration the study simulated: its label (the simulator's answer).",
+        f"- A simulated part at a new angle: the label of its nearest simulated angle of the same fence types "
+        f"within {card['gate_deg']:g} degrees (|d theta1| + |d theta2|), else the analytic push PMF.",
+        "- A new part, or another scene: the analytic push PMF.",
+        "",
+        f"Test evidence (`results/tables/neighbour.csv`, {ev['configurations']} configurations x {ev['repeats']} "
+        f"Main splits): circular W1 {ev['value']:.1f} deg against {ev['baseline_value']:.1f} for the analytic PMF, "
+        f"{ev['diff']:+.1f} [{ev['diff_low']:.1f}, {ev['diff_high']:.1f}] ({ev['level']:.0%} paired bootstrap).",
+        "",
+        "The gate, chosen on every labelled configuration (each from its nearest other one):",
+        "",
+        "| gate (deg) | answered by a neighbour | mean circular W1 (deg) |",
+        "|---|---|---|",
+    ]
+    for s in card["gate_scores"]:
+        lines.append(f"| {s['gate_deg']:g} | {s['neighbour_share']:.0%} | {s['circular_w1_deg']:.2f} |")
+    return "\n".join(lines) + "\n"
+
+
+def study_dir() -> Path:
+    """``models/study`` at the repository root (beside the shipped models; located from the package)."""
+    import feeder
+    from feeder.learn.export import SHIPPED_ROOT
+
+    return Path(feeder.__file__).resolve().parents[2] / SHIPPED_ROOT / STUDY_DIR
+
+
+def load_library(folder: Path | None = None) -> Library:
+    """The library in ``folder`` (default :func:`study_dir`); a one-line FeederError when absent."""
+    folder = study_dir() if folder is None else Path(folder)
+    labels, card_path = folder / LABELS_FILE, folder / CARD_FILE
+    if not (labels.is_file() and card_path.is_file()):
+        raise FeederError(
+            f"the study's labels are not in {folder}: run `make run` (rule export_study), "
+            "or pass --model analytic or a model folder"
+        )
+    try:
+        card = json.loads(card_path.read_text())
+    except json.JSONDecodeError:
+        raise FeederError(f"{card_path} is not JSON: export the study again (feeder export-study)") from None
+    if not isinstance(card, dict) or card.get("format") != LIBRARY_FORMAT:
+        found = card.get("format") if isinstance(card, dict) else None
+        raise FeederError(f"{card_path}: format {found!r}, this code reads {LIBRARY_FORMAT}: export the study again")
+    with np.load(labels, allow_pickle=False) as z:
+        arrays = {k: z[k] for k in z.files}
+    return Library(**arrays, card=card)
+
+
+# ----------------------------------------------------------------------------------------------
+# The predictor
+# ----------------------------------------------------------------------------------------------
+class StudyModel(AnalyticModel):
+    """The study's labels where it has the part (module doc), the analytic push PMF elsewhere, over
+    ``bins`` yaw bins in the part's own frame. :meth:`bind` tells it the part and the rows'
+    configurations before :meth:`predict`."""
+
+    def __init__(self, bins: int, sigma: float, scene: dict, library: Library):
+        super().__init__(bins)
+        self.spec = AnalyticSpec(STUDY_MODEL, int(bins))
+        self.sigma = float(sigma)
+        self.library = library
+        self.same_scene = scene_digest(scene) == library.card["scene_sha256"]
+        self.answers: list[tuple[str, int, float]] | None = None  # per row: (source, library row, distance)
+
+    @property
+    def gate_deg(self) -> float:
+        return float(self.library.card["gate_deg"])
+
+    def bind(self, part: Path | None, config_ids) -> str:
+        """Decide each configuration's answer for ``part`` (an STL; None: features only, the analytic
+        PMF throughout); returns one line saying what the study knows of the part."""
+        lib = self.library
+        known = None if part is None or not self.same_scene else lib.part_of(file_digest(part))
+        self.answers = []
+        if known is None:
+            self.answers = [(ANALYTIC, -1, float("inf"))] * len(config_ids)
+            if part is not None and not self.same_scene:
+                return "the study's labels are of another scene: the analytic push PMF"
+            return "a part the study has not simulated: the analytic push PMF"
+        rows = np.flatnonzero(lib.part == known)
+        by_id = {str(lib.config_id[i]): int(i) for i in rows}
+        pool = [int(i) for i in rows if lib.kept[i]]
+        pool_ids = [str(lib.config_id[i]) for i in pool]
+        for cid in config_ids:
+            if cid in by_id:
+                self.answers.append((SIMULATED, by_id[cid], 0.0))
+                continue
+            k, dist = nearest_configuration(cid, pool_ids)
+            if k >= 0 and dist <= self.gate_deg:
+                self.answers.append((NEIGHBOUR, pool[k], dist))
+            else:
+                self.answers.append((ANALYTIC, -1, dist))
+        return f"part {known} of the study ({rows.size} simulated configurations)"
+
+    def describe(self, row: int = 0) -> str:
+        """How row ``row`` was answered, for a person."""
+        source, i, dist = self._answers()[row]
+        if source == SIMULATED:
+            return f"the study's simulated label of {self.library.config_id[i]}"
+        if source == NEIGHBOUR:
+            return (
+                f"the study's label of the nearest simulated angle {self.library.config_id[i]} "
+                f"({dist:g} deg away, gate {self.gate_deg:g})"
+            )
+        if np.isfinite(dist):
+            return f"the analytic push PMF (the nearest simulated angle is {dist:g} deg away, gate {self.gate_deg:g})"
+        return "the analytic push PMF"
+
+    def sources(self) -> list[str]:
+        return [a[0] for a in self._answers()]
+
+    def _answers(self):
+        if self.answers is None:
+            raise FeederError("the study's predictor needs bind(part, configurations) before it answers")
+        return self.answers
+
+    def _label(self, i: int):
+        from feeder.labels.pmf import sim_label
+
+        rec = self.library.record(i)
+        if not rec.ok.any():
+            return None, 0.0
+        label = sim_label(rec, self.spec.bins, self.sigma)
+        return label.pmf, float(label.ok_mass)
+
+    def predict(self, part_raw, feeder_raw, push_raw=None, analytic=None) -> tuple[np.ndarray, np.ndarray]:
+        """(pmf, cdf) of each row: the study's label where :meth:`bind` found one, else the analytic
+        PMF. A simulated configuration in which no drop left the fences has no PMF: a row of zeros
+        (its ok mass is 0; ``feeder predict`` says so)."""
+        answers = self._answers()
+        pmf, _ = super().predict(part_raw, feeder_raw, push_raw, analytic)
+        if len(answers) != pmf.shape[0]:
+            raise FeederError(f"the study's predictor was bound to {len(answers)} configurations, asked {pmf.shape[0]}")
+        for r, (source, i, _) in enumerate(answers):
+            if source != ANALYTIC:
+                label, _ = self._label(i)
+                pmf[r] = 0.0 if label is None else label
+        return pmf, np.cumsum(pmf, axis=1)
+
+    def ok_mass(self, push_raw) -> np.ndarray:
+        """The share of drops that leave without jamming: simulated where the row's answer is a label,
+        analytic elsewhere."""
+        ok = np.array(super().ok_mass(push_raw), dtype=np.float64)
+        for r, (source, i, _) in enumerate(self._answers()):
+            if source != ANALYTIC:
+                ok[r] = self._label(i)[1]
+        return ok
+
+
+def is_study(model_arg) -> bool:
+    """Whether ``--model`` names the study's predictor: ``study``, or no ``--model`` unless
+    ``$FEEDER_MODEL_DIR`` names a model folder to use instead (:func:`feeder.learn.export.shipped_model_dir`)."""
+    import os
+
+    from feeder.learn.export import MODEL_DIR_ENV
+
+    if model_arg is None:
+        return not os.environ.get(MODEL_DIR_ENV)
+    return str(model_arg) == STUDY_MODEL
+
+
+def study_model(study: dict, folder: Path | None = None) -> StudyModel:
+    """The study's predictor over the study config's ``labels`` and ``scene``."""
+    from feeder.mechanics.fence import default_scene
+
+    scene = study.get("scene") or default_scene()
+    return StudyModel(int(study["labels"]["bins"]), float(study["labels"]["sigma_bins"]), scene, load_library(folder))
+
+
+# ----------------------------------------------------------------------------------------------
+# feeder export-study
+# ----------------------------------------------------------------------------------------------
+def main(argv: list[str]) -> int:
+    parser = argparse.ArgumentParser(prog="feeder export-study", description=__doc__.split("\n\n")[0])
+    parser.add_argument("--configurations", type=Path, required=True, help="results/datasets/configurations.csv")
+    parser.add_argument("--sim-dir", type=Path, required=True, help="results/sim")
+    parser.add_argument("--parts-dir", type=Path, required=True, help="the parts' STLs (parts)")
+    parser.add_argument("--dataset", type=Path, required=True, help="results/datasets/dataset.npz")
+    parser.add_argument("--neighbour-table", type=Path, required=True, help="results/tables/neighbour.csv")
+    parser.add_argument("--out", type=Path, required=True, help="the folder to write (models/study; replaced)")
+    parser.add_argument(
+        "overrides", nargs="*", help="Hydra overrides of config/hydra/structured.yaml (the gates: neighbour.gates_deg)"
+    )
+    args = parser.parse_args(argv)
+    from feeder.config import compose_config
+
+    gates = check_gates(compose_config("structured", args.overrides)["neighbour"]["gates_deg"])
+    for path in (args.configurations, args.dataset, args.neighbour_table):
+        if not path.is_file():
+            raise FeederError(f"{path} is missing")
+    configurations = pd.read_csv(args.configurations)
+    missing = {"part", "config_id"} - set(configurations.columns)
+    if missing:
+        raise FeederError(f"{args.configurations}: no column {', '.join(sorted(missing))} (a configuration table)")
+    card = export_study(
+        configurations, args.sim_dir, args.parts_dir, args.dataset, args.neighbour_table, gates, args.out
+    )
+    print(
+        f"feeder export-study: {card['configurations']} configurations of {card['parts']} parts, "
+        f"gate {card['gate_deg']:g} deg -> {args.out}",
+        file=sys.stderr,
+    )
+    return 0

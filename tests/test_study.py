@@ -1,0 +1,301 @@
+"""The study's answer (feeder.learn.study): labels where the study simulated the part, the analytic PMF elsewhere."""
+
+from __future__ import annotations
+
+import hashlib
+import io
+import json
+import math
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from feeder.errors import FeederError
+from feeder.labels import metrics as L
+from feeder.learn import study as S
+from feeder.learn.export import MODEL_DIR_ENV
+from feeder.mechanics.features import PUSH_FEATURE_NAMES
+
+ROOT = Path(__file__).resolve().parents[1]
+SCENE = {"belt": {"speed": 0.1, "friction": 1.0}, "part": {"friction": 0.8}}
+RANDOM = json.dumps({"yaw_sampling": "random"})
+
+
+# ---------------------------------------------------------------------------------- pure functions
+def test_the_nearest_configuration_is_of_the_same_fence_types_by_angle_distance():
+    pool = ["straight30_none", "straight50_none", "curved40_none", "straight40_curved20", "straight20_none"]
+    assert S.nearest_configuration("straight35_none", pool) == (0, 5.0)
+    assert S.nearest_configuration("straight40_none", pool) == (0, 10.0)  # 30 and 50 both 10 away: the earlier
+    assert S.nearest_configuration("straight15_none", pool) == (4, 5.0)
+    assert S.nearest_configuration("curved10_none", pool) == (2, 30.0)
+    assert S.nearest_configuration("straight45_curved10", pool) == (3, 15.0)  # |5| + |10|
+    assert S.nearest_configuration("none_straight30", pool) == (-1, math.inf)  # no pool row has these types
+    assert S.nearest_configuration("straight30_none", []) == (-1, math.inf)
+
+
+def test_digests_tell_files_and_scenes_apart(tmp_path):
+    a, b = tmp_path / "a.stl", tmp_path / "b.stl"
+    a.write_bytes(b"solid a")
+    b.write_bytes(b"solid b")
+    assert S.file_digest(a) != S.file_digest(b) and S.file_digest(a) == S.file_digest(a)
+    assert S.file_digest(a) == hashlib.sha256(b"solid a").hexdigest()
+    reordered = {"part": {"friction": 0.8}, "belt": {"friction": 1.0, "speed": 0.1}}
+    assert S.scene_digest(SCENE) == S.scene_digest(reordered)
+    assert S.scene_digest(SCENE) != S.scene_digest({**SCENE, "part": {"friction": 0.81}})
+
+
+def test_ragged_rows_are_padded():
+    out = S.pad_rows([np.array([1.0, 2.0]), np.array([3.0])], np.nan, np.float64)
+    assert out.shape == (2, 2) and out[0].tolist() == [1.0, 2.0] and out[1, 0] == 3.0 and np.isnan(out[1, 1])
+    assert S.pad_rows([], 0, np.int64).shape == (0, 0)
+
+
+@pytest.mark.parametrize("gates", [[], [-1.0], [float("nan")], ["x"], None])
+def test_bad_gates_are_refused(gates):
+    with pytest.raises(FeederError, match="neighbour.gates_deg"):
+        S.check_gates(gates)
+
+
+# ----------------------------------------------------------------------------- a small library
+def _library(part_stl: Path, gate: float = 20.0) -> S.Library:
+    rows = [  # part, config, final yaws (NaN: not ok), statuses, kept
+        ("p", "straight30_none", [10.0, 10.0, 190.0, 190.0], ["ok"] * 4, True),
+        ("p", "straight60_none", [100.0] * 4, ["ok"] * 4, True),
+        ("p", "curved40_none", [np.nan] * 4, ["jammed"] * 4, False),
+        ("q", "straight30_none", [45.0] * 4, ["ok"] * 4, True),
+    ]
+    return S.Library(
+        part=np.array([r[0] for r in rows]),
+        config_id=np.array([r[1] for r in rows]),
+        kept=np.array([r[4] for r in rows]),
+        final_yaw_deg=np.array([r[2] for r in rows]),
+        initial_yaw_deg=np.tile(np.arange(4) * 90.0, (len(rows), 1)),
+        status=np.array([r[3] for r in rows]),
+        drops=np.full(len(rows), 4),
+        meta=np.array([RANDOM] * len(rows)),
+        part_ids=np.array(["p", "q"]),
+        part_digests=np.array([S.file_digest(part_stl), "0" * 64]),
+        card={"format": S.LIBRARY_FORMAT, "gate_deg": gate, "scene_sha256": S.scene_digest(SCENE)},
+    )
+
+
+@pytest.fixture
+def part_stl(tmp_path) -> Path:
+    path = tmp_path / "p.stl"
+    path.write_bytes(b"solid p\nendsolid p\n")
+    return path
+
+
+def _push(ok: float, rows: int) -> np.ndarray:
+    push = np.zeros((rows, len(PUSH_FEATURE_NAMES)))
+    push[:, PUSH_FEATURE_NAMES.index("ok_mass")] = ok
+    return push
+
+
+def test_each_configuration_gets_the_answer_the_tables_support(part_stl):
+    model = S.StudyModel(360, 1.0, SCENE, _library(part_stl))
+    ids = ["straight30_none", "straight45_none", "straight40_none", "curved40_none", "curved10_none", "none_none"]
+    assert model.bind(part_stl, ids) == "part p of the study (3 simulated configurations)"
+    # 45: 30 and 60 both 15 away (the earlier); curved10: the only curved row jams, so it is no neighbour
+    assert model.sources() == ["simulated", "neighbour", "neighbour", "simulated", "analytic", "analytic"]
+    assert [a[1] for a in model.answers] == [0, 0, 0, 2, -1, -1]
+    assert "straight30_none (15 deg away, gate 20)" in model.describe(1)
+    uniform = np.full((len(ids), 360), 1.0)
+    pmf, cdf = model.predict(np.zeros((len(ids), 45)), np.zeros((len(ids), 8)), _push(0.5, len(ids)), uniform)
+    want = L.pmf_from_yaws(np.array([10.0, 10.0, 190.0, 190.0]), 360, 1.0)
+    for r in (0, 1, 2):
+        assert np.allclose(pmf[r], want, atol=1e-15)
+    assert not pmf[3].any()  # every drop jammed: no orientation, ok mass 0
+    assert np.allclose(pmf[4:], 1.0 / 360) and np.allclose(cdf, np.cumsum(pmf, axis=1))
+    assert model.ok_mass(_push(0.5, len(ids))).tolist() == [1.0, 1.0, 1.0, 0.0, 0.5, 0.5]
+
+
+def test_a_gate_of_zero_answers_only_what_was_simulated(part_stl):
+    model = S.StudyModel(360, 1.0, SCENE, _library(part_stl, gate=0.0))
+    model.bind(part_stl, ["straight30_none", "straight31_none"])
+    assert model.sources() == ["simulated", "analytic"]
+    assert "1 deg away, gate 0" in model.describe(1)
+
+
+def test_a_new_part_or_another_scene_gets_the_analytic_pmf(part_stl, tmp_path):
+    other = tmp_path / "other.stl"
+    other.write_bytes(b"solid p\nendsolid p \n")  # one byte more: another file
+    model = S.StudyModel(360, 1.0, SCENE, _library(part_stl))
+    assert "not simulated" in model.bind(other, ["straight30_none"])
+    assert model.sources() == ["analytic"]
+    elsewhere = S.StudyModel(360, 1.0, {**SCENE, "belt": {"speed": 0.2, "friction": 1.0}}, _library(part_stl))
+    assert "another scene" in elsewhere.bind(part_stl, ["straight30_none"])
+    assert elsewhere.sources() == ["analytic"]
+    pmf, _ = elsewhere.predict(np.zeros((1, 45)), np.zeros((1, 8)), _push(1.0, 1), np.arange(360.0)[None] + 1)
+    assert np.allclose(pmf[0], (np.arange(360.0) + 1) / np.sum(np.arange(360.0) + 1))
+
+
+def test_the_predictor_must_be_bound_first(part_stl):
+    model = S.StudyModel(360, 1.0, SCENE, _library(part_stl))
+    with pytest.raises(FeederError, match="bind"):
+        model.predict(np.zeros((1, 45)), np.zeros((1, 8)), _push(1.0, 1), np.ones((1, 360)))
+    model.bind(part_stl, ["straight30_none"])
+    with pytest.raises(FeederError, match="bound to 1"):
+        model.predict(np.zeros((2, 45)), np.zeros((2, 8)), _push(1.0, 2), np.ones((2, 360)))
+
+
+# ------------------------------------------------------------------------------- export and load
+def _study_inputs(tmp_path: Path):
+    from feeder.io import write_npz
+
+    parts_dir, sim_dir = tmp_path / "parts", tmp_path / "sim"
+    parts_dir.mkdir()
+    (parts_dir / "p.stl").write_bytes(b"solid p\n")
+    ids = ["straight30_none", "straight40_none", "straight80_none", "curved40_none"]
+    yaws = {"straight30_none": 10.0, "straight40_none": 12.0, "straight80_none": 200.0, "curved40_none": 90.0}
+    for cid, yaw in yaws.items():
+        status = np.array(["ok", "ok", "jammed"] if cid != "curved40_none" else ["jammed"] * 3)
+        final = np.where(status == "ok", yaw, np.nan)
+        write_npz(
+            sim_dir / "p" / f"{cid}.npz",
+            final_yaw_deg=final,
+            initial_yaw_deg=np.array([0.0, 120.0, 240.0]),
+            status=status,
+            wall_s=np.float64(1.0),
+            cpu_s=np.float64(1.0),
+            meta=np.array(RANDOM),
+        )
+    labelled = ids[:3]
+    pmf = np.stack([L.pmf_from_yaws(np.array([yaws[c]]), 360, 1.0) for c in labelled])
+    analytic = np.stack([L.pmf_from_yaws(np.array([yaws[c] + 40.0]), 360, 1.0) for c in labelled])
+    write_npz(
+        tmp_path / "dataset.npz",
+        part=np.array(["p"] * 3),
+        config_id=np.array(labelled),
+        pmf=pmf,
+        pmf_analytic=analytic,
+        settings=np.array(json.dumps({"scene": SCENE, "sim": {"drops": 3}})),
+    )
+    pd.DataFrame({"part": ["p"] * 4, "config_id": ids}).to_csv(tmp_path / "configurations.csv", index=False)
+    cols = ["predictor", "baseline", "metric", "configurations", "repeats", "value", "baseline_value", "diff"]
+    cols += ["diff_low", "diff_high", "level", "verdict"]
+    row = ["neighbour_gated", "analytic_pmf", "cw1", 10, 3, 5.0, 8.0, -3.0, -4.0, -2.0, 0.95, "better"]
+    pd.DataFrame([row], columns=cols).to_csv(tmp_path / "neighbour.csv", index=False)
+    return parts_dir, sim_dir
+
+
+def test_export_writes_a_library_that_loads_back(tmp_path):
+    parts_dir, sim_dir = _study_inputs(tmp_path)
+    out = tmp_path / "models" / "study"
+    card = S.export_study(
+        pd.read_csv(tmp_path / "configurations.csv"),
+        sim_dir,
+        parts_dir,
+        tmp_path / "dataset.npz",
+        tmp_path / "neighbour.csv",
+        [0, 5, 20, 180],
+        out,
+    )
+    # each labelled row from its nearest other: 30 <- 40 (10 deg, W1 2), 40 <- 30 (2), 80 <- 40 (40 deg, 172
+    # around the circle); the analytic PMF is 40 deg off everywhere. Gate 20 takes the first two only.
+    scores = pd.DataFrame(card["gate_scores"]).set_index("gate_deg").circular_w1_deg
+    assert scores[0.0] == pytest.approx(40.0, abs=0.01) and scores[5.0] == pytest.approx(40.0, abs=0.01)
+    assert scores[20.0] == pytest.approx((2 + 2 + 40) / 3, abs=0.01)
+    assert scores[180.0] == pytest.approx((2 + 2 + 172) / 3, abs=0.01)
+    assert card["gate_deg"] == 20.0 and card["configurations"] == 4 and card["labelled"] == 3 and card["parts"] == 1
+    assert card["scene_sha256"] == S.scene_digest(SCENE) and card["test_evidence"]["diff"] == -3.0
+    lib = S.load_library(out)
+    assert lib.kept.tolist() == [True, True, True, False] and lib.drops.tolist() == [3, 3, 3, 3]
+    rec = lib.record(1)
+    assert rec.ok.tolist() == [True, True, False] and np.allclose(rec.yaws[:2], 12.0)
+    assert (out / "MODEL_CARD.md").read_text().count("|") > 10
+    (tmp_path / "plain").mkdir()
+    (tmp_path / "plain" / "notes.txt").write_text("mine")
+    with pytest.raises(FeederError, match="not an exported study folder"):
+        S.export_study(
+            pd.read_csv(tmp_path / "configurations.csv"),
+            sim_dir,
+            parts_dir,
+            tmp_path / "dataset.npz",
+            tmp_path / "neighbour.csv",
+            [0],
+            tmp_path / "plain",
+        )
+    assert (tmp_path / "plain" / "notes.txt").read_text() == "mine"
+
+
+def test_a_missing_or_foreign_library_is_a_one_line_error(tmp_path):
+    with pytest.raises(FeederError, match="make run"):
+        S.load_library(tmp_path / "nowhere")
+    folder = tmp_path / "study"
+    folder.mkdir()
+    (folder / S.LABELS_FILE).write_bytes(b"")
+    for text, message in [("{", "not JSON"), ('{"format": 99}', "format 99"), ("[]", "format None")]:
+        (folder / S.CARD_FILE).write_text(text)
+        with pytest.raises(FeederError, match=message):
+            S.load_library(folder)
+
+
+# ------------------------------------------------------------------- the committed library, by CLI
+def _cli(*args: str) -> subprocess.CompletedProcess:
+    env = {k: v for k, v in os.environ.items() if k != MODEL_DIR_ENV}
+    return subprocess.run([sys.executable, "-m", "feeder", *args], capture_output=True, text=True, env=env, timeout=300)
+
+
+def test_the_committed_library_is_of_the_default_scene():
+    from feeder.config import load_study_config
+
+    lib = S.load_library(ROOT / "models" / "study")
+    assert lib.card["scene_sha256"] == S.scene_digest(load_study_config(root=ROOT)["scene"])
+    for pid, digest in zip(lib.part_ids, lib.part_digests, strict=True):
+        assert S.file_digest(ROOT / "parts" / f"{pid}.stl") == digest, pid
+
+
+def test_predict_answers_a_simulated_configuration_with_its_label():
+    from feeder.labels.pmf import sim_label
+    from feeder.lane.fences import parse_config_id
+
+    lib = S.load_library(ROOT / "models" / "study")
+    i = int(np.flatnonzero(lib.kept)[0])
+    part, cid = str(lib.part[i]), str(lib.config_id[i])
+    loc1, loc2 = parse_config_id(cid)
+    proc = _cli("predict", "--part", str(ROOT / "parts" / f"{part}.stl"), "--loc1", loc1.spec, "--loc2", loc2.spec)
+    assert proc.returncode == 0, proc.stderr
+    assert f"the study's simulated label of {cid}" in proc.stderr
+    got = pd.read_csv(io.StringIO(proc.stdout))
+    want = sim_label(lib.record(i), 360, 1.0).pmf
+    assert np.allclose(got.pmf, want, atol=1e-9)
+
+
+def test_predict_gives_a_new_part_the_analytic_pmf(tmp_path):
+    from feeder.parts.geometry import stl_bytes
+
+    part = tmp_path / "my-bracket.stl"
+    part.write_bytes(stl_bytes(np.array([(0.0, 0.0), (31.0, -4.0), (47.0, 9.0), (38.0, 26.0), (-6.0, 14.0)]), 7.0, "b"))
+    base = ["predict", "--part", str(part), "--loc1", "straight:30", "--loc2", "none"]
+    study = _cli(*base, "--out", str(tmp_path / "s.csv"))
+    analytic = _cli(*base, "--model", "analytic", "--out", str(tmp_path / "a.csv"))
+    assert study.returncode == 0 and analytic.returncode == 0, study.stderr + analytic.stderr
+    assert "a part the study has not simulated" in study.stderr
+    assert pd.read_csv(tmp_path / "s.csv").equals(pd.read_csv(tmp_path / "a.csv"))
+
+
+def test_export_study_refuses_bad_input_in_one_line_and_writes_nothing(tmp_path):
+    parts_dir, sim_dir = _study_inputs(tmp_path)
+    (tmp_path / "bad.csv").write_text("part,config\np,straight30_none\n")
+    out = tmp_path / "models" / "study"
+    base = ["export-study", "--sim-dir", str(sim_dir), "--parts-dir", str(parts_dir), "--out", str(out)]
+    base += ["--dataset", str(tmp_path / "dataset.npz"), "--neighbour-table", str(tmp_path / "neighbour.csv")]
+    for configurations, gates, message in [
+        (tmp_path / "missing.csv", [], "missing.csv is missing"),
+        (tmp_path / "bad.csv", [], "no column config_id"),
+        (tmp_path / "configurations.csv", ["neighbour.gates_deg=[]"], "neighbour.gates_deg"),
+    ]:
+        proc = _cli(*base, "--configurations", str(configurations), *gates)
+        err = proc.stderr.strip()
+        assert proc.returncode != 0 and message in err and "\n" not in err and "Traceback" not in err, err
+        assert not out.exists()
+    (sim_dir / "p" / "straight40_none.npz").write_bytes(b"not a zip")
+    proc = _cli(*base, "--configurations", str(tmp_path / "configurations.csv"))
+    err = proc.stderr.strip()
+    assert proc.returncode != 0 and "straight40_none.npz" in err and "\n" not in err and not out.exists()
