@@ -1234,15 +1234,11 @@ def test_accepted_extremes_work(tmp_path):
     assert np.all(turn > MIN_MEDIAN_TURN_DEG), turn
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="8 belt pads (the default since 2026-11-25) tip the thinnest part over in 5 of 8 drops; 16 pads "
-    "and the pieces turn it in all 8 (docs/results.md): the next re-baseline moves to 16 pads",
-)
 @pytest.mark.timeout(EXTREMES_TIMEOUT_S, func_only=True)
 def test_the_thinnest_part_is_turned_by_the_fence_not_tipped(tmp_path):
     """The thinnest part the scene takes (``MIN_THICKNESS_PER_CLEARANCE`` times the gap under the
-    fences: 1 mm) is turned by the fence: not slipped under, not tipped over."""
+    fences: 1 mm) is turned by the fence: not slipped under, not tipped over. 8 belt pads (the default
+    of 2026-11-25) tipped it over in 5 of 8 drops; 16 pads turn it (docs/simulation.md)."""
     from feeder.sim.body import MIN_THICKNESS_PER_CLEARANCE
 
     unit = star_outline(rng_for("accepted"))
