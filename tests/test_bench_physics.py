@@ -336,11 +336,11 @@ def _every_factor(study, part, config, drops=2, base_model=None):
 
 
 def test_a_bar_near_tipping_over_on_pads_under_every_factor(study):
-    # rect-a8 (112 x 14 x 10 mm): the default's 8 pads' hull is 3.5 mm from its centroid, a third of its
-    # thickness (16 pads: 5.2 mm); on pads under every factor, thickness x 1.2 included, and on 16 pads
-    assert study[0]["scene"]["belt"]["footprint"] == dict(study[0]["scene"]["belt"]["footprint"], model="pads", pads=8)
+    # rect-a8 (112 x 14 x 10 mm): the default's 16 pads' hull is 5.2 mm from its centroid, half its
+    # thickness (8 pads: 3.5 mm, a third); on pads under every factor, thickness x 1.2 included, and on 8 pads
+    assert study[0]["scene"]["belt"]["footprint"] == dict(study[0]["scene"]["belt"]["footprint"], model="pads", pads=16)
     _every_factor(study, "rect-a8", "straight:45|none")
-    _every_factor(study, "rect-a8", "straight:45|none", base_model="pads16+outline")
+    _every_factor(study, "rect-a8", "straight:45|none", base_model="pads8+outline")
 
 
 def test_a_thin_part_under_every_factor(study):

@@ -1166,7 +1166,7 @@ REFERENCE_WIDTH_M = 0.04  # the same outline at a library part's size
 FEATURE_RTOL = 1e-9  # the features of a part do not depend on its size or units ...
 FRAME_ATOL_DEG = 1e-4  # ... nor its frame (up to float32 rounding of the STL)
 EXTREME_DROPS = 8  # golden-ratio drops of the simulated extremes
-EXTREME_PRESET = "fast"
+EXTREME_PRESET = BASE_CONFIG["sim"]["preset"]  # the default study's
 MIN_MEDIAN_TURN_DEG = 5.0  # a part the fence pushes turns; one slipping under it keeps its yaw
 FENCE_CLEARANCE_M = BASE_CONFIG["scene"]["fences"]["clearance"]
 

@@ -14,7 +14,7 @@ straight fences (teleports, jams), the no-physics path, two lanes in one world, 
 checks (ok, jammed, fell_off, flipped, timed_out) under tightened status settings. Presets and the
 scene come from config/config.yaml. The runs of ``RUNS`` pin the pieces contact (the default until
 2026-11-25, set explicitly: its values are unchanged since), those of ``DEFAULT_RUNS`` the default's
-contact model (footprint pads and outline slabs).
+contact model (footprint pads and outline slabs) and preset (``sim.preset``).
 
 A deliberate change of the physics, the config's ``scene`` / ``sim.presets`` or the pybullet
 version changes these values: re-pin them (``python tests/test_sim_pinned.py`` writes the golden file).
@@ -84,11 +84,12 @@ RUNS = [
     ),
 ]
 
-# under the default's contact model (config/config.yaml: belt footprint pads, walls and fences on outline slabs)
+# under the default's contact model and preset (config/config.yaml: belt footprint pads, walls and fences on
+# outline slabs, sim.preset)
 DEFAULT_RUNS = [
-    ("default_contact_rect_straight45_fast", "rect-40x20", "straight:45", "none", "fast", 4, 0, {}, {}),
-    ("default_contact_gear8_straight30_curved45_fast", "gear8-a", "straight:30", "curved:45", "fast", 3, 0, {}, {}),
-    ("default_contact_lshape_curved30_straight45_fast", "lshape-a", "curved:30", "straight:45", "fast", 3, 0, {}, {}),
+    ("default_rect_straight45", "rect-40x20", "straight:45", "none", CFG["sim"]["preset"], 4, 0, {}, {}),
+    ("default_gear8_straight30_curved45", "gear8-a", "straight:30", "curved:45", CFG["sim"]["preset"], 3, 0, {}, {}),
+    ("default_lshape_curved30_straight45", "lshape-a", "curved:30", "straight:45", CFG["sim"]["preset"], 3, 0, {}, {}),
 ]
 DEFAULT_IDS = {r[0] for r in DEFAULT_RUNS}
 PIECES = {"belt": {"footprint": {"model": "pieces"}}, "part": {"wall_contact": {"model": "pieces"}}}
