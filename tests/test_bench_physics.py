@@ -51,8 +51,13 @@ def test_a_scaled_scene_number_is_a_copy_times_the_scale(study):
 def test_half_the_step_doubles_the_substeps_and_keeps_an_integer(study):
     cfg, preset = study
     _, s, p = P.apply_factor({"name": "h", "path": "preset.substeps", "scale": 2}, _geom(), cfg["scene"], preset)
-    assert p["substeps"] == 20 and isinstance(p["substeps"], int) and p["time_step"] == preset["time_step"]
-    assert preset["substeps"] == 10 and s == cfg["scene"]
+    assert (
+        p["substeps"] == 2 * preset["substeps"]
+        and isinstance(p["substeps"], int)
+        and p["time_step"] == preset["time_step"]
+    )
+    assert preset["substeps"] == cfg["sim"]["presets"][cfg["sim"]["physics_bench"]["preset"]]["substeps"]  # untouched
+    assert s == cfg["scene"]
     with pytest.raises(FeederError, match="integer"):
         P.apply_factor({"name": "h", "path": "preset.substeps", "scale": 1.25}, _geom(), cfg["scene"], preset)
 
@@ -73,11 +78,11 @@ def test_thickness_moves_the_part_and_its_mass_not_the_scene(study):
 
 def test_the_contact_model_factor_sets_pads_and_outline_walls(study):
     cfg, preset = study
-    f = {"name": "c", "path": "contact_model", "value": "pads16+outline"}
+    f = {"name": "c", "path": "contact_model", "value": "pads8+outline"}
     _, s, _ = P.apply_factor(f, _geom(), cfg["scene"], preset)
-    assert s["belt"]["footprint"]["model"] == "pads" and s["belt"]["footprint"]["pads"] == 16
+    assert s["belt"]["footprint"]["model"] == "pads" and s["belt"]["footprint"]["pads"] == 8
     assert s["part"]["wall_contact"]["model"] == "outline"
-    assert cfg["scene"]["belt"]["footprint"]["pads"] == 8  # the default's, untouched
+    assert cfg["scene"]["belt"]["footprint"]["pads"] == 16  # the default's, untouched
     _, s, _ = P.apply_factor(dict(f, value="pieces"), _geom(), cfg["scene"], preset)
     assert s["belt"]["footprint"]["model"] == "pieces" and s["part"]["wall_contact"]["model"] == "pieces"
     assert cfg["scene"]["belt"]["footprint"]["model"] == "pads"
