@@ -4,9 +4,10 @@ library? Not part of the workflow. From the repository root:
     .venv/bin/python docs/experiments/contact_cost.py OUT.csv [DROPS] [MODEL ...]
 
 Every part of ``parts/catalog.csv`` under each contact model (names as in
-``feeder bench-decomposition``: ``pieces``, ``padsK``, ``padsK+outline``), on one one-fence and one
-two-fence configuration, ``DROPS`` evenly spaced initial yaws each (default 2), the study's ``fast``
-preset and its merged pieces, one drop per world. Writes one row per part, configuration and model:
+``feeder bench-decomposition``: ``pieces``, ``padsK``, ``padsK+outline``; ``MODEL@PRESET`` runs it at
+another preset of the config, e.g. ``pads16+outline@fast1ms``), on one one-fence and one two-fence
+configuration, ``DROPS`` evenly spaced initial yaws each (default 2), the ``fast`` preset unless
+named, one drop per world. Writes one row per part, configuration and model:
 the process CPU seconds per drop and the statuses. Two worker processes; the CPU is the worker's
 own (``time.process_time``), so a busy machine changes it less than the wall time.
 """
@@ -26,6 +27,7 @@ DEFAULT_MODELS = ("pieces", "pads8+outline", "pads16+outline")
 
 def _job(job):
     part, config, model, drops = job
+    model_name, _, preset_name = model.partition("@")
     from feeder.bench.decomposition import model_scene
     from feeder.config import load_study_config
     from feeder.lane.fences import parse_location
@@ -33,8 +35,8 @@ def _job(job):
     from feeder.sim.drops import get_preset, run_each
 
     cfg = load_study_config("config/config.yaml")
-    preset = get_preset(cfg["sim"]["presets"], "fast")
-    scene = model_scene(cfg["scene"], model)
+    preset = get_preset(cfg["sim"]["presets"], preset_name or "fast")
+    scene = model_scene(cfg["scene"], model_name)
     geom = load_part(f"parts/{part}.stl")
     yaws = np.linspace(0.0, 360.0, drops, endpoint=False) + 7.0
     loc1, loc2 = config.split("|")
