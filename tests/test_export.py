@@ -178,15 +178,17 @@ def test_export_writes_the_model_files_and_both_cards(run, shipped):
 
 
 def test_the_card_says_what_the_model_reads_and_how_to_call_it(shipped):
-    """Model 3's card: the default model, its 53 inputs. A model shipped beside it (models.ship)
-    names its own inputs and its --model folder, and is not said to be the default."""
+    """Model 3's card: its 53 inputs and its --model folder; without --model the study answers
+    (feeder.learn.study), which every card says. A model shipped beside it (models.ship) names its
+    own inputs and folder."""
     card = json.loads((shipped / E.CARD_FILE).read_text())
     md = E.card_markdown(card)
-    assert "Both use this folder when `--model` is not given" in md and "--model" not in md.split("```")[1]
+    assert "feeder predict --model models/m3 --part my.stl" in md and "feeder recommend --model models/m3" in md
+    assert "Without `--model` both answer from the study's own simulations (`models/study`)" in md
     assert E.CARD_INPUTS["paper"] in md
     other = {**card, "model": "m3pushonly", "spec": {**card["spec"], "inputs": "fence+push"}}
     md = E.card_markdown(other)
-    assert "Both use this folder" not in md and E.CARD_INPUTS["fence+push"] in md
+    assert E.CARD_INPUTS["fence+push"] in md and "Without `--model` both answer from the study's" in md
     assert "feeder predict --model models/m3pushonly --part my.stl" in md
 
 
