@@ -594,17 +594,28 @@ def export_model(model_dir, tables, dataset, out, provenance=None) -> dict:
     model_dir, out = Path(model_dir), Path(out)
     _check_out(out)
     card = build_card(model_dir, Path(tables), Path(dataset), None if provenance is None else Path(provenance))
+
+    def fill(work: Path) -> None:
+        for name in (WEIGHTS_FILE, SCALER_FILE):
+            shutil.copyfile(model_dir / name, work / name)
+        TrainedModel.load(work)  # the copies load
+        write_json(work / CARD_FILE, card)
+        write_text(work / CARD_MARKDOWN, card_markdown(card))
+
+    write_folder(out, fill)
+    return card
+
+
+def write_folder(out: Path, fill) -> None:
+    """``out`` all or nothing: ``fill(work)`` writes a sibling temporary folder, which then replaces
+    ``out`` (:func:`replace_dir`); the temporary folder never outlives a failure."""
     try:
         out.parent.mkdir(parents=True, exist_ok=True)
         work = Path(tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".tmp", dir=out.parent))
     except OSError as err:
         raise FeederError(f"cannot write {out} ({err.strerror})") from None
     try:
-        for name in (WEIGHTS_FILE, SCALER_FILE):
-            shutil.copyfile(model_dir / name, work / name)
-        TrainedModel.load(work)  # the copies load
-        write_json(work / CARD_FILE, card)
-        write_text(work / CARD_MARKDOWN, card_markdown(card))
+        fill(work)
         os.chmod(work, 0o777 & ~_umask())  # mkdtemp's folder is private; a result gets the usual mode
         try:
             replace_dir(work, out)
@@ -613,7 +624,6 @@ def export_model(model_dir, tables, dataset, out, provenance=None) -> dict:
     finally:
         if work.exists():
             shutil.rmtree(work, ignore_errors=True)
-    return card
 
 
 # ----------------------------------------------------------------------------------------------

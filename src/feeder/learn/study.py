@@ -255,32 +255,18 @@ def export_study(configurations, sim_dir, parts_dir, dataset_path, neighbour_tab
 def _write_folder(out: Path, arrays: dict, card: dict) -> None:
     """``out`` with the library's files, all or nothing: written in a sibling folder, then swapped in
     (:func:`feeder.learn.export.replace_dir`). Only an earlier export (or an empty folder) is replaced."""
-    import os
-    import shutil
-    import tempfile
-
     from feeder.io import write_json, write_npz, write_text
-    from feeder.learn.export import _umask, replace_dir
+    from feeder.learn.export import write_folder
 
     if out.exists() and (not out.is_dir() or (not (out / CARD_FILE).is_file() and any(out.iterdir()))):
         raise FeederError(f"--out {out} exists and is not an exported study folder (no {CARD_FILE}): not replacing it")
-    try:
-        out.parent.mkdir(parents=True, exist_ok=True)
-        work = Path(tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".tmp", dir=out.parent))
-    except OSError as err:
-        raise FeederError(f"cannot write {out} ({err.strerror})") from None
-    try:
+
+    def fill(work: Path) -> None:
         write_npz(work / LABELS_FILE, **arrays)
         write_json(work / CARD_FILE, card)
         write_text(work / CARD_MARKDOWN, card_markdown(card))
-        os.chmod(work, 0o777 & ~_umask())
-        try:
-            replace_dir(work, out)
-        except OSError as err:
-            raise FeederError(f"cannot write {out} ({err.strerror})") from None
-    finally:
-        if work.exists():
-            shutil.rmtree(work, ignore_errors=True)
+
+    write_folder(out, fill)
 
 
 def card_markdown(card: dict) -> str:
