@@ -107,6 +107,34 @@ def test_predict_to_stdout(model_dir, capsys):
     assert np.allclose(df.cdf, np.cumsum(pmf[0]), atol=1e-5)
 
 
+def test_predict_out_dash_is_stdout_not_a_file_named_dash(model_dir, tmp_path, monkeypatch, capsys):
+    """``--out -`` means stdout: the CSV is printed (the summary goes to stderr) and no file is made."""
+    import io
+
+    monkeypatch.chdir(tmp_path)
+    base = ["--model", str(model_dir / "m3"), "--features", str(model_dir / "p0.json")]
+    assert P.main([*base, "--loc1", "straight:30", "--loc2", "none", "--out", "-"]) == 0
+    out = capsys.readouterr()
+    assert not (tmp_path / "-").exists()
+    assert len(pd.read_csv(io.StringIO(out.out))) == 360 and "most likely final yaws" in out.err
+
+
+def test_recommend_out_dash_prints_the_csv_and_moves_the_table_to_stderr(model_dir, tmp_path, monkeypatch, capsys):
+    import io
+
+    from feeder.learn import recommend as R
+
+    monkeypatch.chdir(tmp_path)
+    ids = ["straight30_none", "curved45_straight20", "none_curved10"]
+    base = ["--model", str(model_dir / "m3"), "--features", str(model_dir / "p0.json")]
+    argv = [*base, "--target", "90", "--tolerance", "15", "--configs", ",".join(ids), "--out", "-"]
+    assert R.main(argv) == 0
+    out = capsys.readouterr()
+    assert not (tmp_path / "-").exists()
+    ranked = pd.read_csv(io.StringIO(out.out))
+    assert sorted(ranked.config_id) == sorted(ids) and "within 15 deg of 90 deg" in out.err
+
+
 @pytest.mark.parametrize("loc1", ["straight:95", "wedge:3", "straight"])
 def test_bad_fences_write_nothing(model_dir, tmp_path, loc1):
     out = tmp_path / "x.csv"

@@ -353,10 +353,12 @@ def main(argv: list[str]) -> int:
         "(>= 2; needs --part as an STL; seconds of CPU a drop; results/tables/frontier.csv: budget 8 is "
         "closer than every model)",
     )
-    parser.add_argument("--out", type=Path, help="CSV path (default: stdout)")
+    parser.add_argument("--out", type=Path, help="CSV path; - or unset: stdout")
     parser.add_argument("--plot", type=Path, help="also draw the PMF/CDF to this image")
     add_settings_options(parser)
     args = parser.parse_args(argv)
+    if args.out is not None and str(args.out) == "-":  # the usual spelling of stdout, not a file named -
+        args.out = None
 
     from feeder.lane.fences import parse_location
 

@@ -199,7 +199,9 @@ def main(argv: list[str]) -> int:
     )
     parser.add_argument("--configs", help="comma-separated configuration ids (default: the study's fence grid)")
     parser.add_argument("--top", type=int, default=DEFAULT_TOP, help="configurations printed")
-    parser.add_argument("--out", type=Path, help="CSV of every ranked configuration")
+    parser.add_argument(
+        "--out", type=Path, help="CSV of every ranked configuration (-: stdout, and the printed table goes to stderr)"
+    )
     parser.add_argument(
         "--verify",
         type=int,
@@ -248,14 +250,21 @@ def main(argv: list[str]) -> int:
         checked = verify(geom, top, settings, args.target, args.tolerance, order, log)
         ranked = ranked.merge(checked, on="config_id", how="left", validate="one_to_one")
         shown = max(args.top, len(top))
-    if args.out is not None:
+    to_stdout = args.out is not None and str(args.out) == "-"
+    if to_stdout:
+        sys.stdout.write(ranked.to_csv(index=False, lineterminator="\n"))
+    elif args.out is not None:
         from feeder.io import write_csv
 
         write_csv(args.out, ranked)
+    human = sys.stderr if to_stdout else sys.stdout  # the table a person reads, off the CSV's stream
     sym = f", {order}-fold symmetric" if order > 1 else ""
-    print(f"P(final yaw within {args.tolerance:g} deg of {args.target:g} deg{sym}), {len(ranked)} configurations:")
+    print(
+        f"P(final yaw within {args.tolerance:g} deg of {args.target:g} deg{sym}), {len(ranked)} configurations:",
+        file=human,
+    )
     table = ranked.head(shown).rename(columns={"probability": "predicted", "simulated_probability": "simulated"})
-    print(table.to_string(index=False, float_format=lambda v: f"{v:.3f}", na_rep="-"))
+    print(table.to_string(index=False, float_format=lambda v: f"{v:.3f}", na_rep="-"), file=human)
     return 0
 
 
