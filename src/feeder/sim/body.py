@@ -438,10 +438,13 @@ class Plan:
     time_limit: float
 
 
-def connect_world(pb, scene: dict, preset: dict) -> int:
+def connect_world(pb, scene: dict, preset: dict, client: int | None = None) -> int:
     """A fresh DIRECT client with the scene's gravity and the preset's solver settings (the
-    study's worlds and the bare world of ``feeder bench-step`` alike)."""
-    c = pb.connect(pb.DIRECT)
+    study's worlds and the bare world of ``feeder bench-step`` alike). ``client``: an open client
+    to reuse instead: ``resetSimulation`` deletes its world and builds an empty one (a new solver
+    included), so what follows runs as in a new client, bit for bit (tests/test_sim.py), without
+    the ~12 ms a ``connect`` costs (docs/performance.md)."""
+    c = pb.connect(pb.DIRECT) if client is None else int(client)
     pb.resetSimulation(physicsClientId=c)
     pb.setGravity(0, 0, -float(scene["gravity"]), physicsClientId=c)
     pb.setPhysicsEngineParameter(
@@ -472,11 +475,12 @@ class World:
     still creeps along it (up to ~10 mm/s); at 1.67 ms and below it is held.
     """
 
-    def __init__(self, scene: dict, preset: dict, plan: Plan, lanes: int, model: PartModel):
+    def __init__(self, scene: dict, preset: dict, plan: Plan, lanes: int, model: PartModel, client: int | None = None):
         pb = quiet_pybullet()
         self.pb = pb
         self.scene, self.preset, self.plan, self.model = scene, preset, plan, model
-        self.cid = self._connect()
+        self.owns_client = client is None  # else the caller's open client, reset here and left open by close()
+        self.cid = self._connect(client)
         belt = scene["belt"]
         self.speed = float(belt["speed"])
         self.belt_vel = [0.0, self.speed, 0.0]
@@ -504,8 +508,8 @@ class World:
                 group, mask = (_BELT_GROUP, _PADS_GROUP) if body in self.belts else (_WALLS_GROUP, _PART_GROUP)
                 pb.setCollisionFilterGroupMask(body, -1, group, mask, physicsClientId=self.cid)
 
-    def _connect(self) -> int:
-        return connect_world(self.pb, self.scene, self.preset)
+    def _connect(self, client: int | None = None) -> int:
+        return connect_world(self.pb, self.scene, self.preset, client)
 
     def _add_belt(self, x0: float, shape: int) -> int:
         """The lane's belt slab at its start pose (compliant contact when the scene asks for it)."""
@@ -690,6 +694,7 @@ class World:
 
     def close(self) -> None:
         try:
-            self.pb.disconnect(physicsClientId=self.cid)
+            if self.owns_client:
+                self.pb.disconnect(physicsClientId=self.cid)
         finally:
             self._tmp.cleanup()

@@ -57,11 +57,12 @@ from dataclasses import dataclass
 from typing import NamedTuple
 
 import numpy as np
+import shapely
 
 from feeder.errors import FeederError
 from feeder.lane.fences import Fence
 from feeder.lane.geometry import FenceGeom, scene_fences
-from feeder.sim.body import PartModel, Plan, World, part_model, quat_tilt_deg, quat_yaw
+from feeder.sim.body import PartModel, Plan, World, part_model, quat_tilt_deg, quat_yaw, quiet_pybullet
 
 STATUSES = ("ok", "jammed", "fell_off", "timed_out", "flipped", "nan")
 PRESET_KEYS = ("time_step", "substeps", "solver_iterations", "lanes", "full_path", "skip_slides", "merge_tolerance")
@@ -134,7 +135,7 @@ def fence_samples(fences: list[FenceGeom]) -> np.ndarray:
         for ring in rings:
             n = max(4, int(math.ceil(ring.length / _REACH_SAMPLE)))
             d = np.linspace(0.0, ring.length, n, endpoint=False)
-            pts.append(np.array([[p.x, p.y] for p in (ring.interpolate(v) for v in d)]))
+            pts.append(shapely.get_coordinates(shapely.line_interpolate_point(ring, d)))
     return np.concatenate(pts) if pts else np.zeros((0, 2))
 
 
@@ -609,25 +610,56 @@ def run_drops(
     (tunnelling; diagnostics only). ``probe_x`` records the yaw when the centroid first reaches
     fence-frame ``x <= probe_x`` (e.g. while a part is pushed along a fence).
     """
-    drops = len(yaws0)
-    out = empty_results(drops)
+    setup = prepare_drops(geom, loc1, loc2, scene, preset, prune)
+    return drops_in_world(setup, yaws0, progress=progress, probe_x=probe_x, check_fences=check_fences)
+
+
+class DropSetup(NamedTuple):
+    """What every drop of one part through one fence configuration shares (:func:`prepare_drops`)."""
+
+    scene: dict
+    preset: dict
+    model: PartModel
+    plan: Plan
+    lim: Limits
+    ways: list[Slideway]
+
+
+def prepare_drops(geom, loc1: Fence, loc2: Fence, scene: dict, preset: dict, prune: bool = True) -> DropSetup:
+    """The part's model, the scene's plan, the limits and the slideways, made once per configuration
+    (pure: no world is built)."""
     merge = preset["merge_tolerance"]  # None: the pieces as given (feeder.bench.decomposition)
     model = part_model(geom, scene, None if merge is None else float(merge))
     plan = make_plan(scene, loc1, loc2, model, bool(preset["full_path"]), prune=prune)
+    return DropSetup(scene, preset, model, plan, drop_limits(scene, preset), slideways(plan.fences))
+
+
+def drops_in_world(
+    setup: DropSetup,
+    yaws0: np.ndarray,
+    progress: bool = False,
+    probe_x: float | None = None,
+    check_fences: bool = False,
+    client: int | None = None,
+) -> dict:
+    """:func:`run_drops` on a prepared configuration: every drop of ``yaws0`` in one world, built
+    in a new pybullet client or in ``client`` (an open one, reset first and left open)."""
+    scene, preset, model, plan, lim, ways = setup
+    drops = len(yaws0)
+    out = empty_results(drops)
     out["diag"]["plan_fences"] = [f.location for f in plan.fences]
     if not plan.fences:  # nothing in reach: a part at rest on the belt is carried without turning
         out["final_yaw_deg"][:] = np.mod(yaws0, 360.0)
         return out
-    lim = drop_limits(scene, preset)
     probes = Probes(_fence_boxes_array(plan.fences) if check_fences else None, probe_x)
-    world = World(scene, preset, plan, int(min(int(preset["lanes"]), drops)), model)
+    world = World(scene, preset, plan, int(min(int(preset["lanes"]), drops)), model, client)
     bar = None
     if progress:
         from tqdm import tqdm
 
         bar = tqdm(total=drops, unit="drop", file=sys.stderr, leave=False)
     try:
-        run_lanes(world, yaws0, lim, slideways(plan.fences), probes, out, bar)
+        run_lanes(world, yaws0, lim, ways, probes, out, bar)
     finally:
         if bar is not None:
             bar.close()
@@ -641,8 +673,20 @@ def run_each(geom, loc1: Fence, loc2: Fence, yaws0: np.ndarray, scene: dict, pre
     follows another one (a jammed one, measured) can end a few hundredths of a degree elsewhere.
     Building a world costs next to nothing beside a drop (measured: six drops alone and in one
     world, 2.04 s of CPU either way). Returns what :func:`run_drops` returns, the diagnostics
-    concatenated per drop (``plan_fences`` once)."""
-    runs = [run_drops(geom, loc1, loc2, np.array([y], dtype=np.float64), scene, preset, **options) for y in yaws0]
+    concatenated per drop (``plan_fences`` once).
+
+    What the drops share is made once (:func:`prepare_drops`), and the worlds are built one after
+    another in one pybullet client, reset before each: a new client per drop cost ~12 ms, and the
+    plan's fence samples ~10 ms, beside a mean drop of ~100 ms (docs/performance.md). A drop's
+    result is bit-identical either way (tests/test_sim.py)."""
+    yaws0 = np.asarray(yaws0, dtype=np.float64)
+    setup = prepare_drops(geom, loc1, loc2, scene, preset, options.pop("prune", True))
+    client = quiet_pybullet().connect(quiet_pybullet().DIRECT) if setup.plan.fences and len(yaws0) else None
+    try:
+        runs = [drops_in_world(setup, yaws0[i : i + 1], client=client, **options) for i in range(len(yaws0))]
+    finally:
+        if client is not None:
+            quiet_pybullet().disconnect(physicsClientId=client)
     if not runs:
         return empty_results(0)
     diag = {k: np.concatenate([r["diag"][k] for r in runs]) for k in runs[0]["diag"] if k != "plan_fences"}
