@@ -264,6 +264,32 @@ def test_r2_best_cut_does_not_depend_on_the_frame_and_bounds_the_paper_r2():
     assert (base >= L.r2_cdf(L.cdf(p), L.cdf(q)) - 1e-12).all()
 
 
+def test_r2_best_cut_every_cut_at_once_equals_the_cut_by_cut_definition():
+    """The prefix-sum form scores every cut as rebuilding both CDFs from that cut does: smooth,
+    sharp (one bin, across 0/360), unnormalised and constant predictions, a truth with all its mass
+    in one bin (scored cut by cut, exactly), in a batch of any shape."""
+    rng = np.random.default_rng(11)
+    n = 360
+    smooth = rng.dirichlet(np.full(n, 0.05), size=(4, 6))
+    sharp = np.zeros((3, n))
+    sharp[0, 0], sharp[1, 359], sharp[2, [0, 359]] = 1.0, 1.0, 0.5
+    truths = [L.cdf(smooth), L.cdf(sharp)]
+    preds = [L.cdf(rng.dirichlet(np.ones(n), size=(4, 6))) * 0.97 + 0.01, L.cdf(np.roll(sharp, 2, axis=-1))]
+    for t, q in zip(truths, preds, strict=True):
+        fast = L.r2_cdf_best_cut(t, q)
+        assert fast.shape == t.shape[:-1]
+        slow = L._r2_cdf_best_cut_by_cuts(t.reshape(-1, n), q.reshape(-1, n)).reshape(t.shape[:-1])
+        np.testing.assert_allclose(fast, slow, rtol=0, atol=1e-10)
+    flat = np.full(n, 1.0 / n)
+    np.testing.assert_allclose(
+        L.r2_cdf_best_cut(L.cdf(smooth[0]), L.cdf(flat)),
+        L._r2_cdf_best_cut_by_cuts(L.cdf(smooth[0]), np.broadcast_to(L.cdf(flat), (6, n))),
+        rtol=0,
+        atol=1e-10,
+    )
+    assert L.r2_cdf_best_cut(L.cdf(sharp[0]), L.cdf(sharp[0])) == 1.0  # exact, as r2_cdf's constant case
+
+
 def test_resting_orientations_are_the_modes_with_their_basin_mass():
     from feeder.labels.metrics import resting_orientations as modes
 

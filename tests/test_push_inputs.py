@@ -215,6 +215,35 @@ def test_push_block_time_and_memo(world):
     assert secs > 0
 
 
+def test_push_block_over_worker_processes_is_bit_identical_to_one_process():
+    """The dataset build spreads the push block over processes by part (threads.datasets_build); every
+    row's features and PMF are those of one process, bit for bit, rows in their order (parts and
+    configurations interleaved, a repeated row included); workers < 1 is refused in one line."""
+    lib = Path(__file__).resolve().parents[1] / "parts"
+    outlines = {name: load_outline(lib / f"{name}.stl", "auto") for name in ("rect-a2", "lshape-a", "gear12-a")}
+    parts = np.array(["lshape-a", "rect-a2", "gear12-a", "lshape-a", "rect-a2", "lshape-a"])
+    cids = np.array(
+        [
+            "curved40_straight20",
+            "straight30_none",
+            "none_curved30",
+            "straight30_none",
+            "straight30_none",
+            "curved40_straight20",
+        ]
+    )
+    frames = {"rect-a2": 0.0, "lshape-a": 17.0, "gear12-a": 5.0}
+    one = D.push_arrays(parts, cids, outlines, frames, SCENE, 360, 1.0, workers=1)
+    two = D.push_arrays(parts, cids, outlines, frames, SCENE, 360, 1.0, workers=2)
+    np.testing.assert_array_equal(one[0], two[0])
+    np.testing.assert_array_equal(one[1], two[1])
+    np.testing.assert_array_equal(one[0][0], one[0][5])
+    assert not np.array_equal(one[1][0], one[1][3])
+    with pytest.raises(FeederError, match="workers must be >= 1") as err:
+        D.push_arrays(parts, cids, outlines, frames, SCENE, 360, 1.0, workers=0)
+    assert "\n" not in str(err.value)
+
+
 def test_older_dataset_files_load_and_a_push_model_refuses_them_in_one_line(regression_dataset, tmp_path):
     data = D.load_dataset(regression_dataset)
     assert "push_raw" not in data

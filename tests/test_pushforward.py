@@ -474,3 +474,40 @@ def test_a_slope_from_a_narrow_noisy_neighbour_does_not_hide_a_jump():
     )
     assert [0.35, 11.6] in design.unresolved.tolist()
     assert design.label_bound == pytest.approx((11.25 + 0.25) / 360.0)
+
+
+def narrow_ok_map(beta):
+    """Every drop jams but those in a 10° window (which the start grid of 16 cannot hit at offset 3.7)."""
+    ok = (beta >= 30.0) & (beta < 40.0)
+    return np.where(ok, 100.0, np.nan), np.where(ok, "ok", "jammed")
+
+
+def all_fell_map(beta):
+    return np.full(np.shape(beta), np.nan), np.full(np.shape(beta), "fell_off")
+
+
+@pytest.mark.parametrize("fmap", [narrow_ok_map, all_fell_map])
+def test_stop_if_none_ok_ends_after_the_start_grid_when_no_start_drop_is_ok(fmap):
+    """No ok drop among the n0 start drops: the stop ends the design there (one call of 16). Without
+    it the midpoint checks run on: 32 simulations where every drop fails; on the narrow window a
+    check lands in it and bisection spends the budget, finding ok mass (10/360) the stop gives up:
+    far below sim.min_ok_mass, so the configuration is excluded either way."""
+    ev = Counting(fmap)
+    d = A.refine(ev, n0=16, budget=40, offset_deg=3.7, stop_if_none_ok=True)
+    assert (d.evaluations, d.calls, ev.calls) == (16, 1, 1)
+    assert not np.any(d.status == "ok")
+    on = A.refine(Counting(fmap), n0=16, budget=40, offset_deg=3.7)
+    assert np.all(np.isin(np.round(d.yaws, 9), np.round(on.yaws, 9)))  # the same start grid
+    if fmap is narrow_ok_map:
+        assert on.evaluations == 40 and np.any(on.status == "ok")
+    else:
+        assert on.evaluations == 32 and not np.any(on.status == "ok")
+
+
+@pytest.mark.parametrize("fmap", [step_map, jam_map, chaotic_map])
+def test_stop_if_none_ok_changes_nothing_when_a_start_drop_is_ok(fmap):
+    a = A.refine(Counting(fmap), n0=16, budget=40, offset_deg=3.7, stop_if_none_ok=True)
+    b = A.refine(Counting(fmap), n0=16, budget=40, offset_deg=3.7)
+    np.testing.assert_array_equal(a.yaws, b.yaws)
+    np.testing.assert_array_equal(a.status, b.status)
+    assert a.evaluations == b.evaluations and a.label_bound == b.label_bound

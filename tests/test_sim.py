@@ -371,6 +371,7 @@ def test_cli_writes_npz_per_contract_and_reruns_bit_identical(tmp_path):
         (["--part", "MISSING"], "not found"),
         (["--part", "BROKEN"], "BROKEN"),
         (["--preset", "turbo"], "preset 'turbo'"),
+        (["--yaw-sampling", "adaptive", "--stop-if-none-ok", "maybe"], "--stop-if-none-ok must be true or false"),
     ],
 )
 def test_cli_bad_input_one_line_error_no_output(tmp_path, args, needle):

@@ -56,6 +56,7 @@ rule datasets_build:
         f"{BENCHMARKS}/datasets/build.tsv"
     conda:
         "../envs/feeder.yaml"
+    threads: config["threads"]["datasets_build"]
     params:
         settings=settings_json(
             "sim.min_ok_mass",
@@ -72,7 +73,8 @@ rule datasets_build:
         sim_dir=lambda w, input: os.path.dirname(os.path.dirname(input.sims[0])),  # <results>/sim
     shell:
         "feeder datasets build --configurations {input.configurations} --features-dir {params.features_dir}"
-        " --sim-dir {params.sim_dir} --parts-dir {params.parts_dir} --settings '{params.settings}' --out {output}"
+        " --sim-dir {params.sim_dir} --parts-dir {params.parts_dir} --settings '{params.settings}' --workers {threads}"
+        " --out {output}"
         " > {log} 2>&1"
 
 

@@ -207,9 +207,59 @@ def r2_cdf_best_cut(cdf_true, cdf_pred) -> np.ndarray:
     180°. Maximised over the common cut, R² no longer depends on the frame; it is an upper
     envelope of the paper's R² (the cut ``c = 0`` is one of the candidates), as
     :func:`circular_w1` is the lower envelope of :func:`w1`.
+
+    Every cut at once, O(bins) per row (:func:`_r2_every_cut`); a row whose true CDF is constant
+    under some cut (all its mass in one bin) is scored cut by cut as :func:`r2_cdf` scores it
+    (:func:`_r2_cdf_best_cut_by_cuts`), so its exact 1.0 / 0.0 stays exact.
     """
     t, p = _pair(cdf_true, cdf_pred)
     t, p = np.broadcast_arrays(t, p)
+    shape = t.shape[:-1]
+    n = t.shape[-1]
+    t2, p2 = t.reshape(-1, n), p.reshape(-1, n)
+    r2, ss_tot = _r2_every_cut(t2, p2)
+    best = r2.max(axis=-1)
+    scale = np.maximum(1.0, np.abs(t2).max(axis=-1)) ** 2
+    near_constant = (ss_tot <= _CONST_CDF_RTOL * n * scale[:, None]).any(axis=-1)
+    if near_constant.any():
+        best[near_constant] = _r2_cdf_best_cut_by_cuts(t2[near_constant], p2[near_constant])
+    return best.reshape(shape)
+
+
+_CONST_CDF_RTOL = 1e-9  # SS_tot this small (relative) at some cut: score that row cut by cut
+
+
+def _r2_every_cut(t: np.ndarray, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """R² of the CDFs rebuilt from every cut ``c`` and their SS_tot, ``(rows, bins)`` each.
+
+    Rebuilt from bin ``c`` on, the true CDF takes the values ``F_k − F_{c−1} + M·[k < c]`` (``F`` the
+    CDF, ``M = F_{bins−1}`` its mass, ``F_{−1} = 0``) in the order ``k = c, c+1, …``; R² does not
+    depend on that order, so with ``D = F_true − F_pred`` both sums follow from prefix sums:
+    ``SS_res(c) = Σ_k (D_k + ΔM·[k < c] − D_{c−1})²`` and ``SS_tot(c)`` = the centred sum of
+    squares of ``F_k + M·[k < c]`` (the shift ``−F_{c−1}`` drops out)."""
+    n = t.shape[-1]
+    m_t, m_p = t[:, -1:], p[:, -1:]
+    c = np.arange(n, dtype=np.float64)[None, :]
+    before = np.concatenate([np.zeros((t.shape[0], 1)), np.cumsum(t, axis=-1)[:, :-1]], axis=-1)  # Σ_{k<c}
+    f = t - t.mean(axis=-1, keepdims=True)  # centred: SS_tot is shift-invariant, the sums stay small
+    f_before = before - c * t.mean(axis=-1, keepdims=True)
+    u1 = f.sum(axis=-1, keepdims=True) + m_t * c
+    u2 = (f**2).sum(axis=-1, keepdims=True) + 2.0 * m_t * f_before + m_t**2 * c
+    ss_tot = u2 - u1**2 / n
+    d = t - p
+    dm = m_t - m_p
+    d_before = np.concatenate([np.zeros((d.shape[0], 1)), np.cumsum(d, axis=-1)[:, :-1]], axis=-1)
+    a = np.concatenate([np.zeros((d.shape[0], 1)), d[:, :-1]], axis=-1)  # D_{c−1}
+    s1 = d.sum(axis=-1, keepdims=True) + dm * c
+    s2 = (d**2).sum(axis=-1, keepdims=True) + 2.0 * dm * d_before + dm**2 * c
+    ss_res = np.maximum(s2 - 2.0 * a * s1 + n * a**2, 0.0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        r2 = 1.0 - ss_res / ss_tot
+    return r2, ss_tot
+
+
+def _r2_cdf_best_cut_by_cuts(t: np.ndarray, p: np.ndarray) -> np.ndarray:
+    """:func:`r2_cdf_best_cut` one cut at a time (the definition; O(bins²) per row)."""
     zero = np.zeros(t.shape[:-1] + (1,))
     pmf_t = np.diff(t, axis=-1, prepend=zero)
     pmf_p = np.diff(p, axis=-1, prepend=zero)

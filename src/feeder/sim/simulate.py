@@ -61,6 +61,7 @@ def run_design(evaluate, seed: int, budget: int, adaptive: dict, order: int) -> 
         budget=int(budget),
         offset_deg=offset,
         period_deg=period,
+        stop_if_none_ok=bool(adaptive.get("stop_if_none_ok", False)),
     )
 
 
@@ -117,6 +118,8 @@ def simulate_adaptive(run, geom, seed: int, budget: int, preset: dict, adaptive:
     out = {"final_yaw_deg": design.final, "status": design.status, "diag": diags}
     arrays, summary = design_record(design, order)
     summary |= {"n0": int(adaptive["n0"]), "symmetry": adaptive.get("symmetry", "auto"), "stop": stop}
+    if adaptive.get("stop_if_none_ok"):
+        summary["stop_if_none_ok"] = True
     if estimate is not None:
         summary |= {"est_sup_cdf": estimate.sup_cdf, "est_circular_w1_deg": estimate.circular_w1_deg}
     return design.yaws, out, arrays, summary
@@ -265,6 +268,12 @@ def _parser() -> argparse.ArgumentParser:
         "--symmetry", default="auto", help="rotational order to fold over: auto (from the outline) or N (checked)"
     )
     adaptive.add_argument(
+        "--stop-if-none-ok",
+        default="false",
+        help="true: stop after the start grid when none of its drops ends ok (the configuration carries no "
+        "orientation label; sim.adaptive.stop_if_none_ok) (default: false)",
+    )
+    adaptive.add_argument(
         "--stop",
         default="budget",
         help="budget: at most --drops simulations; target: stop once the error estimate is within the targets "
@@ -279,6 +288,14 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument("--settings", default=None, help="JSON {scene, presets}; default config/config.yaml")
     parser.add_argument("--out", required=True, help="output .npz")
     return parser
+
+
+def _flag(value: str, name: str) -> bool:
+    """``true`` / ``false`` (any case) as a bool; anything else a one-line FeederError."""
+    text = str(value).strip().lower()
+    if text not in ("true", "false"):
+        raise FeederError(f"{name} must be true or false, got {value!r}")
+    return text == "true"
 
 
 def main(argv: list[str]) -> int:
@@ -301,6 +318,7 @@ def main(argv: list[str]) -> int:
             "tolerance_deg": args.tolerance_deg,
             "min_width_deg": args.min_width_deg,
             "symmetry": args.symmetry,
+            "stop_if_none_ok": _flag(args.stop_if_none_ok, "--stop-if-none-ok"),
             "stop": args.stop,
             "target": {
                 "target_w1_deg": args.target_w1_deg,
