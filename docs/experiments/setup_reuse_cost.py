@@ -2,8 +2,8 @@
 reused pybullet client, with the configuration's plan made once, save per simulation job, and does
 it change any output? Not part of the workflow. From the repository root:
 
-    git worktree add /tmp/before <commit before the change>
-    .venv/bin/python docs/experiments/setup_reuse_cost.py CONFIGURATIONS_CSV /tmp/before/src OUT_RAW.csv [N] [SEED]
+    git worktree add /tmp/before <commit before the change>   # OLD_SRC = /tmp/before/src
+    .venv/bin/python docs/experiments/setup_reuse_cost.py CONFIGS_CSV OLD_SRC OUT_RAW.csv [N] [SEED] [JOBS] [NEW_SRC]
 
 Runs a seeded sample of N (default 60) of the study's configurations (``part, loc1, loc2`` rows of a
 run's ``results/datasets/configurations.csv``) through ``feeder simulate`` exactly as the workflow's
@@ -12,7 +12,10 @@ the code of ``OLD_SRC`` and once with this checkout's ``src``, in alternating or
 row per run (the process's CPU seconds inside the simulation, ``cpu_s`` of the output, and SHA-256
 digests of the final yaws, statuses and initial yaws), then prints the paired summary: the CPU
 ratio new/old with a 95 % bootstrap interval over configurations, and how many outputs are equal
-bit for bit.
+bit for bit. ``JOBS`` 2 runs the sample two jobs at a time, as ``make run`` on two cores does
+(configurations in pairs, both of a pair under one version at once, the versions' order alternating
+by pair); the default 1 runs one job at a time, the other core left to whatever else runs.
+``NEW_SRC``: the code after the change (default: this checkout's ``src``).
 """
 
 from __future__ import annotations
@@ -22,6 +25,7 @@ import os
 import subprocess
 import sys
 import tempfile
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
@@ -61,15 +65,22 @@ def main(argv: list[str]) -> int:
     cfg = yaml.safe_load((ROOT / "config" / "config.yaml").read_text())
     table = pd.read_csv(configs).drop_duplicates(["part", "loc1", "loc2"])
     sample = table.sample(n=min(n, len(table)), random_state=seed).reset_index(drop=True)
-    versions = {"before": old_src, "after": ROOT / "src"}
+    jobs = int(argv[5]) if len(argv) > 5 else 1
+    versions = {"before": old_src, "after": Path(argv[6]) if len(argv) > 6 else ROOT / "src"}
     rows = []
-    with tempfile.TemporaryDirectory() as tmp:
-        for i, row in enumerate(sample.itertuples()):
-            order = ["before", "after"] if i % 2 == 0 else ["after", "before"]
+    items = list(sample.itertuples())
+    groups = [items[i : i + jobs] for i in range(0, len(items), jobs)]
+    with tempfile.TemporaryDirectory() as tmp, ThreadPoolExecutor(max_workers=jobs) as pool:
+        for g, group in enumerate(groups):
+            order = ["before", "after"] if g % 2 == 0 else ["after", "before"]
             for v in order:
-                res = run_one(versions[v], row, cfg, Path(tmp) / f"{v}.npz")
-                rows.append({"part": row.part, "loc1": row.loc1, "loc2": row.loc2, "version": v, **res})
-            print(f"{i + 1}/{len(sample)} {row.part} {row.loc1}|{row.loc2}", file=sys.stderr, flush=True)
+                futures = [
+                    pool.submit(run_one, versions[v], row, cfg, Path(tmp) / f"{v}{k}.npz")
+                    for k, row in enumerate(group)
+                ]
+                for row, fut in zip(group, futures, strict=True):
+                    rows.append({"part": row.part, "loc1": row.loc1, "loc2": row.loc2, "version": v, **fut.result()})
+            print(f"{g + 1}/{len(groups)} {[(r.part, r.loc1, r.loc2) for r in group]}", file=sys.stderr, flush=True)
     raw = pd.DataFrame(rows)
     out_csv.parent.mkdir(parents=True, exist_ok=True)
     raw.to_csv(out_csv, index=False)
