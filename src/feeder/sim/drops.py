@@ -681,12 +681,13 @@ def run_each(geom, loc1: Fence, loc2: Fence, yaws0: np.ndarray, scene: dict, pre
     result is bit-identical either way (tests/test_sim.py)."""
     yaws0 = np.asarray(yaws0, dtype=np.float64)
     setup = prepare_drops(geom, loc1, loc2, scene, preset, options.pop("prune", True))
-    client = quiet_pybullet().connect(quiet_pybullet().DIRECT) if setup.plan.fences and len(yaws0) else None
+    pb = quiet_pybullet()
+    client = pb.connect(pb.DIRECT) if setup.plan.fences and len(yaws0) else None
     try:
         runs = [drops_in_world(setup, yaws0[i : i + 1], client=client, **options) for i in range(len(yaws0))]
     finally:
         if client is not None:
-            quiet_pybullet().disconnect(physicsClientId=client)
+            pb.disconnect(physicsClientId=client)
     if not runs:
         return empty_results(0)
     diag = {k: np.concatenate([r["diag"][k] for r in runs]) for k in runs[0]["diag"] if k != "plan_fences"}
