@@ -358,7 +358,8 @@ def _toy_library(n_parts=10, per_part=4, seed=0):
     a = _toy_arrays(n=n, seed=seed)
     part_idx = np.repeat(np.arange(n_parts), per_part)
     a["part"] = np.array([f"p{i}" for i in part_idx])
-    a["config_id"] = np.array([f"c{j}" for j in np.tile(np.arange(per_part), n_parts)])
+    cids = np.array(["straight30_none", "straight35_none", "straight45_none", "curved20_straight30", "straight60_none"])
+    a["config_id"] = cids[np.tile(np.arange(per_part), n_parts)]
     split = np.where(np.tile(np.arange(per_part), n_parts) == 0, "test", "train")
     a["split"] = np.where(part_idx >= n_parts - 2, "fences", split)
     a["group_fold"] = part_idx % 3
@@ -400,9 +401,166 @@ def test_the_protocol_keeps_locked_parts_out_until_the_end():
     assert set(long[long.predictor == "structured"].seed) == {0, 1}
     # repeat 0 scores the dataset's own Test rows; the jammed row is scored on its ok share only
     test0 = long[(long.experiment == "test") & (long.repeat == 0) & (long.predictor == "analytic_pmf")]
-    assert set(test0.config_id) == {"c0"} and not test0.part.isin(locked).any()
-    jam = long[(long.part == "p0") & (long.config_id == "c1")]
+    assert set(test0.config_id) == {"straight30_none"} and not test0.part.isin(locked).any()
+    jam = long[(long.part == "p0") & (long.config_id == "straight35_none")]
     assert not jam.empty and jam.cw1.isna().all() and (jam.ok_true == 0.0).all()
     table = comparison_table(long, {"resamples": 50, "level": 0.95, "seed": 0})
     assert set(table.experiment) == {"unseen_groupkfold", "unseen_locked", "test", "fences"}
     assert set(table.verdict) <= {"better", "worse", "no clear difference"}
+    # known parts are also compared with the part's gated neighbour; unseen parts have none
+    assert set(table[table.baseline == "neighbour_gated"].experiment) == {"test", "fences"}
+    assert set(choices.neighbours) == {int(cfg.model.neighbours)}
+
+
+# ----------------------------------------------------------------------------------------------
+# The part's own neighbouring labels
+# ----------------------------------------------------------------------------------------------
+NB_PARTS = np.array(["a", "a", "a", "b", "a"])
+NB_CIDS = np.array(["straight30_none", "straight40_none", "straight35_none", "straight30_none", "curved20_none"])
+
+
+def test_nearest_rows_keep_to_the_part_and_its_fence_types_and_never_pick_the_row_itself():
+    from feeder.learn.structured_data import nearest_rows
+
+    idx, dist = nearest_rows(NB_PARTS, NB_CIDS, np.ones(5, bool), np.arange(5), 2)
+    assert idx.tolist() == [[2, 1], [2, 0], [0, 1], [-1, -1], [-1, -1]]  # row 2: a tie at 5 deg, lower index first
+    assert dist[:3].tolist() == [[5.0, 10.0], [5.0, 10.0], [5.0, 5.0]]
+    assert np.isinf(dist[3:]).all()
+    pool = np.array([True, False, True, True, True])  # row 1 is not labelled for this fit
+    idx, dist = nearest_rows(NB_PARTS, NB_CIDS, pool, np.array([0, 1]), 2)
+    assert idx.tolist() == [[2, -1], [2, 0]] and dist[0, 1] == np.inf  # an unlabelled row still reads its neighbours
+
+
+def _nb_arrays():
+    """Four 90-degree bins: every analytic PMF at bin 0, the labels one bin on per row."""
+    n = 5
+    analytic = np.tile([1.0, 0.0, 0.0, 0.0], (n, 1))
+    pmf = np.eye(4)[[1, 2, 3, 0, 1]].astype(float)  # labels; row 3 (part b) agrees with its analytic PMF
+    return {
+        "part": NB_PARTS,
+        "config_id": NB_CIDS,
+        "kept": np.ones(n, bool),
+        "analytic": analytic,
+        "pmf": pmf,
+        "ok": np.array([0.9, 0.8, 0.7, 0.6, 0.5]),
+        "analytic_ok": np.full(n, 0.25),
+    }
+
+
+def test_the_neighbour_block_by_hand():
+    from feeder.learn.structured_data import FAR_DEG, neighbour_block
+
+    a = _nb_arrays()
+    a["analytic"][2] = [0.0, 1.0, 0.0, 0.0]  # row 2's analytic PMF one bin (90 deg) on
+    feats, pmfs = neighbour_block(a, np.ones(5, bool), 1, 10.0)
+    has, dist, near, move, miss, ok, part_miss, has_part = feats.T
+    assert has.tolist() == [1, 1, 1, 0, 0]
+    assert dist.tolist() == pytest.approx([5 / 90, 5 / 90, 5 / 90, FAR_DEG / 90, FAR_DEG / 90])
+    # rows 0 and 1 read row 2, whose analytic PMF lies 90 deg from theirs; row 2 reads row 0 (same analytic)
+    assert near.tolist() == pytest.approx([math.exp(-0.5)] * 3 + [0.0, 0.0])
+    assert move.tolist() == pytest.approx([1.0, 1.0, 1.0, 0.0, 0.0])
+    # row 2's label (bin 3) lies 180 deg from its analytic PMF (bin 1); row 0's (bin 1) 90 deg from bin 0
+    assert miss.tolist() == pytest.approx([2.0, 2.0, 1.0, 0.0, 0.0])
+    assert ok.tolist() == pytest.approx([0.7, 0.7, 0.9, 0.25, 0.25])  # missing: the row's analytic ok mass
+    # the part's other rows: label against analytic W1 over 90 deg is 1, 2, 2, -, 1 for rows 0, 1, 2, 3, 4
+    expected = [(2 + 2 + 1) / 3, (1 + 2 + 1) / 3, (1 + 2 + 1) / 3, 0.0, (1 + 2 + 2) / 3]
+    assert part_miss.tolist() == pytest.approx(expected)
+    assert has_part.tolist() == [1, 1, 1, 0, 1]
+    assert pmfs.shape == (5, 1, 4)
+    read = [a["pmf"][2], a["pmf"][2], a["pmf"][0], a["analytic"][3], a["analytic"][4]]  # missing: the analytic PMF
+    assert np.array_equal(pmfs[:, 0], np.stack(read))
+
+
+def test_the_neighbour_block_reads_no_label_outside_its_pool():
+    from feeder.learn.structured_data import neighbour_block
+
+    a = _nb_arrays()
+    pool = np.array([True, True, False, True, True])
+    feats, pmfs = neighbour_block(a, pool, 2, 10.0)
+    b = dict(a, pmf=a["pmf"].copy())
+    b["pmf"][2] = [0.25, 0.25, 0.25, 0.25]  # a label outside the pool changes nothing
+    feats_b, pmfs_b = neighbour_block(b, pool, 2, 10.0)
+    assert np.array_equal(feats, feats_b) and np.array_equal(pmfs, pmfs_b)
+    c = dict(a, kept=np.array([True, True, True, True, False]))  # an excluded row is never a neighbour
+    assert not np.array_equal(
+        neighbour_block(c, np.ones(5, bool), 2, 10.0)[0], neighbour_block(a, np.ones(5, bool), 2, 10.0)[0]
+    )
+
+
+def test_no_neighbours_leave_the_inputs_as_they_are():
+    from feeder.learn.structured_data import with_neighbours
+
+    a = _nb_arrays()
+    assert with_neighbours(a, np.ones(5, bool), 0, 10.0) is a
+    b = with_neighbours(dict(a, x=np.zeros((5, 3))), np.ones(5, bool), 2, 10.0)
+    assert b["x"].shape == (5, 3 + 6 * 2 + 2) and b["neighbour_pmf"].shape == (5, 2, 4)
+    with pytest.raises(FeederError, match="neighbour_near_deg"):
+        with_neighbours(a, np.ones(5, bool), 2, 0.0)
+
+
+@pytest.mark.parametrize("bad", [-1, 1.5, "two", True])
+def test_a_bad_neighbour_count_is_refused(bad):
+    from omegaconf import OmegaConf
+
+    from feeder.learn.structured_protocol import neighbour_count
+
+    with pytest.raises(FeederError, match="model.neighbours"):
+        neighbour_count(OmegaConf.create({"model": {"neighbours": bad}}))
+
+
+def test_the_candidates_cache_round_trips_and_holds_each_array_once(tmp_path):
+    import tracemalloc
+
+    from feeder.learn.structured_data import read_candidates_cache, write_candidates_cache
+
+    rng = np.random.default_rng(0)
+    n, bins, n_var = 300, 360, 4
+    cands = [
+        (
+            rng.uniform(0, 360, k),
+            rng.uniform(size=(k, n_var)),
+            rng.uniform(size=n_var),
+            rng.normal(size=29),
+            rng.dirichlet(np.ones(bins)),
+        )
+        for k in rng.integers(0, 6, n)
+    ]
+    path = tmp_path / "cands.npz"
+    write_candidates_cache(path, "key-a", cands, n_var)
+    assert (
+        read_candidates_cache(path, "key-b") is None and read_candidates_cache(tmp_path / "none.npz", "key-a") is None
+    )
+    tracemalloc.start()
+    back = read_candidates_cache(path, "key-a")
+    peak = tracemalloc.get_traced_memory()[1]
+    tracemalloc.stop()
+    assert len(back) == n
+    for a, b in zip(cands, back, strict=True):
+        assert all(np.array_equal(u, v) for u, v in zip(a, b, strict=True))
+    # one copy of each array (the analytic PMFs alone are n x bins x 8 = 0.86 MB), not one per row
+    assert peak < 4 * n * bins * 8
+
+
+def test_an_untrained_variant_network_weighs_the_neighbours_as_their_start_logit_says():
+    pytest.importorskip("torch")
+    from feeder.learn.structured import (
+        DIFFUSE,
+        LOGIT_FLOOR,
+        Fitted,
+        NetSettings,
+        make_nets,
+        predict,
+        wrapped_gaussian_bins,
+    )
+
+    a = _toy_arrays()
+    n = len(a["x"])
+    nb = np.stack([wrapped_gaussian_bins(200.5, 2.0, BINS), wrapped_gaussian_bins(300.5, 2.0, BINS)])
+    a["neighbour_pmf"] = np.broadcast_to(nb, (n, 2, BINS)).copy()
+    s = NetSettings(4, 4.0, 0.5, 1.5, 6.0, "variants", "analytic", neighbour_start_logit=0.0)
+    net, ok = make_nets(3, a["cf"].shape[2], len(DIFFUSE) + 2, s, n_variants=3)
+    pmf, _ = predict(Fitted(net, ok, 0, 0, math.nan, math.nan, "analytic"), a, np.arange(4), a["pmf"].mean(axis=0))
+    others = 3 + len(DIFFUSE) - 1  # the variants and the other diffuse components, at the floor
+    off = others * LOGIT_FLOOR / (3.0 + others * LOGIT_FLOOR)
+    expected = (a["analytic"][:4] + nb[0] + nb[1]) / 3.0  # analytic and both neighbours at logit 0
+    assert np.abs(pmf - expected).sum(axis=1).max() < 2 * off

@@ -73,19 +73,25 @@ def mixture_pmf(weights_cand, centres_deg, sigmas_deg, weights_diffuse, diffuse)
 
 
 def prior_logits(
-    base_masses, mask, start: str = "candidates", floor: float = LOGIT_FLOOR, diffuse_floor: float = LOGIT_FLOOR
+    base_masses,
+    mask,
+    start: str = "candidates",
+    floor: float = LOGIT_FLOOR,
+    diffuse_floor: float = LOGIT_FLOOR,
+    n_extra: int = 0,
 ) -> tuple:
     """Starting logits (``-inf`` where ``mask`` is False) per candidate and per diffuse component
     (in the order of :data:`DIFFUSE`). ``start`` ``candidates``: ``log(m_k + floor)`` of the base
     variant's basin masses ``base_masses`` (N, K), the analytic PMF's mass left outside the
     candidates for ``analytic`` and ``diffuse_floor`` for the other components; ``analytic``:
     every candidate ``log(floor)``, the analytic component ``log(1)`` and the others
-    ``log(diffuse_floor)`` (the untrained network is the analytic PMF up to those floors)."""
+    ``log(diffuse_floor)`` (the untrained network is the analytic PMF up to those floors).
+    ``n_extra`` further diffuse components (the part's neighbouring labels) start at ``diffuse_floor``."""
     if start not in STARTS:
         raise FeederError(f"model.start must be one of {STARTS}, got {start!r}")
     m = np.asarray(base_masses, dtype=np.float64)
     mask = np.asarray(mask, dtype=bool)
-    diff = np.full((m.shape[0], len(DIFFUSE)), math.log(diffuse_floor))
+    diff = np.full((m.shape[0], len(DIFFUSE) + int(n_extra)), math.log(diffuse_floor))
     if start == "analytic":
         diff[:, 0] = 0.0
         return np.where(mask, math.log(floor), -np.inf), diff
@@ -101,9 +107,10 @@ def ok_logit(analytic_ok) -> np.ndarray:
     return np.log(a / (1.0 - a))
 
 
-def diffuse_components(analytic, mean_pmf, wide_sigma_bins: float) -> np.ndarray:
-    """(N, 4, bins) diffuse components of :data:`DIFFUSE`: the rows' analytic PMFs, the same
-    widened by a wrapped Gaussian of ``wide_sigma_bins``, the uniform PMF and ``mean_pmf``."""
+def diffuse_components(analytic, mean_pmf, wide_sigma_bins: float, extra=None) -> np.ndarray:
+    """(N, 4 + J, bins) diffuse components of :data:`DIFFUSE`: the rows' analytic PMFs, the same
+    widened by a wrapped Gaussian of ``wide_sigma_bins``, the uniform PMF and ``mean_pmf``; then
+    the J PMFs of ``extra`` (N, J, bins) per row (the part's neighbouring labels), if given."""
     from feeder.circular import wrapped_gaussian_smooth
 
     a = np.atleast_2d(np.asarray(analytic, dtype=np.float64))
@@ -111,7 +118,18 @@ def diffuse_components(analytic, mean_pmf, wide_sigma_bins: float) -> np.ndarray
     wide = wrapped_gaussian_smooth(a, float(wide_sigma_bins))
     uni = np.full((n, bins), 1.0 / bins)
     mean = np.broadcast_to(np.asarray(mean_pmf, dtype=np.float64), (n, bins))
-    return np.stack([a, wide, uni, mean], axis=1)
+    out = np.stack([a, wide, uni, mean], axis=1)
+    if extra is not None and np.asarray(extra).shape[1]:
+        out = np.concatenate([out, np.asarray(extra, dtype=np.float64)], axis=1)
+    return out
+
+
+def row_diffuse(arrays: dict, rows, mean_pmf) -> np.ndarray:
+    """:func:`diffuse_components` of ``rows``, with ``arrays["neighbour_pmf"]`` where present."""
+    extra = arrays.get("neighbour_pmf")
+    return diffuse_components(
+        arrays["analytic"][rows], mean_pmf, float(arrays["wide_sigma_bins"]), None if extra is None else extra[rows]
+    )
 
 
 # ----------------------------------------------------------------------------------------------
@@ -126,6 +144,7 @@ class NetSettings:
     sigma_max_deg: float
     kind: str = "candidates"  # one of KINDS
     start: str = "candidates"  # one of STARTS
+    neighbour_start_logit: float = math.log(LOGIT_FLOOR)  # starting logit of each neighbour component
 
     def __post_init__(self) -> None:
         if self.start not in STARTS:
@@ -203,11 +222,13 @@ def make_nets(d_cfg: int, d_cand: int, n_diffuse: int, s: NetSettings, n_variant
             rest = VARIANT_START_LOGIT if s.start == "candidates" else math.log(LOGIT_FLOOR)
             start = torch.full((n_variants + n_diffuse,), rest)
             start[0 if s.start == "candidates" else n_variants] = 0.0
+            start[n_variants + len(DIFFUSE) :] = s.neighbour_start_logit  # the part's neighbouring labels
             self.register_buffer("start", start)
             self.sigma_raw = nn.Parameter(torch.zeros(()))
 
         def forward(self, x, cf, mask, pos, logit_c, logit_d, diffuse, masses):
-            a = torch.softmax(self.net(x) + self.start, dim=1)
+            logits = self.net(x) + self.start
+            a = torch.softmax(logits, dim=1)
             av, ad = a[:, :n_variants], a[:, n_variants:]
             m = masses * mask[..., None]
             wc = (m * av[:, None, :]).sum(dim=-1)  # (N, K)
@@ -274,7 +295,8 @@ class Batch:
     def of(cls, arrays: dict, rows, diffuse: np.ndarray, start: str = "candidates"):
         torch = _torch()
         t = lambda a: torch.as_tensor(np.ascontiguousarray(a), dtype=torch.float32)  # noqa: E731
-        lc, ld = prior_logits(arrays["base_mass"][rows], arrays["mask"][rows], start)
+        n_extra = np.asarray(diffuse).shape[1] - len(DIFFUSE)
+        lc, ld = prior_logits(arrays["base_mass"][rows], arrays["mask"][rows], start, n_extra=n_extra)
         return cls(
             t(arrays["x"][rows]),
             t(arrays["cf"][rows]),
@@ -348,26 +370,30 @@ def fit(
     t: TrainSettings,
     seed: int,
     ok_train=None,
+    val_arrays: dict | None = None,
 ) -> Fitted:
     """Train the PMF network on the kept rows ``fit_rows`` (early-stopped by circular W1 on
     ``val_rows``) and the ok network on ``fit_ok`` (early-stopped by the mean absolute error of
-    the ok share on ``val_ok``); the rows index ``arrays`` (:func:`feeder.learn.structured_data`).
-    ``seed`` sets the initial weights; ``ok_train`` (default ``t``) the ok network's training."""
+    the ok share on ``val_ok``); the rows index ``arrays`` (:func:`feeder.learn.structured_data`),
+    the validation rows ``val_arrays`` (default ``arrays``: they differ where the inputs depend on
+    which labels a row may see, the part's neighbours). ``seed`` sets the initial weights;
+    ``ok_train`` (default ``t``) the ok network's training."""
     torch = _torch()
     ok_train = t if ok_train is None else ok_train
     fit_rows, val_rows = np.asarray(fit_rows), np.asarray(val_rows)
     if fit_rows.size == 0 or val_rows.size == 0:
         raise FeederError("the structured predictor needs fit and validation rows")
+    va = arrays if val_arrays is None else val_arrays
+    df = row_diffuse(arrays, fit_rows, mean_pmf)
     torch.manual_seed(int(seed))
     pmf_net, ok_net = make_nets(
-        arrays["x"].shape[1], arrays["cf"].shape[2], len(DIFFUSE), net, arrays["masses"].shape[2]
+        arrays["x"].shape[1], arrays["cf"].shape[2], df.shape[1], net, arrays["masses"].shape[2]
     )
     pmf_net, ok_net = pmf_net.float(), ok_net.float()
-    wide = float(arrays["wide_sigma_bins"])
-    bf = Batch.of(arrays, fit_rows, diffuse_components(arrays["analytic"][fit_rows], mean_pmf, wide), net.start)
-    bv = Batch.of(arrays, val_rows, diffuse_components(arrays["analytic"][val_rows], mean_pmf, wide), net.start)
+    bf = Batch.of(arrays, fit_rows, df, net.start)
+    bv = Batch.of(va, val_rows, row_diffuse(va, val_rows, mean_pmf), net.start)
     cdf_f = torch.as_tensor(arrays["cdf"][fit_rows], dtype=torch.float32)
-    cdf_v = torch.as_tensor(arrays["cdf"][val_rows], dtype=torch.float32)
+    cdf_v = torch.as_tensor(va["cdf"][val_rows], dtype=torch.float32)
     steps, val_cw1 = _early_stopped(
         pmf_net,
         lambda: circular_w1_loss(pmf_net(*bf.args()), cdf_f),
@@ -376,7 +402,7 @@ def fit(
         seed,
     )
     f32 = lambda a: torch.as_tensor(np.asarray(a), dtype=torch.float32)  # noqa: E731
-    xo_f, xo_v = f32(arrays["x"][fit_ok]), f32(arrays["x"][val_ok])
+    xo_f, xo_v = f32(arrays["x"][fit_ok]), f32(va["x"][val_ok])
     bo_f, bo_v = f32(ok_logit(arrays["analytic_ok"][fit_ok])), f32(ok_logit(arrays["analytic_ok"][val_ok]))
     yo_f, yo_v = f32(arrays["ok"][fit_ok]), f32(arrays["ok"][val_ok])
     bce = torch.nn.functional.binary_cross_entropy_with_logits
@@ -394,8 +420,7 @@ def predict(fitted: Fitted, arrays: dict, rows, mean_pmf) -> tuple[np.ndarray, n
     """(PMFs (n, bins), ok shares (n,)) of ``rows``."""
     torch = _torch()
     rows = np.asarray(rows)
-    diffuse = diffuse_components(arrays["analytic"][rows], mean_pmf, float(arrays["wide_sigma_bins"]))
-    b = Batch.of(arrays, rows, diffuse, fitted.start)
+    b = Batch.of(arrays, rows, row_diffuse(arrays, rows, mean_pmf), fitted.start)
     with torch.no_grad():
         pmf = fitted.net(*b.args()).numpy().astype(np.float64)
         base = torch.as_tensor(ok_logit(arrays["analytic_ok"][rows]), dtype=torch.float32)

@@ -131,6 +131,40 @@ def _pad(cands, k_max: int, n_var: int):
     return pos, masses, mask
 
 
+CACHE_ARRAYS = ("k", "pos", "masses", "ok_var", "push", "analytic")
+
+
+def write_candidates_cache(path, key: str, cands, n_variants: int) -> None:
+    """Write :func:`compute_candidates`' output under ``key`` (atomically, :func:`feeder.io.write_npz`)."""
+    from feeder import io
+
+    k_max = max(max(c[0].size for c in cands), 1)
+    pos, masses, _ = _pad(cands, k_max, n_variants)
+    io.write_npz(
+        Path(path),
+        key=np.array(key),
+        k=np.array([c[0].size for c in cands]),
+        pos=pos,
+        masses=masses,
+        ok_var=np.stack([c[2] for c in cands]),
+        push=np.stack([c[3] for c in cands]),
+        analytic=np.stack([c[4] for c in cands]),
+    )
+
+
+def read_candidates_cache(path, key: str):
+    """The cached candidates of :func:`write_candidates_cache`, or None when ``path`` is missing or
+    holds another key. Each array is read once: every ``z[name]`` decompresses the whole array, so
+    reading it per row kept a full copy per row alive (~17 GB for the default study's 1,578)."""
+    if not Path(path).is_file():
+        return None
+    with np.load(path, allow_pickle=False) as z:
+        if str(z["key"]) != key:
+            return None
+        k, pos, masses, ok_var, push, analytic = (z[name] for name in CACHE_ARRAYS)
+    return [(pos[i, : k[i]], masses[i, : k[i]], ok_var[i], push[i], analytic[i]) for i in range(k.size)]
+
+
 def candidate_features(masses, mask, present_mass: float) -> np.ndarray:
     """(N, K, V + 3): each variant's basin mass, their mean, their maximum and the share of
     variants giving the candidate at least ``present_mass`` (zeros where ``mask`` is False)."""
@@ -170,33 +204,12 @@ def structured_arrays(data: dict, cfg, sim_dir, parts_dir, features_dir, cache_p
     cand_cfg = {k: cfg.candidates[k] for k in ("min_mass", "window_deg", "merge_deg", "max_candidates", "present_mass")}
     cand_cfg["label_smooth_deg"] = label_smooth_deg(bins, float(labels["sigma_bins"]))
     key = candidates_key(parts, cids, frames, scene, variants, cand_cfg, parts_dir)
-    cands = None
-    if cache_path is not None and Path(cache_path).is_file():
-        with np.load(cache_path, allow_pickle=False) as z:
-            if str(z["key"]) == key:
-                k = z["k"]
-                cands = [
-                    (z["pos"][i, : k[i]], z["masses"][i, : k[i]], z["ok_var"][i], z["push"][i], z["analytic"][i])
-                    for i in range(len(parts))
-                ]
+    cands = read_candidates_cache(cache_path, key) if cache_path is not None else None
     if cands is None:
         log.info("computing candidates of %d configurations", len(parts))
         cands = compute_candidates(parts, cids, frames, scene, variants, cand_cfg, parts_dir, bins, units)
         if cache_path is not None:
-            from feeder import io
-
-            k_max = max(max(c[0].size for c in cands), 1)
-            pos, masses, _ = _pad(cands, k_max, len(variants))
-            io.write_npz(
-                Path(cache_path),
-                key=np.array(key),
-                k=np.array([c[0].size for c in cands]),
-                pos=pos,
-                masses=masses,
-                ok_var=np.stack([c[2] for c in cands]),
-                push=np.stack([c[3] for c in cands]),
-                analytic=np.stack([c[4] for c in cands]),
-            )
+            write_candidates_cache(cache_path, key, cands, len(variants))
     k_max = int(cfg.candidates.max_candidates)
     pos, masses, mask = _pad(cands, k_max, len(variants))
     ok_var = np.stack([c[2] for c in cands])
@@ -239,3 +252,95 @@ def structured_arrays(data: dict, cfg, sim_dir, parts_dir, features_dir, cache_p
         "analytic_ok": ok_var[:, 0],
         "wide_sigma_bins": float(cfg.model.wide_sigma_bins),
     }
+
+
+# ----------------------------------------------------------------------------------------------
+# The part's own neighbouring labels (known parts at new angles)
+# ----------------------------------------------------------------------------------------------
+FAR_DEG = 180.0  # the angle distance input of a missing neighbour: beyond any |Δθ1| + |Δθ2| of the grid
+# the inputs of each neighbour, followed by the part's "part_miss" and "has_part" (neighbour_block)
+NEIGHBOUR_FEATURES = ("has", "distance", "closeness", "analytic_move", "analytic_miss", "ok")
+
+
+def nearest_rows(parts, config_ids, pool, rows, k: int) -> tuple[np.ndarray, np.ndarray]:
+    """For each of ``rows``: the ``k`` nearest rows of ``pool`` (a boolean mask) of the same part
+    and fence-type combination by ``|Δθ1| + |Δθ2|`` (degrees), nearest first, ties to the lower
+    index; never the row itself. Returns (indices (n, k), −1 where fewer; distances (n, k), inf)."""
+    from feeder.learn.neighbour import fence_key
+
+    parts = np.asarray(parts).astype(str)
+    keys = [fence_key(c) for c in config_ids]
+    by_group: dict[tuple, list[int]] = {}
+    for j in np.flatnonzero(np.asarray(pool, dtype=bool)):
+        by_group.setdefault((parts[j], keys[j][0]), []).append(int(j))
+    rows = np.asarray(rows, dtype=np.int64)
+    idx = np.full((rows.size, int(k)), -1, dtype=np.int64)
+    dist = np.full((rows.size, int(k)), np.inf)
+    for n, i in enumerate(rows):
+        group = [j for j in by_group.get((parts[i], keys[i][0]), []) if j != i]
+        if not group:
+            continue
+        d = np.abs(np.array([keys[j][1] for j in group]) - np.array(keys[i][1])).sum(axis=1)
+        order = np.argsort(d, kind="stable")[: int(k)]  # stable: ties keep index order
+        idx[n, : order.size] = np.asarray(group)[order]
+        dist[n, : order.size] = d[order]
+    return idx, dist
+
+
+def neighbour_block(arrays: dict, pool, k: int, near_deg: float) -> tuple[np.ndarray, np.ndarray]:
+    """Every row's ``k`` nearest labelled rows of ``pool`` (kept rows of the same part and fence
+    types, :func:`nearest_rows`) as inputs of the structured predictor: (features (N, 6k + 2),
+    PMFs (N, k, bins)). Per neighbour (:data:`NEIGHBOUR_FEATURES`): present (0/1), its angle distance
+    over 90° (:data:`FAR_DEG` when missing), its closeness ``exp(−distance / near_deg)`` (0 when
+    missing), the circular W1 between the row's and its analytic PMFs
+    and between its label and its analytic PMF (over 90°; 0 when missing), and its ok share (the
+    row's analytic ok mass when missing); then the mean W1 between label and analytic PMF over the
+    part's other pool rows (over 90°) and whether there are any. A missing neighbour's PMF is the
+    row's analytic PMF, so its component changes nothing. No label of the row itself is read."""
+    from feeder.labels.metrics import circular_w1
+
+    pool = np.asarray(pool, dtype=bool) & np.asarray(arrays["kept"], dtype=bool)
+    n = len(arrays["part"])
+    rows = np.arange(n)
+    idx, dist = nearest_rows(arrays["part"], arrays["config_id"], pool, rows, k)
+    analytic, pmf = np.asarray(arrays["analytic"], np.float64), np.asarray(arrays["pmf"], np.float64)
+    a_cdf, l_cdf = np.cumsum(analytic, axis=1), np.cumsum(pmf, axis=1)
+    miss = np.zeros(n)  # each pool row's label against its analytic PMF
+    miss[pool] = circular_w1(l_cdf[pool], a_cdf[pool]) / RIGHT_ANGLE_DEG
+    feats, pmfs = [], np.repeat(analytic[:, None, :], int(k), axis=1)
+    for j in range(int(k)):
+        has = idx[:, j] >= 0
+        nb = np.where(has, idx[:, j], 0)
+        move = np.where(has, circular_w1(a_cdf, a_cdf[nb]) / RIGHT_ANGLE_DEG, 0.0)
+        feats += [
+            has.astype(float),
+            np.where(has, dist[:, j], FAR_DEG) / RIGHT_ANGLE_DEG,
+            np.where(has, np.exp(-dist[:, j] / near_deg), 0.0),
+            move,
+            np.where(has, miss[nb], 0.0),
+            np.where(has, np.asarray(arrays["ok"])[nb], np.asarray(arrays["analytic_ok"])),
+        ]
+        pmfs[has, j] = pmf[nb[has]]
+    parts = np.asarray(arrays["part"]).astype(str)
+    part_miss, has_part = np.zeros(n), np.zeros(n)
+    for p in np.unique(parts):
+        of = np.flatnonzero(parts == p)
+        in_pool = of[pool[of]]
+        total, count = miss[in_pool].sum(), in_pool.size
+        for i in of:  # leave the row itself out
+            c = count - int(pool[i])
+            if c > 0:
+                part_miss[i] = (total - (miss[i] if pool[i] else 0.0)) / c
+                has_part[i] = 1.0
+    return np.column_stack([*feats, part_miss, has_part]), pmfs
+
+
+def with_neighbours(arrays: dict, pool, k: int, near_deg: float) -> dict:
+    """``arrays`` with the neighbour inputs of :func:`neighbour_block` appended to ``x`` and their
+    PMFs as ``neighbour_pmf`` (unchanged when ``k`` is 0)."""
+    if int(k) <= 0:
+        return arrays
+    if not near_deg > 0:
+        raise FeederError(f"model.neighbour_near_deg must be > 0, got {near_deg}")
+    feats, pmfs = neighbour_block(arrays, pool, int(k), float(near_deg))
+    return dict(arrays, x=np.concatenate([arrays["x"], feats], axis=1), neighbour_pmf=pmfs)

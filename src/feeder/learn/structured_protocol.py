@@ -45,6 +45,7 @@ ANALYTIC = "analytic_pmf"
 PRIOR = "analytic_prior"
 MEAN = "mean_pmf"
 M3 = "m3"
+GATED = "neighbour_gated"  # the part's nearest labelled angle within a gate, else the analytic PMF
 SEED_MOD = 2**31 - 1
 
 
@@ -99,6 +100,7 @@ def _settings(cfg):
             float(m.sigma_max_deg),
             str(hp.get("kind", "candidates")),
             str(m.start),
+            float(m.neighbour_start_logit),
         )
 
     def train(weight_decay):
@@ -109,12 +111,17 @@ def _settings(cfg):
     return net, train
 
 
-def fit_protocol(arrays: dict, train: np.ndarray, cfg, key: str) -> dict:
+def fit_protocol(arrays: dict, train: np.ndarray, cfg, key: str, known: bool = True) -> dict:
     """Fit the structured predictor on the configurations ``train`` (a boolean mask over
     ``arrays``; kept rows train the PMF, all of them the ok head): validation parts, the search
     and the seeds, all derived from ``cfg.seed`` and ``key``. Returns the fitted seeds and what
-    predicting needs (input scaling, training-mean PMF) with the choice made."""
+    predicting needs (input scaling, training-mean PMF) with the choice made.
+
+    ``known``: the fit is scored on parts it has labels of (Test, Fences), so a validation row sees
+    its part's other validation rows as neighbours; otherwise (unseen parts) validation rows see
+    none, as the scored parts will not, and the choice and early stopping mirror that."""
     from feeder.learn.structured import fit
+    from feeder.learn.structured_data import with_neighbours
 
     base = int(cfg.seed)
     val_parts = pick_parts(arrays["part"][train], float(cfg.protocol.val_part_fraction), derived_seed(base, key), "val")
@@ -124,17 +131,37 @@ def fit_protocol(arrays: dict, train: np.ndarray, cfg, key: str) -> dict:
     val_rows = np.flatnonzero(train & kept & is_val)
     fit_ok = np.flatnonzero(train & ~is_val)
     val_ok = np.flatnonzero(train & is_val)
-    x = arrays["x"]
+    # the part's neighbouring labels: a fit row sees the other fit rows, a validation row the other
+    # rows of its own (validation) part, a scored row every training row (as a user's known part)
+    k = neighbour_count(cfg)
+    near = float(cfg.model.neighbour_near_deg)
+    a_fit = with_neighbours(arrays, train & ~is_val, k, near)
+    a_val = with_neighbours(arrays, train & is_val & bool(known), k, near)
+    x = a_fit["x"]
     mu, sd = x[fit_ok].mean(axis=0), x[fit_ok].std(axis=0)
     sd = np.where(sd > 0, sd, 1.0)
-    scaled = dict(arrays, x=(x - mu) / sd)
+    scaled, scaled_val = dict(a_fit, x=(x - mu) / sd), dict(a_val, x=(a_val["x"] - mu) / sd)
+    a_eval = with_neighbours(arrays, train, k, near)
+    scaled_eval = dict(a_eval, x=(a_eval["x"] - mu) / sd)
     mean_pmf = arrays["pmf"][fit_rows].mean(axis=0)
     net, tr = _settings(cfg)
     ok_train = tr(float(cfg.train.ok_weight_decay))
     tried = []
     for i, hp in enumerate(cfg.search):
         seed = derived_seed(base, key, "seed", 0)
-        f = fit(scaled, fit_rows, val_rows, fit_ok, val_ok, mean_pmf, net(hp), tr(hp.weight_decay), seed, ok_train)
+        f = fit(
+            scaled,
+            fit_rows,
+            val_rows,
+            fit_ok,
+            val_ok,
+            mean_pmf,
+            net(hp),
+            tr(hp.weight_decay),
+            seed,
+            ok_train,
+            scaled_val,
+        )
         tried.append((f.val_cw1, i, f))
     best_cw1, best_i, first = min(tried, key=lambda t: (t[0], t[1]))
     hp = cfg.search[best_i]
@@ -142,7 +169,19 @@ def fit_protocol(arrays: dict, train: np.ndarray, cfg, key: str) -> dict:
     for s in range(1, int(cfg.seeds)):
         seed = derived_seed(base, key, "seed", s)
         fits.append(
-            fit(scaled, fit_rows, val_rows, fit_ok, val_ok, mean_pmf, net(hp), tr(hp.weight_decay), seed, ok_train)
+            fit(
+                scaled,
+                fit_rows,
+                val_rows,
+                fit_ok,
+                val_ok,
+                mean_pmf,
+                net(hp),
+                tr(hp.weight_decay),
+                seed,
+                ok_train,
+                scaled_val,
+            )
         )
     choice = {
         "fit": key,
@@ -158,8 +197,19 @@ def fit_protocol(arrays: dict, train: np.ndarray, cfg, key: str) -> dict:
         "val_ok_mae": float(np.mean([f.val_ok_mae for f in fits])),
         "steps": float(np.mean([f.steps for f in fits])),
         "ok_steps": float(np.mean([f.ok_steps for f in fits])),
+        "neighbours": k,
+        "val_neighbours": bool(known and k > 0),
     }
-    return {"fits": fits, "scaled": scaled, "mean_pmf": mean_pmf, "choice": choice, "train": train}
+    return {"fits": fits, "scaled": scaled_eval, "mean_pmf": mean_pmf, "choice": choice, "train": train}
+
+
+def neighbour_count(cfg) -> int:
+    """``model.neighbours``: how many of the part's nearest labelled configurations
+    of the same fence types the predictor reads (:func:`feeder.learn.structured_data.neighbour_block`)."""
+    k = cfg.model.neighbours
+    if isinstance(k, bool) or not isinstance(k, int) or k < 0:
+        raise FeederError(f"model.neighbours must be an integer >= 0, got {k!r}")
+    return int(k)
 
 
 def baseline_pmfs(arrays: dict, train: np.ndarray, rows, prior_grids) -> dict[str, np.ndarray]:
@@ -242,7 +292,7 @@ def run_protocol(arrays: dict, cfg, prior_grids, m3_pmf: dict | None = None, pro
         held = (arrays["group_fold"] == fold) & ~is_locked
         train = (arrays["group_fold"] != fold) & ~is_locked
         t0 = time.perf_counter()
-        fitted = fit_protocol(arrays, train, cfg, f"groupkfold:{fold}")
+        fitted = fit_protocol(arrays, train, cfg, f"groupkfold:{fold}", known=False)
         rows += score_rows(arrays, fitted, np.flatnonzero(held), "unseen_groupkfold", int(fold), prior_grids)
         choices.append({**fitted["choice"], "seconds": time.perf_counter() - t0})
         say(f"groupkfold fold {fold}: {choices[-1]}")
@@ -262,22 +312,40 @@ def run_protocol(arrays: dict, cfg, prior_grids, m3_pmf: dict | None = None, pro
         fitted = fit_protocol(arrays, train, cfg, f"main:{r}")
         for name, mask in (("test", test), ("fences", fences)):
             idx = np.flatnonzero(mask)
-            extra = None
+            extra = {GATED: gated_neighbour(arrays, train, idx, list(cfg.neighbour.gates_deg))}
             if m3_pmf is not None and r == 0:
                 nan_row = np.full(arrays["pmf"].shape[1], np.nan)
                 keys = zip(parts[idx], arrays["config_id"][idx], strict=True)
-                extra = {M3: np.stack([m3_pmf.get((str(p), str(c)), nan_row) for p, c in keys])}
+                extra[M3] = np.stack([m3_pmf.get((str(p), str(c)), nan_row) for p, c in keys])
             rows += score_rows(arrays, fitted, idx, name, r, prior_grids, extra)
         choices.append({**fitted["choice"], "seconds": time.perf_counter() - t0})
         say(f"main repeat {r}: {choices[-1]}")
     # the locked parts, once
     train = ~is_locked
     t0 = time.perf_counter()
-    fitted = fit_protocol(arrays, train, cfg, "locked")
+    fitted = fit_protocol(arrays, train, cfg, "locked", known=False)
     rows += score_rows(arrays, fitted, np.flatnonzero(is_locked), "unseen_locked", 0, prior_grids)
     choices.append({**fitted["choice"], "seconds": time.perf_counter() - t0, "locked_parts": " ".join(sorted(locked))})
     say(f"locked: {choices[-1]}")
     return pd.DataFrame(rows), pd.DataFrame(choices)
+
+
+def gated_neighbour(arrays: dict, train, rows, gates) -> np.ndarray:
+    """The gated neighbour of ``rows`` (:mod:`feeder.learn.neighbour`): the label of the nearest kept
+    ``train`` row of the same part and fence types within the gate, else the analytic PMF; the gate
+    of ``gates`` chosen on the training rows alone."""
+    from feeder.learn.neighbour import angle_distance, choose_gate, neighbour_index
+
+    pool = np.asarray(train, dtype=bool) & arrays["kept"]
+    pmf, analytic, parts, cids = arrays["pmf"], arrays["analytic"], arrays["part"], arrays["config_id"]
+    gate = choose_gate(pmf, analytic, parts, cids, pool, [float(g) for g in gates])
+    rows = np.asarray(rows)
+    idx = neighbour_index(parts, cids, pool, rows)
+    out = analytic[rows].copy()
+    for n, (i, j) in enumerate(zip(rows, idx, strict=True)):
+        if j >= 0 and angle_distance(cids[i], cids[j]) <= gate:
+            out[n] = pmf[j]
+    return out
 
 
 UNITS = {"unseen_groupkfold": "part", "unseen_locked": "part", "test": "configuration", "fences": "configuration"}
@@ -309,7 +377,8 @@ def comparison_table(long: pd.DataFrame, bootstrap: dict, m3_parts: pd.Series | 
         for metric, sign in METRICS:
             model = unit_scores(long, experiment, STRUCTURED, metric)
             seeds = long[(long.experiment == experiment) & (long.predictor == STRUCTURED)]
-            baselines = [ANALYTIC, PRIOR, MEAN] + ([M3] if M3 in set(long.predictor) and metric != "ok_abs_err" else [])
+            present = set(long[long.experiment == experiment].predictor)
+            baselines = [ANALYTIC, PRIOR, MEAN] + [b for b in (GATED, M3) if b in present]
             if metric == "ok_abs_err":
                 baselines = [ANALYTIC, MEAN]
             series = {b: unit_scores(long, experiment, b, metric) for b in baselines}
