@@ -431,6 +431,25 @@ def test_nearest_rows_keep_to_the_part_and_its_fence_types_and_never_pick_the_ro
     assert idx.tolist() == [[2, -1], [2, 0]] and dist[0, 1] == np.inf  # an unlabelled row still reads its neighbours
 
 
+def test_cross_neighbours_share_the_downstream_fence_in_another_type_combination():
+    from feeder.learn.structured_data import nearest_cross_rows
+
+    parts = np.array(["a", "a", "a", "a", "a", "b"])
+    cids = np.array(
+        [
+            "straight30_curved20",  # 0: its cross neighbours are straight|none and straight|straight rows
+            "straight50_none",  # 1
+            "straight35_straight40",  # 2
+            "straight32_curved60",  # 3: the same combination as row 0, never a cross neighbour of it
+            "none_straight30",  # 4: no Location 1 fence, no cross neighbour
+            "straight30_none",  # 5: another part
+        ]
+    )
+    idx, dist = nearest_cross_rows(parts, cids, np.ones(6, bool), np.arange(6), 2)
+    assert idx.tolist() == [[2, 1], [2, 3], [3, 0], [2, 1], [-1, -1], [-1, -1]]
+    assert dist[:4].tolist() == [[5.0, 20.0], [15.0, 18.0], [3.0, 5.0], [3.0, 18.0]]
+
+
 def _nb_arrays():
     """Four 90-degree bins: every analytic PMF at bin 0, the labels one bin on per row."""
     n = 5
@@ -494,6 +513,8 @@ def test_no_neighbours_leave_the_inputs_as_they_are():
     assert with_neighbours(a, np.ones(5, bool), 0, 10.0) is a
     b = with_neighbours(dict(a, x=np.zeros((5, 3))), np.ones(5, bool), 2, 10.0)
     assert b["x"].shape == (5, 3 + 6 * 2 + 2) and b["neighbour_pmf"].shape == (5, 2, 4)
+    c = with_neighbours(dict(a, x=np.zeros((5, 3))), np.ones(5, bool), 1, 10.0, cross=1)
+    assert c["x"].shape == (5, 3 + 6 * 2 + 2) and c["neighbour_pmf"].shape == (5, 2, 4)
     with pytest.raises(FeederError, match="neighbour_near_deg"):
         with_neighbours(a, np.ones(5, bool), 2, 0.0)
 
@@ -506,6 +527,8 @@ def test_a_bad_neighbour_count_is_refused(bad):
 
     with pytest.raises(FeederError, match="model.neighbours"):
         neighbour_count(OmegaConf.create({"model": {"neighbours": bad}}))
+    with pytest.raises(FeederError, match="model.cross_neighbours"):
+        neighbour_count(OmegaConf.create({"model": {"cross_neighbours": bad}}), "cross_neighbours")
 
 
 def test_the_candidates_cache_round_trips_and_holds_each_array_once(tmp_path):

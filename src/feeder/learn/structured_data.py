@@ -287,15 +287,48 @@ def nearest_rows(parts, config_ids, pool, rows, k: int) -> tuple[np.ndarray, np.
     return idx, dist
 
 
-def neighbour_block(arrays: dict, pool, k: int, near_deg: float) -> tuple[np.ndarray, np.ndarray]:
+def nearest_cross_rows(parts, config_ids, pool, rows, k: int) -> tuple[np.ndarray, np.ndarray]:
+    """For each of ``rows`` with a downstream (Location 1) fence: the ``k`` nearest rows of ``pool``
+    of the same part whose Location 1 fence has the same type but whose type combination differs
+    (the same last fence after another upstream one, or none), by ``|Δθ1|`` (degrees), nearest
+    first, ties to the lower index. The downstream fence sets most of where a part comes to rest.
+    Returns (indices (n, k), −1 where fewer or no Location 1 fence; distances (n, k), inf)."""
+    from feeder.learn.neighbour import fence_key
+
+    parts = np.asarray(parts).astype(str)
+    keys = [fence_key(c) for c in config_ids]
+    by_loc1: dict[tuple, list[int]] = {}
+    for j in np.flatnonzero(np.asarray(pool, dtype=bool)):
+        by_loc1.setdefault((parts[j], keys[j][0][0]), []).append(int(j))
+    rows = np.asarray(rows, dtype=np.int64)
+    idx = np.full((rows.size, int(k)), -1, dtype=np.int64)
+    dist = np.full((rows.size, int(k)), np.inf)
+    for n, i in enumerate(rows):
+        (loc1, _), (angle1, _) = keys[i]
+        if loc1 == "none":
+            continue
+        group = [j for j in by_loc1.get((parts[i], loc1), []) if keys[j][0] != keys[i][0]]
+        if not group:
+            continue
+        d = np.abs(np.array([keys[j][1][0] for j in group]) - angle1)
+        order = np.argsort(d, kind="stable")[: int(k)]
+        idx[n, : order.size] = np.asarray(group)[order]
+        dist[n, : order.size] = d[order]
+    return idx, dist
+
+
+def neighbour_block(arrays: dict, pool, k: int, near_deg: float, cross: int = 0) -> tuple[np.ndarray, np.ndarray]:
     """Every row's ``k`` nearest labelled rows of ``pool`` (kept rows of the same part and fence
-    types, :func:`nearest_rows`) as inputs of the structured predictor: (features (N, 6k + 2),
-    PMFs (N, k, bins)). Per neighbour (:data:`NEIGHBOUR_FEATURES`): present (0/1), its angle distance
-    over 90° (:data:`FAR_DEG` when missing), its closeness ``exp(−distance / near_deg)`` (0 when
-    missing), the circular W1 between the row's and its analytic PMFs
-    and between its label and its analytic PMF (over 90°; 0 when missing), and its ok share (the
-    row's analytic ok mass when missing); then the mean W1 between label and analytic PMF over the
-    part's other pool rows (over 90°) and whether there are any. A missing neighbour's PMF is the
+    types, :func:`nearest_rows`), then its ``cross`` nearest under the same downstream fence in
+    other type combinations (:func:`nearest_cross_rows`, distance ``|Δθ1|``), as inputs of the
+    structured predictor: (features (N, 6(k + cross) + 2), PMFs (N, k + cross, bins)).
+
+    Per neighbour (:data:`NEIGHBOUR_FEATURES`): present (0/1); its angle distance over 90°
+    (:data:`FAR_DEG` when missing); its closeness ``exp(−distance / near_deg)`` (0 when missing);
+    the circular W1 between the row's and its analytic PMFs, and between its label and its
+    analytic PMF (over 90°; 0 when missing); its ok share (the row's analytic ok mass when
+    missing). Then the mean W1 between label and analytic PMF over the part's other pool rows
+    (over 90°) and whether there are any. A missing neighbour's PMF is the
     row's analytic PMF, so its component changes nothing. No label of the row itself is read."""
     from feeder.labels.metrics import circular_w1
 
@@ -303,6 +336,9 @@ def neighbour_block(arrays: dict, pool, k: int, near_deg: float) -> tuple[np.nda
     n = len(arrays["part"])
     rows = np.arange(n)
     idx, dist = nearest_rows(arrays["part"], arrays["config_id"], pool, rows, k)
+    if int(cross) > 0:  # then the nearest of other type combinations under the same downstream fence
+        c_idx, c_dist = nearest_cross_rows(arrays["part"], arrays["config_id"], pool, rows, cross)
+        idx, dist, k = np.concatenate([idx, c_idx], axis=1), np.concatenate([dist, c_dist], axis=1), k + int(cross)
     analytic, pmf = np.asarray(arrays["analytic"], np.float64), np.asarray(arrays["pmf"], np.float64)
     a_cdf, l_cdf = np.cumsum(analytic, axis=1), np.cumsum(pmf, axis=1)
     miss = np.zeros(n)  # each pool row's label against its analytic PMF
@@ -335,12 +371,12 @@ def neighbour_block(arrays: dict, pool, k: int, near_deg: float) -> tuple[np.nda
     return np.column_stack([*feats, part_miss, has_part]), pmfs
 
 
-def with_neighbours(arrays: dict, pool, k: int, near_deg: float) -> dict:
+def with_neighbours(arrays: dict, pool, k: int, near_deg: float, cross: int = 0) -> dict:
     """``arrays`` with the neighbour inputs of :func:`neighbour_block` appended to ``x`` and their
-    PMFs as ``neighbour_pmf`` (unchanged when ``k`` is 0)."""
-    if int(k) <= 0:
+    PMFs as ``neighbour_pmf`` (unchanged when ``k`` and ``cross`` are 0)."""
+    if int(k) + int(cross) <= 0:
         return arrays
     if not near_deg > 0:
         raise FeederError(f"model.neighbour_near_deg must be > 0, got {near_deg}")
-    feats, pmfs = neighbour_block(arrays, pool, int(k), float(near_deg))
+    feats, pmfs = neighbour_block(arrays, pool, int(k), float(near_deg), int(cross))
     return dict(arrays, x=np.concatenate([arrays["x"], feats], axis=1), neighbour_pmf=pmfs)

@@ -133,15 +133,15 @@ def fit_protocol(arrays: dict, train: np.ndarray, cfg, key: str, known: bool = T
     val_ok = np.flatnonzero(train & is_val)
     # the part's neighbouring labels: a fit row sees the other fit rows, a validation row the other
     # rows of its own (validation) part, a scored row every training row (as a user's known part)
-    k = neighbour_count(cfg)
+    k, cross = neighbour_count(cfg), neighbour_count(cfg, "cross_neighbours")
     near = float(cfg.model.neighbour_near_deg)
-    a_fit = with_neighbours(arrays, train & ~is_val, k, near)
-    a_val = with_neighbours(arrays, train & is_val & bool(known), k, near)
+    a_fit = with_neighbours(arrays, train & ~is_val, k, near, cross)
+    a_val = with_neighbours(arrays, train & is_val & bool(known), k, near, cross)
     x = a_fit["x"]
     mu, sd = x[fit_ok].mean(axis=0), x[fit_ok].std(axis=0)
     sd = np.where(sd > 0, sd, 1.0)
     scaled, scaled_val = dict(a_fit, x=(x - mu) / sd), dict(a_val, x=(a_val["x"] - mu) / sd)
-    a_eval = with_neighbours(arrays, train, k, near)
+    a_eval = with_neighbours(arrays, train, k, near, cross)
     scaled_eval = dict(a_eval, x=(a_eval["x"] - mu) / sd)
     mean_pmf = arrays["pmf"][fit_rows].mean(axis=0)
     net, tr = _settings(cfg)
@@ -198,17 +198,19 @@ def fit_protocol(arrays: dict, train: np.ndarray, cfg, key: str, known: bool = T
         "steps": float(np.mean([f.steps for f in fits])),
         "ok_steps": float(np.mean([f.ok_steps for f in fits])),
         "neighbours": k,
-        "val_neighbours": bool(known and k > 0),
+        "cross_neighbours": cross,
+        "val_neighbours": bool(known and k + cross > 0),
     }
     return {"fits": fits, "scaled": scaled_eval, "mean_pmf": mean_pmf, "choice": choice, "train": train}
 
 
-def neighbour_count(cfg) -> int:
-    """``model.neighbours``: how many of the part's nearest labelled configurations
-    of the same fence types the predictor reads (:func:`feeder.learn.structured_data.neighbour_block`)."""
-    k = cfg.model.neighbours
+def neighbour_count(cfg, key: str = "neighbours") -> int:
+    """``model.neighbours`` (or ``model.cross_neighbours``): how many of the part's nearest labelled
+    configurations of the same fence types (or of other types under the same downstream fence) the
+    predictor reads (:func:`feeder.learn.structured_data.neighbour_block`)."""
+    k = cfg.model[key]
     if isinstance(k, bool) or not isinstance(k, int) or k < 0:
-        raise FeederError(f"model.neighbours must be an integer >= 0, got {k!r}")
+        raise FeederError(f"model.{key} must be an integer >= 0, got {k!r}")
     return int(k)
 
 
