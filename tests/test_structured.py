@@ -276,7 +276,7 @@ def test_settings_are_checked():
 # Protocol
 # ----------------------------------------------------------------------------------------------
 def test_seeds_and_part_picks_derive_from_ids():
-    from feeder.learn.structured_protocol import derived_seed, pick_parts, resplit_rows
+    from feeder.learn.splits import derived_seed, pick_parts, resplit_rows
 
     assert derived_seed(39, "main", 1) == derived_seed(39, "main", 1) != derived_seed(39, "main", 2)
     parts = [f"p{i}" for i in range(20)]

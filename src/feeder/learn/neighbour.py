@@ -36,6 +36,7 @@ import numpy as np
 import pandas as pd
 
 from feeder.errors import FeederError
+from feeder.learn.structured_data import fence_key
 
 NEIGHBOUR = "neighbour"
 SHIFTED = "neighbour_shift"
@@ -53,14 +54,6 @@ COMPARISONS = tuple((p, b) for p in (GATED, NEIGHBOUR, SHIFTED) for b in (ANALYT
 # ----------------------------------------------------------------------------------------------
 # Pure functions
 # ----------------------------------------------------------------------------------------------
-def fence_key(config_id: str) -> tuple[tuple[str, str], tuple[float, float]]:
-    """(the type combination, the two angles) of a configuration id; ``none`` has angle 0."""
-    from feeder.lane.fences import parse_config_id
-
-    a, b = parse_config_id(str(config_id))
-    return (a.type, b.type), (float(a.angle), float(b.angle))
-
-
 def neighbour_index(parts, config_ids, train, rows) -> np.ndarray:
     """For each of ``rows``: the index of the nearest training row (``train``, a boolean mask) of
     the same part and type combination, by ``|Δθ1| + |Δθ2|``, ties to the lower index; -1 if none.
@@ -151,7 +144,7 @@ def choose_gate(pmf, analytic, parts, config_ids, train, gates) -> float:
 def main_splits(split, repeats: int, test_fraction: float, seed: int) -> list[np.ndarray]:
     """Boolean Test masks of the repeated Main splits: repeat 0 the dataset's own Test rows, then
     ``test_fraction`` of the Main rows re-drawn per repeat (the structured protocol's splits)."""
-    from feeder.learn.structured_protocol import derived_seed, resplit_rows
+    from feeder.learn.splits import derived_seed, resplit_rows
 
     split = np.asarray(split).astype(str)
     main = np.isin(split, ["train", "test"])

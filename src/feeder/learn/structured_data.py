@@ -262,12 +262,19 @@ FAR_DEG = 180.0  # the angle distance input of a missing neighbour: beyond any |
 NEIGHBOUR_FEATURES = ("has", "distance", "closeness", "analytic_move", "analytic_miss", "ok")
 
 
+def fence_key(config_id: str) -> tuple[tuple[str, str], tuple[float, float]]:
+    """(the type combination, the two angles) of a configuration id; ``none`` has angle 0. Here, below
+    :mod:`feeder.learn.neighbour` and :mod:`feeder.learn.structured_protocol`, which both read it."""
+    from feeder.lane.fences import parse_config_id
+
+    a, b = parse_config_id(str(config_id))
+    return (a.type, b.type), (float(a.angle), float(b.angle))
+
+
 def nearest_rows(parts, config_ids, pool, rows, k: int) -> tuple[np.ndarray, np.ndarray]:
     """For each of ``rows``: the ``k`` nearest rows of ``pool`` (a boolean mask) of the same part
     and fence-type combination by ``|Δθ1| + |Δθ2|`` (degrees), nearest first, ties to the lower
     index; never the row itself. Returns (indices (n, k), −1 where fewer; distances (n, k), inf)."""
-    from feeder.learn.neighbour import fence_key
-
     parts = np.asarray(parts).astype(str)
     keys = [fence_key(c) for c in config_ids]
     by_group: dict[tuple, list[int]] = {}
@@ -293,8 +300,6 @@ def nearest_cross_rows(parts, config_ids, pool, rows, k: int) -> tuple[np.ndarra
     (the same last fence after another upstream one, or none), by ``|Δθ1|`` (degrees), nearest
     first, ties to the lower index. The downstream fence sets most of where a part comes to rest.
     Returns (indices (n, k), −1 where fewer or no Location 1 fence; distances (n, k), inf)."""
-    from feeder.learn.neighbour import fence_key
-
     parts = np.asarray(parts).astype(str)
     keys = [fence_key(c) for c in config_ids]
     by_loc1: dict[tuple, list[int]] = {}

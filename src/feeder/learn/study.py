@@ -70,7 +70,7 @@ def nearest_configuration(config_id: str, pool: list[str]) -> tuple[int, float]:
     """The position in ``pool`` of the configuration of ``config_id``'s fence types nearest to it by
     ``|Δθ1| + |Δθ2|`` (ties to the earlier one; :func:`feeder.learn.neighbour.neighbour_index`'s rule)
     and that distance in degrees; ``(-1, inf)`` when no configuration of ``pool`` has its types."""
-    from feeder.learn.neighbour import fence_key
+    from feeder.learn.structured_data import fence_key
 
     types, angles = fence_key(config_id)
     best, dist = -1, float("inf")
