@@ -54,7 +54,23 @@ def test_audits_that_agree_leave_the_widest_unaudited_interval_as_a_possible_isl
     est = E.estimate_error(d, pmf, masses["ok"], beta, beta, np.full(3, "ok"), 0.9, 1.0)
     assert est.misses == 0
     assert est.sup_cdf == pytest.approx(0.25)  # the island term alone: 90° of 360°
-    assert est.circular_w1_deg > 0
+    # the label is uniform: every yaw lies a mean 90° from it, so the island costs 0.25 x 90°
+    assert est.circular_w1_deg == pytest.approx(22.5, rel=1e-6)
+
+
+def test_an_unseen_island_is_charged_at_the_yaw_farthest_from_the_label():
+    # every sample and audit ends at 100°: the label is one sharp basin. An island hidden in the
+    # unaudited quarter [270, 360) could end anywhere; the worst place is 280°, 180° away. (The
+    # interval's ends, at 100°, said 0.8°: a band of good drops between jammed samples was missed so.)
+    d = _design([0, 90, 180, 270], [100, 100, 100, 100])
+    pmf, masses = pushforward_pmf(d, 360, 1.0)
+    beta = np.array([10.0, 100.0, 200.0])
+    est = E.estimate_error(d, pmf, masses["ok"], beta, np.full(3, 100.0), np.full(3, "ok"), 0.9, 1.0)
+    assert est.misses == 0
+    # the label is bin 100 smoothed (weights p_b): from 280.5° each bin b lies 180 - |b - 100| bins away
+    spread = float(np.sum(pmf * np.abs(np.arange(360) - 100)))
+    assert 0.5 < spread < 1.5
+    assert est.circular_w1_deg == pytest.approx(0.25 * (180.0 - spread), rel=1e-9)
 
 
 def test_an_audit_in_a_missed_island_raises_the_estimate_above_the_true_error():
