@@ -75,7 +75,7 @@ def test_adaptive_record_label_is_the_push_forward_of_its_design(tmp_path):
     pmf, masses = pushforward_pmf(design, 360, 1.0)
     np.testing.assert_allclose(label.pmf, pmf, atol=1e-15)
     # the exact answer: ok mass 300/360, jammed 60/360, basins 120:180 of the ok mass
-    assert masses["jammed"] == pytest.approx(60 / 360, abs=design.label_bound)
+    assert masses["jammed"] == pytest.approx(60 / 360, abs=design.unresolved_share)
     raw, _ = pushforward_pmf(design, 360, 0.0)
     assert raw[30] == pytest.approx(120 / 300, abs=2 * label.cdf_bound + 1e-12)
     assert raw[200] == pytest.approx(180 / 300, abs=2 * label.cdf_bound + 1e-12)

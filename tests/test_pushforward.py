@@ -120,15 +120,15 @@ def test_step_map_two_basins_exact_masses():
     d = A.refine(ev)
     pmf, masses = P.pushforward_pmf(d, BINS, 0.0)
     jumps = 2  # at 120° and at 360°/0°
-    assert d.label_bound <= jumps * d.min_width_deg / 360.0
-    assert d.label_bound > 0
-    assert pmf[30] == pytest.approx(1 / 3, abs=d.label_bound + 1e-12)
-    assert pmf[200] == pytest.approx(2 / 3, abs=d.label_bound + 1e-12)
+    assert d.unresolved_share <= jumps * d.min_width_deg / 360.0
+    assert d.unresolved_share > 0
+    assert pmf[30] == pytest.approx(1 / 3, abs=d.unresolved_share + 1e-12)
+    assert pmf[200] == pytest.approx(2 / 3, abs=d.unresolved_share + 1e-12)
     assert pmf[30] + pmf[200] == pytest.approx(1.0)
     assert masses == {"ok": pytest.approx(1.0)}
     exact = np.zeros(BINS)
     exact[30], exact[200] = 1 / 3, 2 / 3
-    assert sup_cdf(pmf, exact) <= d.label_bound + 1e-12
+    assert sup_cdf(pmf, exact) <= d.unresolved_share + 1e-12
     # few simulations: 16 grid + 16 first-round midpoints + 5 bisections and a few edge checks per jump
     assert d.evaluations <= 16 + 16 + 12 * jumps
     assert d.evaluations == d.yaws.size == sum(ev.sizes) and d.calls == ev.calls
@@ -136,16 +136,16 @@ def test_step_map_two_basins_exact_masses():
     assert d.unresolved.shape == (2, 2)
     assert any(a < 120.0 <= b for a, b in d.unresolved)
     assert any(a < 360.0 <= b for a, b in d.unresolved)
-    assert np.sum(d.unresolved[:, 1] - d.unresolved[:, 0]) / 360.0 == pytest.approx(d.label_bound)
+    assert np.sum(d.unresolved[:, 1] - d.unresolved[:, 0]) / 360.0 == pytest.approx(d.unresolved_share)
 
 
 def test_step_map_without_checks_is_pure_bisection():
     d = A.refine(step_map, max_width_deg=360.0 / 16, edge_check_deg=0.0)
     assert d.evaluations == 16 + 6 * 2  # 22.5° → 0.35° is six bisections per jump
-    assert d.label_bound <= 2 * d.min_width_deg / 360.0
+    assert d.unresolved_share <= 2 * d.min_width_deg / 360.0
     with_checks = A.refine(step_map, max_width_deg=360.0 / 16)
     assert d.evaluations < with_checks.evaluations <= d.evaluations + 2 * 8
-    assert with_checks.label_bound == pytest.approx(d.label_bound)
+    assert with_checks.unresolved_share == pytest.approx(d.unresolved_share)
 
 
 def test_narrow_basin_is_counted_as_a_band():
@@ -156,12 +156,12 @@ def test_narrow_basin_is_counted_as_a_band():
 
     d = A.refine(narrow, budget=200)
     pmf, _ = P.pushforward_pmf(d, BINS, 0.0)
-    assert pmf[300] == pytest.approx(1 / 360, abs=d.label_bound)
-    assert d.label_bound >= 1 / 360  # the basin's inside is in the bound
-    assert d.label_bound <= 1 / 360 + 2 * d.min_width_deg / 360
+    assert pmf[300] == pytest.approx(1 / 360, abs=d.unresolved_share)
+    assert d.unresolved_share >= 1 / 360  # the basin's inside is in the bound
+    assert d.unresolved_share <= 1 / 360 + 2 * d.min_width_deg / 360
     exact = np.zeros(BINS)
     exact[30], exact[300] = 359 / 360, 1 / 360
-    assert sup_cdf(pmf, exact) <= d.label_bound + 1e-12
+    assert sup_cdf(pmf, exact) <= d.unresolved_share + 1e-12
 
 
 def test_a_basin_between_samples_is_missed_and_unchecked_lists_what_the_budget_skipped():
@@ -170,7 +170,7 @@ def test_a_basin_between_samples_is_missed_and_unchecked_lists_what_the_budget_s
         return all_ok(np.where((beta >= 150.0) & (beta < 151.0), 300.0, 30.0))
 
     d = A.refine(hidden)
-    assert d.label_bound == 0 and d.evaluations == 32 and d.unchecked.size == 0
+    assert d.unresolved_share == 0 and d.evaluations == 32 and d.unchecked.size == 0
     # a budget below n0 + the checks leaves agreeing intervals wider than max_width unchecked
     d = A.refine(hidden, budget=20)
     assert d.unchecked.shape == (12, 2)
@@ -182,15 +182,15 @@ def test_linear_ramp_is_uniform_and_exact():
     pmf, _ = P.pushforward_pmf(d, BINS, 0.0)
     exact = np.zeros(BINS)
     exact[10:190] = 1 / 180
-    assert d.label_bound <= d.min_width_deg / 360.0  # one jump, at 360°/0°
-    assert sup_cdf(pmf, exact) <= d.label_bound + 1e-9
+    assert d.unresolved_share <= d.min_width_deg / 360.0  # one jump, at 360°/0°
+    assert sup_cdf(pmf, exact) <= d.unresolved_share + 1e-9
     inner = pmf[12:188]  # bins away from the jump's point masses are exactly uniform
     np.testing.assert_allclose(inner, 1 / 180, rtol=0, atol=1e-12)
     ref, _ = dense_reference(ramp_map)
-    assert sup_cdf(pmf, ref) <= d.label_bound + NUMERIC
+    assert sup_cdf(pmf, ref) <= d.unresolved_share + NUMERIC
     # smoothing as the workflow's labels: both sides smoothed alike, the bound still holds
     smooth, _ = P.pushforward_pmf(d, BINS, 1.0)
-    assert sup_cdf(smooth, C.wrapped_gaussian_smooth(ref, 1.0)) <= d.label_bound + NUMERIC
+    assert sup_cdf(smooth, C.wrapped_gaussian_smooth(ref, 1.0)) <= d.unresolved_share + NUMERIC
 
 
 def test_wraparound_basin_is_interpolated_the_short_way():
@@ -199,9 +199,9 @@ def test_wraparound_basin_is_interpolated_the_short_way():
     exact = np.zeros(BINS)
     exact[355:] = 0.1
     exact[:5] = 0.1
-    assert sup_cdf(pmf, exact) <= d.label_bound + 1e-9
-    assert pmf[5:355].sum() <= d.label_bound + 1e-12  # nothing the long way round
-    np.testing.assert_allclose(pmf[[356, 357, 358, 359, 0, 1, 2, 3]], 0.1, atol=d.label_bound + 1e-12)
+    assert sup_cdf(pmf, exact) <= d.unresolved_share + 1e-9
+    assert pmf[5:355].sum() <= d.unresolved_share + 1e-12  # nothing the long way round
+    np.testing.assert_allclose(pmf[[356, 357, 358, 359, 0, 1, 2, 3]], 0.1, atol=d.unresolved_share + 1e-12)
 
 
 def test_jam_arc_mass():
@@ -209,8 +209,8 @@ def test_jam_arc_mass():
     pmf, masses = P.pushforward_pmf(d, BINS, 1.0)
     assert set(masses) == {"ok", "jammed"}
     assert sum(masses.values()) == pytest.approx(1.0)
-    assert masses["jammed"] == pytest.approx(100 / 360, abs=d.label_bound + 1e-12)
-    assert d.label_bound <= 2 * d.min_width_deg / 360.0  # jumps at 90° and 350°
+    assert masses["jammed"] == pytest.approx(100 / 360, abs=d.unresolved_share + 1e-12)
+    assert d.unresolved_share <= 2 * d.min_width_deg / 360.0  # jumps at 90° and 350°
     ref, ref_masses = dense_reference(jam_map)
     assert ref_masses["jammed"] == pytest.approx(100 / 360, abs=1e-5)
     bound = P.label_cdf_bound(d, masses["ok"])
@@ -222,7 +222,7 @@ def test_jam_arc_mass():
 
 def test_no_ok_mass_raises():
     d = A.refine(lambda b: (np.full(b.shape, np.nan), np.full(b.shape, "fell_off")), budget=20)
-    assert d.evaluations == 20 and d.label_bound == 0  # 4 midpoint checks of the widest intervals
+    assert d.evaluations == 20 and d.unresolved_share == 0  # 4 midpoint checks of the widest intervals
     with pytest.raises(FeederError, match="no ok"):
         P.pushforward_pmf(d, BINS, 1.0)
 
@@ -249,21 +249,21 @@ def test_chaotic_band_terminates_and_is_bounded():
     # the unresolved set is the band, to within a bisected interval at either end
     assert d.unresolved.min() >= BAND[0] - d.min_width_deg
     assert d.unresolved.max() <= BAND[1] + d.min_width_deg
-    assert band_mass <= d.label_bound <= band_mass + 2 * d.min_width_deg / 360.0
+    assert band_mass <= d.unresolved_share <= band_mass + 2 * d.min_width_deg / 360.0
     # bisected to the minimum width inside the band
     assert (d.unresolved[:, 1] - d.unresolved[:, 0] <= d.min_width_deg).all()
     assert sup_cdf(pmf, exact) <= P.label_cdf_bound(d, masses["ok"]) + NUMERIC
     smooth, _ = P.pushforward_pmf(d, BINS, 1.0)
-    assert sup_cdf(smooth, C.wrapped_gaussian_smooth(exact, 1.0)) <= d.label_bound + NUMERIC
+    assert sup_cdf(smooth, C.wrapped_gaussian_smooth(exact, 1.0)) <= d.unresolved_share + NUMERIC
     # the band's mass is split about evenly
-    assert pmf[10] == pytest.approx(band_mass / 2, abs=d.label_bound / 2)
+    assert pmf[10] == pytest.approx(band_mass / 2, abs=d.unresolved_share / 2)
 
 
 @pytest.mark.parametrize("offset", np.arange(0.0, 11.25, 1.25))
 def test_chaotic_band_found_from_any_grid_offset(offset):
     d = A.refine(chaotic_map, budget=200, offset_deg=offset)
     pmf, masses = P.pushforward_pmf(d, BINS, 0.0)
-    assert d.label_bound >= 0.9 * (BAND[1] - BAND[0]) / 360.0
+    assert d.unresolved_share >= 0.9 * (BAND[1] - BAND[0]) / 360.0
     assert sup_cdf(pmf, chaotic_exact()) <= P.label_cdf_bound(d, masses["ok"]) + NUMERIC
 
 
@@ -272,7 +272,7 @@ def test_chaotic_band_with_a_small_budget_terminates(budget):
     ev = Counting(chaotic_map)
     d = A.refine(ev, budget=budget)
     assert d.evaluations == budget == sum(ev.sizes)
-    assert 0 < d.label_bound < 1
+    assert 0 < d.unresolved_share < 1
     P.pushforward_pmf(d, BINS, 1.0)
 
 
@@ -286,7 +286,7 @@ def test_fourfold_symmetry_unfolds_to_the_full_circle():
     np.testing.assert_allclose(un.yaws, full.yaws, atol=1e-9)
     np.testing.assert_array_equal(un.status, full.status)
     np.testing.assert_allclose(un.final, full.final, atol=1e-9)
-    assert un.label_bound == pytest.approx(full.label_bound)
+    assert un.unresolved_share == pytest.approx(full.unresolved_share)
     np.testing.assert_allclose(un.unresolved, full.unresolved, atol=1e-9)
     for sigma in (0.0, 1.0):
         p1, m1 = P.pushforward_pmf(one, BINS, sigma)  # unfolds by itself
@@ -295,7 +295,7 @@ def test_fourfold_symmetry_unfolds_to_the_full_circle():
         assert m1.keys() == m2.keys() and all(m1[k] == pytest.approx(m2[k]) for k in m1)
     ref, ref_masses = dense_reference(symmetric_map)
     p1, m1 = P.pushforward_pmf(one, BINS, 0.0)
-    assert m1["jammed"] == pytest.approx(ref_masses["jammed"], abs=one.label_bound + 1e-5)
+    assert m1["jammed"] == pytest.approx(ref_masses["jammed"], abs=one.unresolved_share + 1e-5)
     assert sup_cdf(p1, ref) <= P.label_cdf_bound(one, m1["ok"]) + NUMERIC
     with pytest.raises(FeederError):
         A.unfold(one, 3)
@@ -340,7 +340,7 @@ def test_offset_and_wrapping_interval():
     assert d.offset_deg == pytest.approx(350.0)
     assert d.yaws.min() >= 350.0 and d.yaws.max() < 710.0
     pmf, _ = P.pushforward_pmf(d, BINS, 0.0)
-    assert pmf[30] == pytest.approx(1 / 3, abs=d.label_bound + 1e-12)
+    assert pmf[30] == pytest.approx(1 / 3, abs=d.unresolved_share + 1e-12)
 
 
 @pytest.mark.parametrize(
@@ -422,7 +422,7 @@ def test_a_steep_smooth_map_is_resolved_not_bisected_as_jumps():
         return np.asarray(yaws, dtype=float) % 360.0, np.full(len(yaws), "ok")
 
     design = A.refine(identity, n0=16, budget=64, offset_deg=3.0)
-    assert design.label_bound == 0.0 and design.evaluations == 32
+    assert design.unresolved_share == 0.0 and design.evaluations == 32
     pmf, masses = P.pushforward_pmf(design, 360, 0.0)
     np.testing.assert_allclose(pmf, np.full(360, 1.0 / 360.0), atol=1e-12)
     # a jump inside a steep map is still a jump: identity with a 90° step at 200°
@@ -432,7 +432,7 @@ def test_a_steep_smooth_map_is_resolved_not_bisected_as_jumps():
         budget=96,
         offset_deg=3.0,
     )
-    assert 0 < stepped.label_bound <= 3 * 0.5 / 360.0 + 1e-12
+    assert 0 < stepped.unresolved_share <= 3 * 0.5 / 360.0 + 1e-12
 
 
 def test_two_basins_half_a_turn_apart_alternating_are_never_a_slope():
@@ -451,7 +451,7 @@ def test_two_basins_half_a_turn_apart_alternating_are_never_a_slope():
         min_width_deg=30.0,
         max_width_deg=30.0,
     )
-    assert design.label_bound == pytest.approx(1.0)  # every interval unresolved
+    assert design.unresolved_share == pytest.approx(1.0)  # every interval unresolved
     pmf, _ = P.pushforward_pmf(design, 360, 0.0)
     assert pmf[(pmf > 1e-12)].size <= 12  # all mass on sampled outcomes, none smeared between basins
 
@@ -473,7 +473,7 @@ def test_a_slope_from_a_narrow_noisy_neighbour_does_not_hide_a_jump():
         max_width_deg=400.0,
     )
     assert [0.35, 11.6] in design.unresolved.tolist()
-    assert design.label_bound == pytest.approx((11.25 + 0.25) / 360.0)
+    assert design.unresolved_share == pytest.approx((11.25 + 0.25) / 360.0)
 
 
 def narrow_ok_map(beta):
@@ -510,4 +510,4 @@ def test_stop_if_none_ok_changes_nothing_when_a_start_drop_is_ok(fmap):
     b = A.refine(Counting(fmap), n0=16, budget=40, offset_deg=3.7)
     np.testing.assert_array_equal(a.yaws, b.yaws)
     np.testing.assert_array_equal(a.status, b.status)
-    assert a.evaluations == b.evaluations and a.label_bound == b.label_bound
+    assert a.evaluations == b.evaluations and a.unresolved_share == b.unresolved_share

@@ -62,7 +62,7 @@ def where_error_sits(design, ref, period):
     k = np.clip(np.searchsorted(design.yaws, beta, side="right") - 1, 0, design.yaws.size - 1)
     fh, sh = map_yaws(design, beta)
     wrong = material(ref.final, ref.status, fh, sh)
-    return float((wrong & ~bad[k]).mean()), float(design.label_bound)
+    return float((wrong & ~bad[k]).mean()), float(design.unresolved_share)
 
 
 def audited(evaluate, seed, order, b1, k0, kmax, c):

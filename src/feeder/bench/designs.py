@@ -225,8 +225,14 @@ def _row(base: dict, design: str, drops: int, repeat: int, cpu_s: float, label, 
     else:
         scores = dict(NO_LABEL) if label is None else distances(label.pmf, ref_pmf)
     if label is None:
-        return {**row, "simulations": int(drops), "ok_mass": 0.0, "label_bound": math.nan, **scores}
-    return {**row, "simulations": label.simulations, "ok_mass": label.ok_mass, "label_bound": label.cdf_bound, **scores}
+        return {**row, "simulations": int(drops), "ok_mass": 0.0, "unresolved_share": math.nan, **scores}
+    return {
+        **row,
+        "simulations": label.simulations,
+        "ok_mass": label.ok_mass,
+        "unresolved_share": label.cdf_bound,
+        **scores,
+    }
 
 
 def _load(path: Path) -> dict:

@@ -273,7 +273,7 @@ def entry_rows(run: dict, settings: dict) -> list[dict]:
         "real_cpu_s": float(run["real_cpu_s"]),
         "adaptive_simulations": int(run["adaptive_final"].size),
         "adaptive_ok_mass": math.nan if ada_label is None else ada_label.ok_mass,
-        "adaptive_label_bound": math.nan if ada_label is None else ada_label.cdf_bound,
+        "adaptive_unresolved_share": math.nan if ada_label is None else ada_label.cdf_bound,
         "adaptive_cpu_s": float(run["adaptive_cpu_s"]),
     }
     usable = ada_label is not None and real_ok.any()

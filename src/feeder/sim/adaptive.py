@@ -26,7 +26,9 @@ Everything is a pure numpy function. Conventions:
   inside an agreeing failed interval every drop has that status. A *disagreeing* interval is
   unresolved: its mass is split half to each end's outcome (the left half of the interval takes
   the left end's outcome) — the stratified treatment of a jump or a chaotic band.
-* ``label_bound`` is the measure of the unresolved intervals divided by the period: the most
+* ``unresolved_share`` (``label_bound`` until 2026-11-27: not a bound on the label's error, which
+  islands between agreeing samples escape; :mod:`feeder.sim.errest` estimates that) is the measure
+  of the unresolved intervals divided by the period: the most
   probability mass the label can have misplaced (interpolation error inside agreeing intervals
   is not counted; it is zero for maps that are linear in every basin). Unresolved are:
 
@@ -120,9 +122,9 @@ class Design:
     reduced mod 360). ``final``: final yaws in [0, 360), NaN where the status is not ok.
     ``status``: one status string per sample. ``evaluations``: simulations run (``len(yaws)``);
     ``calls``: batches handed to ``evaluate``. ``unresolved``: (k, 2) intervals ``(start, end)``
-    (``end`` may pass ``offset + period`` for the wrapping interval) counted in ``label_bound``
+    (``end`` may pass ``offset + period`` for the wrapping interval) counted in ``unresolved_share``
     = their total width / period. ``unchecked``: agreeing intervals still wider than
-    ``max_width_deg`` because the budget ran out (not in ``label_bound``: they may hide a basin).
+    ``max_width_deg`` because the budget ran out (not in ``unresolved_share``: they may hide a basin).
     """
 
     yaws: np.ndarray
@@ -131,7 +133,7 @@ class Design:
     evaluations: int
     calls: int
     unresolved: np.ndarray
-    label_bound: float
+    unresolved_share: float
     unchecked: np.ndarray
     period_deg: float
     offset_deg: float
@@ -244,7 +246,7 @@ def _neighbourhood(band: np.ndarray, width: np.ndarray, reach: float) -> np.ndar
 
 @dataclass(frozen=True)
 class _Classes:
-    unresolved: np.ndarray  # counted in label_bound
+    unresolved: np.ndarray  # counted in unresolved_share
     fine: np.ndarray  # to be bisected down to min_width: jumps, bands and their surroundings
 
 
@@ -535,7 +537,7 @@ def _finish(
         evaluations=int(evaluations),
         calls=int(calls),
         unresolved=unresolved,
-        label_bound=float(iv.width[bad].sum() / period),
+        unresolved_share=float(iv.width[bad].sum() / period),
         unchecked=unchecked,
         period_deg=period,
         offset_deg=offset,
@@ -562,7 +564,7 @@ def design_from_samples(
     calls: int = 1,
 ) -> Design:
     """A :class:`Design` rebuilt from stored samples (a simulation file): the intervals, what is
-    unresolved and ``label_bound`` are recomputed from the samples exactly as :func:`refine`
+    unresolved and ``unresolved_share`` are recomputed from the samples exactly as :func:`refine`
     leaves them. ``yaws`` are sorted into ``[offset, offset + period)``; a grid design is one
     with ``min_width_deg`` = its spacing (no interval was bisected)."""
     period = float(period_deg)
@@ -596,7 +598,7 @@ def unfold(design: Design, n: int | None = None) -> Design:
 
     Copy ``k`` (k = 0..n−1) has initial yaws ``β + k·P`` and final yaws ``f(β) + k·P`` reduced
     to [0, 360) (statuses repeat); unresolved and unchecked intervals are copied the same way.
-    ``label_bound`` (a fraction of the period) and ``evaluations`` are unchanged. ``n`` defaults
+    ``unresolved_share`` (a fraction of the period) and ``evaluations`` are unchanged. ``n`` defaults
     to 360 / period; a full-turn design is returned as is.
     """
     turns = _turns(design.period_deg)

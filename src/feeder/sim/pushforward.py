@@ -4,7 +4,7 @@ With one part per world the simulator is deterministic in the initial yaw β, so
 is a map ``f(β) = (final yaw, status)`` and its label is the push-forward of the uniform measure
 on β through ``f``. The adaptive design (:func:`feeder.sim.adaptive.refine`) samples ``f`` where it
 jumps; :func:`pushforward_pmf` turns the samples into a label by interpolating ``f`` linearly
-inside every resolved interval. Conventions (agreeing and disagreeing intervals, ``label_bound``)
+inside every resolved interval. Conventions (agreeing and disagreeing intervals, ``unresolved_share``)
 as in :mod:`feeder.sim.adaptive`. Everything is a pure numpy function.
 """
 
@@ -104,14 +104,14 @@ def pushforward_pmf(
 def label_cdf_bound(design: Design, ok_mass: float) -> float:
     """A bound on sup|ΔCDF| between the design's label and the exact push-forward label.
 
-    Only the unresolved mass U = ``label_bound`` is misplaced (interpolation error aside). The
+    Only the unresolved mass U = ``unresolved_share`` is misplaced (interpolation error aside). The
     labels are normalised over the ok mass m̂ (``masses["ok"]``); the total-variation distance
     of the normalised labels is at most 1.5 · U / m̂ (U when m̂ = 1: every sample ok), and TV bounds
     sup|ΔCDF| from any origin and does not grow under smoothing. Capped at 1.
     """
     if not ok_mass > 0:
         raise FeederError(f"label_cdf_bound: ok mass must be > 0, got {ok_mass!r}")
-    u = design.label_bound
+    u = design.unresolved_share
     all_ok = ok_mass >= 1.0 - _ALL_OK_SLACK
     return float(min(1.0, u if all_ok else 1.5 * u / ok_mass))
 

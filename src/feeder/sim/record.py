@@ -19,7 +19,7 @@ from feeder.errors import FeederError
 # the keys of a simulation file, in the order they are written (docs/data.md)
 SIM_KEYS = ("final_yaw_deg", "initial_yaw_deg", "status", "wall_s", "cpu_s", "meta")
 # what an adaptive design adds (feeder.sim.simulate.design_record)
-DESIGN_KEYS = ("unresolved_deg", "unchecked_deg", "label_bound")
+DESIGN_KEYS = ("unresolved_deg", "unchecked_deg", "unresolved_share")
 
 
 def write_sim(path, result: dict) -> None:

@@ -70,7 +70,7 @@ def design_record(design: Design, order: int) -> tuple[dict, dict]:
     arrays = {
         "unresolved_deg": np.asarray(design.unresolved, dtype=np.float64).reshape(-1, 2),
         "unchecked_deg": np.asarray(design.unchecked, dtype=np.float64).reshape(-1, 2),
-        "label_bound": np.float64(design.label_bound),
+        "unresolved_share": np.float64(design.unresolved_share),
     }
     summary = {
         "symmetry_order": int(order),
@@ -83,7 +83,7 @@ def design_record(design: Design, order: int) -> tuple[dict, dict]:
         "edge_check_deg": design.edge_check_deg,
         "evaluations": int(design.evaluations),
         "calls": int(design.calls),
-        "label_bound": float(design.label_bound),
+        "unresolved_share": float(design.unresolved_share),
     }
     return arrays, summary
 
