@@ -412,6 +412,34 @@ def test_the_protocol_keeps_locked_parts_out_until_the_end():
     assert set(choices.neighbours) == {int(cfg.model.neighbours)}
 
 
+def test_fits_run_at_once_give_the_same_rows_and_choices_in_the_same_order():
+    pytest.importorskip("torch")
+    from feeder.config import compose_config
+    from feeder.learn.prior import grids
+    from feeder.learn.structured_protocol import run_protocol
+
+    overrides = [
+        "seeds=2",
+        "train.max_steps=20",
+        "train.patience_steps=10",
+        "train.eval_every=5",
+        "search=[{kind: variants, hidden: 4, weight_decay: 0.01},{kind: candidates, hidden: 4, weight_decay: 0.01}]",
+        "protocol.main_repeats=2",
+        "protocol.locked_fraction=0.2",
+    ]
+    cfg = compose_config("structured", overrides)
+    prior = grids(compose_config("train")["prior"])
+    said = []
+    one = run_protocol(_toy_library(), cfg, prior, workers=1)
+    two = run_protocol(_toy_library(), cfg, prior, progress=said.append, workers=2)
+    pd.testing.assert_frame_equal(one[0], two[0])  # every metric of every row, bit for bit
+    pd.testing.assert_frame_equal(one[1].drop(columns="seconds"), two[1].drop(columns="seconds"))
+    assert len(said) == 6 and said[0].startswith("groupkfold:0 (1 of 6 fits)") and said[-1].startswith("locked (6 of 6")
+    for bad in (0, 1.5, "2", True):
+        with pytest.raises(FeederError, match="train.workers must be an integer >= 1"):
+            run_protocol(_toy_library(), cfg, prior, workers=bad)
+
+
 # ----------------------------------------------------------------------------------------------
 # The part's own neighbouring labels
 # ----------------------------------------------------------------------------------------------

@@ -73,10 +73,12 @@ def _frames(data: dict, parts, features_dir) -> dict[str, float]:
     return frames
 
 
-def compute_candidates(parts, config_ids, frames, scene, variants, cand_cfg: dict, parts_dir, bins: int, units: str):
+def compute_candidates(
+    parts, config_ids, frames, scene, variants, cand_cfg: dict, parts_dir, bins: int, units: str, progress=None
+):
     """Per configuration: positions (K_i,), masses (K_i, V), variant ok masses (V,), and the push
     block (P,) and analytic PMF (bins,) of the configuration (label smoothing ``cand_cfg``'s
-    ``label_smooth_deg``)."""
+    ``label_smooth_deg``). ``progress(message)`` hears of every tenth part begun."""
     from feeder.lane.fences import parse_config_id
     from feeder.mechanics.candidates import configuration_candidates
     from feeder.mechanics.features import push_block
@@ -86,6 +88,8 @@ def compute_candidates(parts, config_ids, frames, scene, variants, cand_cfg: dic
     geoms, memos, out = {}, {}, []
     for part, cid, frame in zip(parts, config_ids, frames, strict=True):
         if part not in geoms:
+            if progress is not None and len(geoms) % 10 == 0:
+                progress(f"candidates: part {len(geoms) + 1} of {len(set(parts))} ({part})")
             path = Path(parts_dir) / f"{part}.stl"
             if not path.is_file():
                 raise FeederError(f"part file {path} is missing (the candidates need every part's outline)")
@@ -181,7 +185,7 @@ def candidate_features(masses, mask, present_mass: float) -> np.ndarray:
     return np.where(np.asarray(mask)[..., None], feats, 0.0)
 
 
-def structured_arrays(data: dict, cfg, sim_dir, parts_dir, features_dir, cache_path=None) -> dict:
+def structured_arrays(data: dict, cfg, sim_dir, parts_dir, features_dir, cache_path=None, progress=None) -> dict:
     """The arrays of the module doc for ``data`` (:func:`feeder.labels.dataset.load_dataset`),
     with the candidate settings ``cfg.candidates`` of ``config/hydra/structured.yaml``."""
     from feeder.labels.dataset import feeder_vector, label_smooth_deg
@@ -207,7 +211,7 @@ def structured_arrays(data: dict, cfg, sim_dir, parts_dir, features_dir, cache_p
     cands = read_candidates_cache(cache_path, key) if cache_path is not None else None
     if cands is None:
         log.info("computing candidates of %d configurations", len(parts))
-        cands = compute_candidates(parts, cids, frames, scene, variants, cand_cfg, parts_dir, bins, units)
+        cands = compute_candidates(parts, cids, frames, scene, variants, cand_cfg, parts_dir, bins, units, progress)
         if cache_path is not None:
             write_candidates_cache(cache_path, key, cands, len(variants))
     k_max = int(cfg.candidates.max_candidates)

@@ -244,25 +244,19 @@ def score_rows(arrays: dict, fitted: dict, rows, experiment: str, repeat: int, p
 # ----------------------------------------------------------------------------------------------
 # The experiments
 # ----------------------------------------------------------------------------------------------
-def run_protocol(arrays: dict, cfg, prior_grids, m3_pmf: dict | None = None, progress=None) -> tuple:
-    """All experiments of the module doc; returns (long rows, choices). ``m3_pmf``: Model 3's
-    PMFs by (part, config_id) for the dataset's Test and Fences rows (trained on its Train rows),
-    used in repeat 0 and for Fences."""
-    say = progress or (lambda msg: None)
+def protocol_jobs(arrays: dict, cfg) -> tuple[list[tuple], set]:
+    """The protocol's fits in their order (module doc): ``(kind, key, index, train, scored)`` per
+    fit, with ``scored`` the rows it scores by experiment; and the locked parts."""
     base = int(cfg.seed)
     parts = arrays["part"]
     locked = pick_parts(parts, float(cfg.protocol.locked_fraction), base, "locked")
     is_locked = np.isin(parts, list(locked))
-    rows, choices = [], []
+    jobs = []
     # unseen parts: GroupKFold over the non-locked library
     for fold in np.unique(arrays["group_fold"]):
         held = (arrays["group_fold"] == fold) & ~is_locked
         train = (arrays["group_fold"] != fold) & ~is_locked
-        t0 = time.perf_counter()
-        fitted = fit_protocol(arrays, train, cfg, f"groupkfold:{fold}", known=False)
-        rows += score_rows(arrays, fitted, np.flatnonzero(held), "unseen_groupkfold", int(fold), prior_grids)
-        choices.append({**fitted["choice"], "seconds": time.perf_counter() - t0})
-        say(f"groupkfold fold {fold}: {choices[-1]}")
+        jobs.append(("groupkfold", f"groupkfold:{fold}", int(fold), train, {"unseen_groupkfold": held}))
     # known parts at new angles, and Fences: repeated Main splits
     main = np.isin(arrays["split"], ["train", "test"]) & ~is_locked
     fences = (arrays["split"] == "fences") & ~is_locked
@@ -274,26 +268,75 @@ def run_protocol(arrays: dict, cfg, prior_grids, m3_pmf: dict | None = None, pro
             test[
                 resplit_rows(np.flatnonzero(main), float(cfg.protocol.test_fraction), derived_seed(base, "main", r))
             ] = True
-        train = ~is_locked & ~test & ~fences
-        t0 = time.perf_counter()
-        fitted = fit_protocol(arrays, train, cfg, f"main:{r}")
-        for name, mask in (("test", test), ("fences", fences)):
-            idx = np.flatnonzero(mask)
-            extra = {GATED: gated_neighbour(arrays, train, idx, list(cfg.neighbour.gates_deg))}
-            if m3_pmf is not None and r == 0:
-                nan_row = np.full(arrays["pmf"].shape[1], np.nan)
-                keys = zip(parts[idx], arrays["config_id"][idx], strict=True)
-                extra[M3] = np.stack([m3_pmf.get((str(p), str(c)), nan_row) for p, c in keys])
-            rows += score_rows(arrays, fitted, idx, name, r, prior_grids, extra)
-        choices.append({**fitted["choice"], "seconds": time.perf_counter() - t0})
-        say(f"main repeat {r}: {choices[-1]}")
+        jobs.append(("main", f"main:{r}", r, ~is_locked & ~test & ~fences, {"test": test, "fences": fences}))
     # the locked parts, once
-    train = ~is_locked
+    jobs.append(("locked", "locked", 0, ~is_locked, {"unseen_locked": is_locked}))
+    return jobs, locked
+
+
+_SHARED: dict = {}  # what a forked worker of run_protocol reads (arrays are not pickled per job)
+
+
+def run_job(job: tuple, arrays: dict, cfg, prior_grids, m3_pmf: dict | None, locked: set) -> tuple[list, dict]:
+    """One fit of :func:`protocol_jobs` and its scores: ``(long rows, choice)``. Every seed derives
+    from ``cfg.seed`` and the fit's key, so the result does not depend on the process it runs in."""
+    kind, key, index, train, scored = job
     t0 = time.perf_counter()
-    fitted = fit_protocol(arrays, train, cfg, "locked", known=False)
-    rows += score_rows(arrays, fitted, np.flatnonzero(is_locked), "unseen_locked", 0, prior_grids)
-    choices.append({**fitted["choice"], "seconds": time.perf_counter() - t0, "locked_parts": " ".join(sorted(locked))})
-    say(f"locked: {choices[-1]}")
+    fitted = fit_protocol(arrays, train, cfg, key, known=kind == "main")
+    rows = []
+    for experiment, mask in scored.items():
+        idx = np.flatnonzero(mask)
+        extra = None
+        if kind == "main":
+            extra = {GATED: gated_neighbour(arrays, train, idx, list(cfg.neighbour.gates_deg))}
+            if m3_pmf is not None and index == 0:
+                nan_row = np.full(arrays["pmf"].shape[1], np.nan)
+                keys = zip(arrays["part"][idx], arrays["config_id"][idx], strict=True)
+                extra[M3] = np.stack([m3_pmf.get((str(p), str(c)), nan_row) for p, c in keys])
+        rows += score_rows(arrays, fitted, idx, experiment, index, prior_grids, extra)
+    choice = {**fitted["choice"], "seconds": time.perf_counter() - t0}
+    if kind == "locked":
+        choice["locked_parts"] = " ".join(sorted(locked))
+    return rows, choice
+
+
+def _forked_job(job: tuple) -> tuple[list, dict]:
+    import torch
+
+    torch.set_num_threads(int(_SHARED["cfg"].train.threads))
+    return run_job(job, **_SHARED)
+
+
+def run_protocol(arrays: dict, cfg, prior_grids, m3_pmf: dict | None = None, progress=None, workers: int = 1) -> tuple:
+    """All experiments of the module doc; returns (long rows, choices). ``m3_pmf``: Model 3's
+    PMFs by (part, config_id) for the dataset's Test and Fences rows (trained on its Train rows),
+    used in repeat 0 and for Fences. ``workers`` > 1 runs that many fits at once in forked
+    processes; the rows and choices are the same, in the same order (only ``seconds`` differ)."""
+    if isinstance(workers, bool) or not isinstance(workers, (int, np.integer)) or workers < 1:
+        raise FeederError(f"train.workers must be an integer >= 1, got {workers!r}")
+    say = progress or (lambda msg: None)
+    jobs, locked = protocol_jobs(arrays, cfg)
+    state = {"arrays": arrays, "cfg": cfg, "prior_grids": prior_grids, "m3_pmf": m3_pmf, "locked": locked}
+    workers = min(int(workers), len(jobs))
+    rows, choices = [], []
+    if workers == 1:
+        results = (run_job(job, **state) for job in jobs)
+    else:
+        from multiprocessing import get_context
+
+        _SHARED.clear()
+        _SHARED.update(state)
+        pool = get_context("fork").Pool(workers)
+        results = pool.imap(_forked_job, jobs)
+    try:
+        for job, (job_rows, choice) in zip(jobs, results, strict=True):
+            rows += job_rows
+            choices.append(choice)
+            say(f"{job[1]} ({len(choices)} of {len(jobs)} fits): {choice}")
+    finally:
+        if workers > 1:
+            pool.terminate()
+            _SHARED.clear()
     return pd.DataFrame(rows), pd.DataFrame(choices)
 
 
@@ -436,9 +479,10 @@ def main(argv: list[str]) -> int:
     if "push_raw" not in data:
         raise FeederError(f"{args.dataset}: no push block (build the dataset with the part files)")
     cache = args.cache or args.dataset.with_name("structured_candidates.npz")
-    arrays = structured_arrays(data, cfg, args.sim_dir, args.parts_dir, args.features_dir, cache)
+    say = lambda m: print(m, flush=True)  # noqa: E731
+    arrays = structured_arrays(data, cfg, args.sim_dir, args.parts_dir, args.features_dir, cache, say)
     m3 = m3_predictions(data, args.m3_model) if args.m3_model else None
-    long, choices = run_protocol(arrays, cfg, prior_grids, m3, progress=lambda m: print(m, flush=True))
+    long, choices = run_protocol(arrays, cfg, prior_grids, m3, progress=say, workers=cfg.train.workers)
     m3_parts = m3_part_scores(args.m3_groupkfold) if args.m3_groupkfold else None
     table = comparison_table(long, dict(cfg.protocol.bootstrap), m3_parts)
     io.write_csv(args.out_dir / "structured_rows.csv", long)
