@@ -371,22 +371,25 @@ def _toy_library(n_parts=10, per_part=4, seed=0):
     return a
 
 
+# a protocol small enough for the toy library: 2 seeds, 20 steps, both kinds, 2 Main splits
+TOY_PROTOCOL = [
+    "seeds=2",
+    "train.max_steps=20",
+    "train.patience_steps=10",
+    "train.eval_every=5",
+    "search=[{kind: variants, hidden: 4, weight_decay: 0.01},{kind: candidates, hidden: 4, weight_decay: 0.01}]",
+    "protocol.main_repeats=2",
+    "protocol.locked_fraction=0.2",
+]
+
+
 def test_the_protocol_keeps_locked_parts_out_until_the_end():
     pytest.importorskip("torch")
     from feeder.config import compose_config
     from feeder.learn.prior import grids
     from feeder.learn.structured_protocol import comparison_table, pick_parts, run_protocol
 
-    overrides = [
-        "seeds=2",
-        "train.max_steps=20",
-        "train.patience_steps=10",
-        "train.eval_every=5",
-        "search=[{kind: variants, hidden: 4, weight_decay: 0.01},{kind: candidates, hidden: 4, weight_decay: 0.01}]",
-        "protocol.main_repeats=2",
-        "protocol.locked_fraction=0.2",
-        "protocol.bootstrap.resamples=50",
-    ]
+    overrides = [*TOY_PROTOCOL, "protocol.bootstrap.resamples=50"]
     cfg = compose_config("structured", overrides)
     a = _toy_library()
     long, choices = run_protocol(a, cfg, grids(compose_config("train")["prior"]))
@@ -418,15 +421,7 @@ def test_fits_run_at_once_give_the_same_rows_and_choices_in_the_same_order():
     from feeder.learn.prior import grids
     from feeder.learn.structured_protocol import run_protocol
 
-    overrides = [
-        "seeds=2",
-        "train.max_steps=20",
-        "train.patience_steps=10",
-        "train.eval_every=5",
-        "search=[{kind: variants, hidden: 4, weight_decay: 0.01},{kind: candidates, hidden: 4, weight_decay: 0.01}]",
-        "protocol.main_repeats=2",
-        "protocol.locked_fraction=0.2",
-    ]
+    overrides = TOY_PROTOCOL
     cfg = compose_config("structured", overrides)
     prior = grids(compose_config("train")["prior"])
     said = []
