@@ -28,10 +28,10 @@ from feeder.bench.contact import PIECES, footprint_scene
 from feeder.config import load_study_config
 from feeder.labels import metrics as L
 from feeder.labels.pmf import sim_label
+from feeder.lane.fences import parse_location
 from feeder.parts.geometry import load_part
 from feeder.parts.library import list_parts
 from feeder.sim.drops import drop_seed, get_preset
-from feeder.lane.fences import parse_location
 from feeder.sim.record import SimRecord
 from feeder.sim.simulate import simulate
 

@@ -40,8 +40,8 @@ import pandas as pd
 from feeder.bench.designs import _load, distances, emulated_label, reference_design
 from feeder.bench.reference import seed_of
 from feeder.circular import circular_distance, normalize_yaw, wrap180, wrapped_gaussian_smooth
-from feeder.sim.pushforward import _segment_hist, map_yaws, pushforward_pmf
 from feeder.sim.adaptive import OK, _classify, intervals
+from feeder.sim.pushforward import _segment_hist, map_yaws, pushforward_pmf
 from feeder.sim.simulate import run_design
 
 REFERENCES = Path("results/bench/designs/fast-2880/reference")
