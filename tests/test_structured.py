@@ -610,3 +610,60 @@ def test_an_untrained_variant_network_weighs_the_neighbours_as_their_start_logit
     off = others * LOGIT_FLOOR / (3.0 + others * LOGIT_FLOOR)
     expected = (a["analytic"][:4] + nb[0] + nb[1]) / 3.0  # analytic and both neighbours at logit 0
     assert np.abs(pmf - expected).sum(axis=1).max() < 2 * off
+
+
+def test_basin_owners_climb_to_their_peak_across_the_seam():
+    from feeder.labels.metrics import basin_owners, resting_orientations
+
+    p = np.array([0.3, 0.1, 0.05, 0.1, 0.2, 0.05, 0.0, 0.2])  # peaks at bins 0 and 4; bin 7 climbs to 0 over the seam
+    # bin 2 climbs to its higher side (3, then 4); bin 6 to its higher side, 7, and on over the seam
+    assert basin_owners(p).tolist() == [0, 0, 4, 4, 4, 4, 0, 0]
+    assert [m for _, m in resting_orientations(p)] == pytest.approx([0.6, 0.4])
+
+
+def test_basin_components_by_hand():
+    from feeder.learn.structured_data import basin_components
+
+    label = np.array([0.3, 0.1, 0.05, 0.1, 0.2, 0.05, 0.0, 0.2])  # basins {6, 7, 0, 1} 0.6 and {2..5} 0.4
+    analytic = np.array([[0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0], [0.5, 0.0, 0.0, 0.0, 0.5, 0.0, 0.0, 0.0]])
+    pmfs = np.stack([label, label])[:, None, :]
+    idx = np.array([[1], [-1]])  # row 0 reads row 1; row 1 has no neighbour
+    feats, comps, offsets = basin_components(pmfs, analytic, idx, 1)
+    big = np.array([0.3, 0.1, 0, 0, 0, 0, 0, 0.2]) / 0.6
+    assert np.allclose(comps[0, 0], big) and np.allclose(comps[0, 1], (label - 0.6 * big) / 0.4)
+    assert offsets[0].tolist() == pytest.approx([math.log(0.6), math.log(0.4)])
+    assert feats[0].tolist() == pytest.approx([0.6, 0.0, 0.5])  # its mass; the row's and the neighbour's analytic
+    assert np.array_equal(comps[1], np.stack([analytic[1], analytic[1]])) and feats[1].tolist() == [0, 0, 0]
+    # together the basins are the label again
+    assert np.allclose((np.exp(offsets[0])[:, None] * comps[0]).sum(axis=0), label)
+
+
+def test_an_untrained_network_answers_the_same_whether_the_neighbours_are_whole_or_in_basins():
+    pytest.importorskip("torch")
+    from feeder.learn.structured import DIFFUSE, Fitted, NetSettings, make_nets, predict, wrapped_gaussian_bins
+    from feeder.learn.structured_data import basin_components
+
+    a = _toy_arrays()
+    n = len(a["x"])
+    label = 0.7 * wrapped_gaussian_bins(200.5, 2.0, BINS) + 0.3 * wrapped_gaussian_bins(300.5, 2.0, BINS)
+    whole = dict(a, neighbour_pmf=np.broadcast_to(label, (n, 1, BINS)).copy())
+    _, comps, offsets = basin_components(whole["neighbour_pmf"], a["analytic"], np.zeros((n, 1), int), 1)
+    split = dict(a, neighbour_pmf=comps, neighbour_offset=offsets)
+    for kind in ("variants", "candidates"):
+        s = NetSettings(4, 4.0, 0.5, 1.5, 6.0, kind, "analytic", neighbour_start_logit=0.0)
+        answers = []
+        for arrays, extra in ((whole, 1), (split, 2)):
+            torch_seed = __import__("torch").manual_seed(0)
+            assert torch_seed is not None
+            net, ok = make_nets(3, a["cf"].shape[2], len(DIFFUSE) + extra, s, n_variants=3)
+            fitted = Fitted(net, ok, 0, 0, math.nan, math.nan, "analytic")
+            answers.append(predict(fitted, arrays, np.arange(4), a["pmf"].mean(axis=0))[0])
+        assert np.abs(answers[0] - answers[1]).sum(axis=1).max() < 1e-5, kind
+
+
+@pytest.mark.parametrize("bad", [-1, 1.5, True])
+def test_a_bad_basin_count_is_refused(bad):
+    from feeder.learn.structured_data import with_neighbours
+
+    with pytest.raises(FeederError, match="model.neighbour_basins must be an integer >= 0"):
+        with_neighbours(dict(_nb_arrays(), x=np.zeros((5, 3))), np.ones(5, bool), 1, 10.0, basins=bad)

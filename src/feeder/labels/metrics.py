@@ -291,15 +291,8 @@ def dkw_epsilon(n, alpha: float) -> np.ndarray:
         return np.sqrt(math.log(2.0 / alpha) / (2.0 * n))
 
 
-def resting_orientations(pmf, top: int | None = None) -> list[tuple[float, float]]:
-    """The modes of a circular PMF and the probability of each one's basin, largest first.
-
-    Every bin climbs to its higher neighbour (the higher one when both are higher; wrap-around at
-    0/360) until no neighbour is higher; bins that end on the same peak, or on one flat run of
-    equal peak bins, form one basin. Returns ``(yaw_deg, mass)`` per basin: the yaw is the centre
-    of the peak (bin centres, ``360 / bins`` degrees wide; the middle of a flat run), the mass
-    the basin's total PMF. A flat PMF is one basin. ``top`` keeps the largest ``top``.
-    """
+def _climb(pmf) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, float]:
+    """(pmf, owner, run_of, is_peak, bin width) of :func:`resting_orientations`' climbing."""
     p = np.asarray(pmf, dtype=np.float64)
     n = p.size
     if p.ndim != 1 or n < 1:
@@ -327,6 +320,25 @@ def resting_orientations(pmf, top: int | None = None) -> list[tuple[float, float
             if is_peak[i] and is_peak[j] and p[i] == p[j]:
                 run_of[i] = run_of[j]
     owner = run_of[peak]
+    return p, owner, run_of, is_peak, width
+
+
+def basin_owners(pmf) -> np.ndarray:
+    """Each bin's basin, as :func:`resting_orientations` forms them: the first bin of the flat run
+    of peak bins that the bin climbs to (wrap-around at 0/360)."""
+    return _climb(pmf)[1]
+
+
+def resting_orientations(pmf, top: int | None = None) -> list[tuple[float, float]]:
+    """The modes of a circular PMF and the probability of each one's basin, largest first.
+
+    Every bin climbs to its higher neighbour (the higher one when both are higher; wrap-around at
+    0/360) until no neighbour is higher; bins that end on the same peak, or on one flat run of
+    equal peak bins, form one basin. Returns ``(yaw_deg, mass)`` per basin: the yaw is the centre
+    of the peak (bin centres, ``360 / bins`` degrees wide; the middle of a flat run), the mass
+    the basin's total PMF. A flat PMF is one basin. ``top`` keeps the largest ``top``.
+    """
+    p, owner, run_of, is_peak, width = _climb(pmf)
     out = []
     for r in np.unique(owner):
         members = np.flatnonzero(run_of == r)  # the flat run of peak bins labelled r

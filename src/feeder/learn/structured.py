@@ -226,8 +226,9 @@ def make_nets(d_cfg: int, d_cand: int, n_diffuse: int, s: NetSettings, n_variant
             self.register_buffer("start", start)
             self.sigma_raw = nn.Parameter(torch.zeros(()))
 
-        def forward(self, x, cf, mask, pos, logit_c, logit_d, diffuse, masses):
+        def forward(self, x, cf, mask, pos, logit_c, logit_d, diffuse, masses, offset_d):
             logits = self.net(x) + self.start
+            logits = torch.cat([logits[:, :n_variants], logits[:, n_variants:] + offset_d], dim=1)
             a = torch.softmax(logits, dim=1)
             av, ad = a[:, :n_variants], a[:, n_variants:]
             m = masses * mask[..., None]
@@ -249,12 +250,12 @@ def make_nets(d_cfg: int, d_cand: int, n_diffuse: int, s: NetSettings, n_variant
                 nn.init.zeros_(layer.weight)
                 nn.init.zeros_(layer.bias)
 
-        def forward(self, x, cf, mask, pos, logit_c, logit_d, diffuse, masses):
+        def forward(self, x, cf, mask, pos, logit_c, logit_d, diffuse, masses, offset_d):
             h = self.cfg(x)
             k = cf.shape[1]
             out = self.cand(torch.cat([cf, h[:, None, :].expand(-1, k, -1)], dim=-1))
             lc = torch.where(mask, logit_c + out[..., 0], torch.full_like(logit_c, -1e9))
-            ld = logit_d + self.diff(h)
+            ld = logit_d + offset_d + self.diff(h)
             w = torch.softmax(torch.cat([lc, ld], dim=1), dim=1)
             wc, wd = w[:, :k], w[:, k:]
             delta = s.max_offset_deg * torch.tanh(out[..., 1])
@@ -290,6 +291,7 @@ class Batch:
     logit_d: object
     diffuse: object
     masses: object
+    offset_d: object  # per row and diffuse component: added to its starting logit (the neighbours' basins)
 
     @classmethod
     def of(cls, arrays: dict, rows, diffuse: np.ndarray, start: str = "candidates"):
@@ -297,6 +299,9 @@ class Batch:
         t = lambda a: torch.as_tensor(np.ascontiguousarray(a), dtype=torch.float32)  # noqa: E731
         n_extra = np.asarray(diffuse).shape[1] - len(DIFFUSE)
         lc, ld = prior_logits(arrays["base_mass"][rows], arrays["mask"][rows], start, n_extra=n_extra)
+        offset = np.zeros(ld.shape)
+        if "neighbour_offset" in arrays:
+            offset[:, len(DIFFUSE) :] = arrays["neighbour_offset"][rows]
         return cls(
             t(arrays["x"][rows]),
             t(arrays["cf"][rows]),
@@ -306,10 +311,21 @@ class Batch:
             t(ld),
             t(diffuse),
             t(arrays["masses"][rows]),
+            t(offset),
         )
 
     def args(self):
-        return (self.x, self.cf, self.mask, self.pos, self.logit_c, self.logit_d, self.diffuse, self.masses)
+        return (
+            self.x,
+            self.cf,
+            self.mask,
+            self.pos,
+            self.logit_c,
+            self.logit_d,
+            self.diffuse,
+            self.masses,
+            self.offset_d,
+        )
 
 
 @dataclass(frozen=True)

@@ -23,6 +23,7 @@ from __future__ import annotations
 import hashlib
 import json
 import logging
+import math
 from pathlib import Path
 
 import numpy as np
@@ -326,6 +327,72 @@ def nearest_cross_rows(parts, config_ids, pool, rows, k: int) -> tuple[np.ndarra
     return idx, dist
 
 
+def neighbour_rows(arrays: dict, pool, k: int, cross: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """Every row's ``k`` nearest kept rows of ``pool`` of its part and fence types
+    (:func:`nearest_rows`), then its ``cross`` nearest under the same downstream fence
+    (:func:`nearest_cross_rows`): (indices (N, k + cross), −1 where missing; distances)."""
+    pool = np.asarray(pool, dtype=bool) & np.asarray(arrays["kept"], dtype=bool)
+    rows = np.arange(len(arrays["part"]))
+    idx, dist = nearest_rows(arrays["part"], arrays["config_id"], pool, rows, k)
+    if int(cross) > 0:  # then the nearest of other type combinations under the same downstream fence
+        c_idx, c_dist = nearest_cross_rows(arrays["part"], arrays["config_id"], pool, rows, cross)
+        idx, dist = np.concatenate([idx, c_idx], axis=1), np.concatenate([dist, c_dist], axis=1)
+    return idx, dist
+
+
+def basin_components(pmfs, analytic, idx, basins: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Each neighbour's label split into its ``basins`` largest basins and the rest
+    (:func:`feeder.labels.metrics.basin_owners`), each normalised, as separate mixture components:
+    (inputs (N, 3 J basins), components (N, J (basins + 1), bins), starting logit offsets (N, J
+    (basins + 1))). ``pmfs`` (N, J, bins): the neighbours' labels (:func:`neighbour_block`);
+    ``idx`` (N, J) their rows (−1: missing). The offsets are log(basin mass), so that a network
+    that starts each neighbour at one weight starts its basins at that weight times their masses:
+    together the whole label again. A missing basin or neighbour, or an empty rest, is the row's
+    analytic PMF with a floor offset. Per basin the inputs are its mass in the neighbour's label,
+    the row's analytic mass in its bins and the neighbour's analytic mass in them (zeros where
+    missing)."""
+    from feeder.labels.metrics import basin_owners
+    from feeder.learn.structured import LOGIT_FLOOR
+
+    pmfs, analytic = np.asarray(pmfs, np.float64), np.asarray(analytic, np.float64)
+    n, j_count, bins = pmfs.shape
+    b_count = int(basins)
+    comps = np.repeat(analytic[:, None, :], j_count * (b_count + 1), axis=1)
+    offsets = np.full((n, j_count * (b_count + 1)), math.log(LOGIT_FLOOR))
+    feats = np.zeros((n, j_count * 3 * b_count))
+    split: dict[int, tuple] = {}  # by neighbour row: its top basins' masks and masses
+    for r in range(n):
+        for j in range(j_count):
+            nb = int(idx[r, j])
+            first = j * (b_count + 1)
+            if nb < 0:
+                continue
+            if nb not in split:
+                owner = basin_owners(pmfs[r, j])
+                ids, inverse = np.unique(owner, return_inverse=True)
+                mass = np.bincount(inverse, weights=pmfs[r, j], minlength=ids.size)
+                top = np.argsort(-mass, kind="stable")[:b_count]
+                split[nb] = ([inverse == t for t in top], mass[top])
+            masks, masses = split[nb]
+            taken = np.zeros(bins, dtype=bool)
+            for b, (inside, m) in enumerate(zip(masks, masses, strict=True)):
+                if m <= 0:
+                    continue
+                comps[r, first + b] = np.where(inside, pmfs[r, j], 0.0) / m
+                offsets[r, first + b] = math.log(m)
+                feats[r, 3 * (j * b_count + b) : 3 * (j * b_count + b) + 3] = (
+                    m,
+                    analytic[r, inside].sum(),
+                    analytic[nb, inside].sum(),
+                )
+                taken |= inside
+            rest = float(pmfs[r, j][~taken].sum())
+            if rest > LOGIT_FLOOR:
+                comps[r, first + b_count] = np.where(taken, 0.0, pmfs[r, j]) / rest
+                offsets[r, first + b_count] = math.log(rest)
+    return feats, comps, offsets
+
+
 def neighbour_block(arrays: dict, pool, k: int, near_deg: float, cross: int = 0) -> tuple[np.ndarray, np.ndarray]:
     """Every row's ``k`` nearest labelled rows of ``pool`` (kept rows of the same part and fence
     types, :func:`nearest_rows`), then its ``cross`` nearest under the same downstream fence in
@@ -343,11 +410,8 @@ def neighbour_block(arrays: dict, pool, k: int, near_deg: float, cross: int = 0)
 
     pool = np.asarray(pool, dtype=bool) & np.asarray(arrays["kept"], dtype=bool)
     n = len(arrays["part"])
-    rows = np.arange(n)
-    idx, dist = nearest_rows(arrays["part"], arrays["config_id"], pool, rows, k)
-    if int(cross) > 0:  # then the nearest of other type combinations under the same downstream fence
-        c_idx, c_dist = nearest_cross_rows(arrays["part"], arrays["config_id"], pool, rows, cross)
-        idx, dist, k = np.concatenate([idx, c_idx], axis=1), np.concatenate([dist, c_dist], axis=1), k + int(cross)
+    idx, dist = neighbour_rows(arrays, pool, k, cross)
+    k = idx.shape[1]
     analytic, pmf = np.asarray(arrays["analytic"], np.float64), np.asarray(arrays["pmf"], np.float64)
     a_cdf, l_cdf = np.cumsum(analytic, axis=1), np.cumsum(pmf, axis=1)
     miss = np.zeros(n)  # each pool row's label against its analytic PMF
@@ -380,12 +444,21 @@ def neighbour_block(arrays: dict, pool, k: int, near_deg: float, cross: int = 0)
     return np.column_stack([*feats, part_miss, has_part]), pmfs
 
 
-def with_neighbours(arrays: dict, pool, k: int, near_deg: float, cross: int = 0) -> dict:
+def with_neighbours(arrays: dict, pool, k: int, near_deg: float, cross: int = 0, basins: int = 0) -> dict:
     """``arrays`` with the neighbour inputs of :func:`neighbour_block` appended to ``x`` and their
-    PMFs as ``neighbour_pmf`` (unchanged when ``k`` and ``cross`` are 0)."""
+    PMFs as ``neighbour_pmf`` (unchanged when ``k`` and ``cross`` are 0). With ``basins`` > 0 each
+    neighbour's PMF is split into its largest basins and the rest (:func:`basin_components`):
+    their inputs are appended too, and ``neighbour_offset`` holds their starting logit offsets."""
     if int(k) + int(cross) <= 0:
         return arrays
     if not near_deg > 0:
         raise FeederError(f"model.neighbour_near_deg must be > 0, got {near_deg}")
+    if isinstance(basins, bool) or int(basins) != basins or basins < 0:
+        raise FeederError(f"model.neighbour_basins must be an integer >= 0, got {basins!r}")
     feats, pmfs = neighbour_block(arrays, pool, int(k), float(near_deg), int(cross))
-    return dict(arrays, x=np.concatenate([arrays["x"], feats], axis=1), neighbour_pmf=pmfs)
+    out = dict(arrays, x=np.concatenate([arrays["x"], feats], axis=1), neighbour_pmf=pmfs)
+    if int(basins) > 0:
+        idx, _ = neighbour_rows(arrays, pool, int(k), int(cross))
+        b_feats, comps, offsets = basin_components(pmfs, arrays["analytic"], idx, int(basins))
+        out.update(x=np.concatenate([out["x"], b_feats], axis=1), neighbour_pmf=comps, neighbour_offset=offsets)
+    return out

@@ -100,13 +100,14 @@ def fit_protocol(arrays: dict, train: np.ndarray, cfg, key: str, known: bool = T
     # rows of its own (validation) part, a scored row every training row (as a user's known part)
     k, cross = neighbour_count(cfg), neighbour_count(cfg, "cross_neighbours")
     near = float(cfg.model.neighbour_near_deg)
-    a_fit = with_neighbours(arrays, train & ~is_val, k, near, cross)
-    a_val = with_neighbours(arrays, train & is_val & bool(known), k, near, cross)
+    basins = cfg.model.get("neighbour_basins", 0)
+    a_fit = with_neighbours(arrays, train & ~is_val, k, near, cross, basins)
+    a_val = with_neighbours(arrays, train & is_val & bool(known), k, near, cross, basins)
     x = a_fit["x"]
     mu, sd = x[fit_ok].mean(axis=0), x[fit_ok].std(axis=0)
     sd = np.where(sd > 0, sd, 1.0)
     scaled, scaled_val = dict(a_fit, x=(x - mu) / sd), dict(a_val, x=(a_val["x"] - mu) / sd)
-    a_eval = with_neighbours(arrays, train, k, near, cross)
+    a_eval = with_neighbours(arrays, train, k, near, cross, basins)
     scaled_eval = dict(a_eval, x=(a_eval["x"] - mu) / sd)
     mean_pmf = arrays["pmf"][fit_rows].mean(axis=0)
     net, tr = _settings(cfg)
@@ -164,6 +165,7 @@ def fit_protocol(arrays: dict, train: np.ndarray, cfg, key: str, known: bool = T
         "ok_steps": float(np.mean([f.ok_steps for f in fits])),
         "neighbours": k,
         "cross_neighbours": cross,
+        "neighbour_basins": int(basins),
         "val_neighbours": bool(known and k + cross > 0),
     }
     return {"fits": fits, "scaled": scaled_eval, "mean_pmf": mean_pmf, "choice": choice, "train": train}
