@@ -276,6 +276,13 @@ def protocol_jobs(arrays: dict, cfg) -> tuple[list[tuple], set]:
     return jobs, locked
 
 
+def check_workers(workers) -> int:
+    """``train.workers`` checked: a one-line FeederError unless it is an integer >= 1."""
+    if isinstance(workers, bool) or not isinstance(workers, (int, np.integer)) or workers < 1:
+        raise FeederError(f"train.workers must be an integer >= 1, got {workers!r}")
+    return int(workers)
+
+
 _SHARED: dict = {}  # what a forked worker of run_protocol reads (arrays are not pickled per job)
 
 
@@ -314,8 +321,7 @@ def run_protocol(arrays: dict, cfg, prior_grids, m3_pmf: dict | None = None, pro
     PMFs by (part, config_id) for the dataset's Test and Fences rows (trained on its Train rows),
     used in repeat 0 and for Fences. ``workers`` > 1 runs that many fits at once in forked
     processes; the rows and choices are the same, in the same order (only ``seconds`` differ)."""
-    if isinstance(workers, bool) or not isinstance(workers, (int, np.integer)) or workers < 1:
-        raise FeederError(f"train.workers must be an integer >= 1, got {workers!r}")
+    check_workers(workers)
     say = progress or (lambda msg: None)
     jobs, locked = protocol_jobs(arrays, cfg)
     state = {"arrays": arrays, "cfg": cfg, "prior_grids": prior_grids, "m3_pmf": m3_pmf, "locked": locked}
@@ -473,6 +479,7 @@ def main(argv: list[str]) -> int:
 
     args = _parser().parse_args(argv)
     cfg = compose_config("structured", args.overrides)
+    check_workers(cfg.train.workers)  # before the data and the candidates, not after
     prior_grids = grids(compose_config("train")["prior"])
     import torch
 
