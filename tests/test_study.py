@@ -144,6 +144,59 @@ def test_the_predictor_must_be_bound_first(part_stl):
         model.predict(np.zeros((2, 45)), np.zeros((2, 8)), _push(1.0, 2), np.ones((2, 360)))
 
 
+class _Shipped:
+    """A stand-in for the shipped structured predictor (its neighbour rule is the real one): it
+    answers a spike at 50 deg in the label frame, turned 10 deg from the part's, and keeps its calls."""
+
+    frame = 10.0
+
+    def __init__(self):
+        from feeder.learn.structured_shipped import ShippedStructured
+
+        self.rule = ShippedStructured.__new__(ShippedStructured)
+        self.rule.meta = {"neighbours": 2, "cross_neighbours": 1}
+        self.calls = []
+
+    def serves(self, bins, sigma_bins, scene_sha256):
+        return scene_sha256 == S.scene_digest(SCENE)
+
+    def has_neighbour(self, config_id, pool_ids):
+        return self.rule.has_neighbour(config_id, pool_ids)
+
+    def frame_of(self, part):
+        return self.frame
+
+    def answer(self, geom, part, config_ids, pool_ids, pool_pmf, pool_ok, scene, progress=None):
+        self.calls.append((part, list(config_ids), list(pool_ids), np.asarray(pool_pmf), list(pool_ok)))
+        out = np.zeros((len(config_ids), 360))
+        out[:, 50] = 1.0
+        return out
+
+
+def test_a_known_part_at_a_new_angle_gets_the_structured_predictor_where_it_has_a_neighbour(tmp_path):
+    stl = tmp_path / "p.stl"
+    stl.write_bytes((Path(__file__).resolve().parents[1] / "parts" / "rect-a3.stl").read_bytes())
+    lib = _library(stl)
+    lib.structured = _Shipped()
+    model = S.StudyModel(360, 1.0, SCENE, lib)
+    ids = ["straight30_none", "straight45_none", "straight20_curved30", "curved10_none", "none_none"]
+    model.bind(stl, ids)
+    # curved10: the part's only curved row jams, and no labelled row has a curved downstream fence
+    assert model.sources() == ["simulated", "structured", "structured", "analytic", "analytic"]
+    assert "straight30_none, 15 deg away" in model.describe(1) and "only of its downstream fence" in model.describe(2)
+    uniform = np.full((len(ids), 360), 1.0 / 360)
+    pmf, _ = model.predict(np.zeros((5, 45)), np.zeros((5, 8)), _push(0.5, 5), uniform)
+    assert pmf[1, 40] == pytest.approx(1.0) and pmf[2, 40] == pytest.approx(1.0)  # 50 in the label frame
+    (call,) = lib.structured.calls  # one answer for every structured row of the binding
+    part, asked, pool, pool_pmf, pool_ok = call
+    assert part == "p" and asked == ids[1:3] and pool == ["straight30_none", "straight60_none"]
+    assert np.allclose(pool_pmf[0], L.pmf_from_yaws(np.array([20.0, 20.0, 200.0, 200.0]), 360, 1.0))  # label frame
+    assert pool_ok == [1.0, 1.0]
+    assert model.ok_mass(_push(0.5, 5)).tolist() == [1.0, 0.5, 0.5, 0.5, 0.5]  # the analytic ok mass
+    elsewhere = S.StudyModel(360, 1.0, {**SCENE, "belt": {"speed": 0.2, "friction": 1.0}}, lib)
+    assert elsewhere.structured is None
+
+
 # ------------------------------------------------------------------------------- export and load
 def _study_inputs(tmp_path: Path):
     from feeder.io import write_npz
@@ -292,6 +345,15 @@ def test_export_study_refuses_bad_input_in_one_line_and_writes_nothing(tmp_path)
         (tmp_path / "configurations.csv", ["neighbour.gates_deg=[]"], "neighbour.gates_deg"),
     ]:
         proc = _cli(*base, "--configurations", str(configurations), *gates)
+        err = proc.stderr.strip()
+        assert proc.returncode != 0 and message in err and "\n" not in err and "Traceback" not in err, err
+        assert not out.exists()
+    good = ["--configurations", str(tmp_path / "configurations.csv")]
+    for extra, message in [
+        (["--structured-table", str(tmp_path / "neighbour.csv")], "--structured-table is the evidence of --structured"),
+        (["--structured", str(tmp_path / "none.npz")], "none.npz is missing"),
+    ]:
+        proc = _cli(*base, *good, *extra)
         err = proc.stderr.strip()
         assert proc.returncode != 0 and message in err and "\n" not in err and "Traceback" not in err, err
         assert not out.exists()

@@ -87,6 +87,10 @@ COMMANDS: dict[str, tuple[str, str]] = {
         "feeder.learn.structured_protocol",
         "train and score the structured predictor (candidate masses, offsets, widths, ok mass) under the protocol",
     ),
+    "fit-structured": (
+        "feeder.learn.structured_shipped",
+        "train the shipped structured predictor on every configuration of the study (models/study answers with it)",
+    ),
     "predict": ("feeder.learn.predict", "predict the orientation PMF of a part and fences"),
     "recommend": ("feeder.learn.recommend", "rank fence configurations by the predicted chance of a target yaw"),
     "export-model": (

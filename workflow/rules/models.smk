@@ -8,6 +8,7 @@
 # tables average over seeds and give the spread across them, and model_vs_baselines.csv holds the
 # paired bootstrap of each model against each baseline (models.bootstrap).
 # The §3.4.1 grid search is not part of the DAG: `feeder train -m hparams_search=grid model=m3`.
+import os
 import shlex
 
 from feeder.config import resolved_yaml
@@ -219,6 +220,41 @@ rule neighbour:
         "feeder neighbour --dataset {input.dataset} --out-csv {output.csv} --out-rows {output.rows} > {log} 2>&1"
 
 
+STRUCTURED_OVERRIDES = config["structured"]["hydra_overrides"]
+# the structured predictor's evidence, quoted by the study's card: the protocol's table, committed (feeder
+# structured, run by hand: about 40 minutes, not in the DAG); an input only where it is
+STRUCTURED_TABLE = "results/tables/structured_protocol.csv"
+
+
+rule fit_structured:
+    """The shipped structured predictor: the protocol's fit (validation parts, search, seeds) on every
+    configuration of the study, as one file that models/study answers a known part at a new angle
+    with (feeder fit-structured; feeder.learn.structured_shipped; config/hydra/structured.yaml). The
+    candidates it computes are kept beside the dataset for `feeder structured`."""
+    input:
+        code("fit-structured"),
+        dataset=DATASET,
+        sims=[sim_path(p, c) for p, c in zip(CONFIGS["part"], CONFIGS["config_id"])],
+        parts=expand("{dir}/{part}.stl", dir=config["parts"]["dir"], part=sorted(set(CONFIGS["part"]))),
+        features=expand(f"{RESULTS}/features/{{part}}.json", part=sorted(set(CONFIGS["part"]))),
+    output:
+        model=f"{RESULTS}/models/structured/structured.npz",
+        candidates=f"{RESULTS}/datasets/structured_candidates.npz",
+    log:
+        f"{LOGS}/models/fit_structured.log",
+    benchmark:
+        f"{BENCHMARKS}/models/fit_structured.tsv"
+    conda:
+        "../envs/feeder.yaml"
+    params:
+        settings=resolved_yaml("structured", STRUCTURED_OVERRIDES, drop=("neighbour",)),
+        overrides=" ".join(shlex.quote(o) for o in STRUCTURED_OVERRIDES),
+    shell:
+        "feeder fit-structured --dataset {input.dataset} --sim-dir $(dirname $(dirname {input.sims[0]}))"
+        " --parts-dir $(dirname {input.parts[0]}) --features-dir $(dirname {input.features[0]})"
+        " --cache {output.candidates} --out {output.model} {params.overrides} > {log} 2>&1"
+
+
 rule export_study:
     """The study's answer (models/study, committed): every simulated configuration as raw drops and
     the neighbour gate, chosen on every labelled configuration. `feeder predict` and `feeder recommend`
@@ -230,6 +266,8 @@ rule export_study:
         parts=expand("{dir}/{part}.stl", dir=config["parts"]["dir"], part=sorted(set(CONFIGS["part"]))),
         dataset=DATASET,
         neighbour=f"{RESULTS}/tables/neighbour.csv",
+        structured=f"{RESULTS}/models/structured/structured.npz",
+        structured_table=lambda wildcards: [STRUCTURED_TABLE] if os.path.isfile(STRUCTURED_TABLE) else [],
     output:
         directory(f"{EXPORT_DIR}/study"),
     log:
@@ -242,10 +280,13 @@ rule export_study:
         settings=resolved_yaml(
             "structured", drop=("seed", "seeds", "candidates", "model", "train", "search", "protocol")
         ),
+        evidence=lambda wildcards, input: (
+            f"--structured-table {input.structured_table}" if input.structured_table else ""
+        ),
     shell:
         "feeder export-study --configurations {input.configurations} --sim-dir $(dirname $(dirname {input.sims[0]}))"
         " --parts-dir $(dirname {input.parts[0]}) --dataset {input.dataset} --neighbour-table {input.neighbour}"
-        " --out {output} > {log} 2>&1"
+        " --structured {input.structured} {params.evidence} --out {output} > {log} 2>&1"
 
 
 rule prediction_figure_data:

@@ -5,9 +5,10 @@ trained regression model, without simulating.
         [--out pmf.csv] [--plot pmf.png]
 
 Without ``--model`` (or with ``--model study``) the study answers (:mod:`feeder.learn.study`, the
-folder ``models/study``): the simulated label of a part and configuration it simulated, the label of
-the part's nearest simulated angle within its gate, else the untrained analytic push PMF; it needs
-``--part`` as an STL and says on stderr which answer it gave. ``--model analytic`` is the analytic
+folder ``models/study``): the simulated label of a part and configuration it simulated; for a part it
+simulated at a new configuration, the structured predictor from the part's labelled configurations
+(:mod:`feeder.learn.structured_shipped`, about a second); else the untrained analytic push PMF; it
+needs ``--part`` as an STL and says on stderr which answer it gave. ``--model analytic`` is the analytic
 PMF alone; ``--model models/m3`` the paper's Model 3 (written by ``feeder export-model``). A model
 folder with a card (``card.json``) whose features version is not the code's is refused
 (:func:`feeder.learn.export.check_card`).
@@ -66,9 +67,10 @@ def choose_model(model_arg, prog: str, study: dict):
 
     if is_study(model_arg):
         model = study_model(study)
+        known = "the structured predictor" if model.structured is not None else "its nearest simulated angle"
         print(
-            f"{prog}: the study's answer (its simulated labels where it has the part, else the analytic "
-            "push PMF; --model study)",
+            f"{prog}: the study's answer (its simulated labels where it has the part and configuration, {known} "
+            "where it has the part, else the analytic push PMF; --model study)",
             file=sys.stderr,
         )
         return model
@@ -396,7 +398,7 @@ def main(argv: list[str]) -> int:
     # the summary a person reads: on stdout unless stdout carries the table
     summary = orientation_summary(frame)
     if hasattr(model, "ok_mass") and push_raw is not None:
-        how = "simulated" if source != "analytic" else "analytic"
+        how = "simulated" if source in ("simulated", "neighbour") else "analytic"
         summary += f"\nshare of drops that leave without jamming ({how}): {float(model.ok_mass(push_raw)[0]):.2f}"
     print(summary, file=sys.stdout if args.out is not None else sys.stderr)
     if args.plot is not None:

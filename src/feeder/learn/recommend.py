@@ -11,8 +11,10 @@ them by the predicted probability that the final yaw lies within ``--tolerance``
     feeder recommend [--model results/models/m3/seed0] --part my.stl --target 0 --tolerance 10
 
 Without ``--model`` the study answers (:mod:`feeder.learn.study`): its simulated labels for the
-configurations it simulated with this part, its nearest simulated angle within the gate, else the
-analytic push PMF; the column ``answer`` says which (``simulated``, ``neighbour``, ``analytic``).
+configurations it simulated with this part, the structured predictor from the part's labelled
+configurations at the others (about a third of a second each), else the analytic push PMF; the
+column ``answer`` says which (``simulated``, ``structured``, ``neighbour`` when the study folder has
+no structured predictor, ``analytic``).
 ``--model models/m3`` ranks by the paper's Model 3 (``feeder export-model``).
 
 Predictions are only as good as the model (its card says how it did on unseen parts).
@@ -233,6 +235,7 @@ def main(argv: list[str]) -> int:
     part_raw, frame_deg = part_vector(args.part, args.features, "feeder recommend", study.get("scene"))
     if hasattr(model, "bind"):  # the study's predictor: which configurations it has simulated for this part
         print(f"feeder recommend: {model.bind(args.part, config_ids)}", file=sys.stderr)
+        model.progress = lambda message: print(f"feeder recommend: {message}", file=sys.stderr, flush=True)
     push_raw = analytic = None
     if model.needs_push or model.needs_analytic:
         from feeder.lane.fences import parse_config_id

@@ -198,18 +198,21 @@ def _gaussians(torch, s, pos, delta, sigma, weights, bins: int):
     return torch.zeros(n, bins, dtype=pos.dtype).scatter_add(1, idx, (weights[..., None] * g).reshape(n, -1))
 
 
+def sigma_shift(s: NetSettings) -> float:
+    """The shift that makes ``sigma_min + (sigma_max − sigma_min) sigmoid(raw + shift)`` equal
+    ``sigma_init`` at ``raw = 0``."""
+    frac = (s.sigma_init_deg - s.sigma_min_deg) / (s.sigma_max_deg - s.sigma_min_deg)
+    return math.log(frac / (1.0 - frac))
+
+
 def make_nets(d_cfg: int, d_cand: int, n_diffuse: int, s: NetSettings, n_variants: int = 0):
-    """(PMF network of ``s.kind``, OkNet) as torch modules."""
+    """(PMF network of ``s.kind``, OkNet) as torch modules (:func:`forward_numpy` answers the PMF
+    network's state in numpy)."""
     torch = _torch()
     nn = torch.nn
 
-    def sigma_shift() -> float:
-        # sigma_min + (sigma_max - sigma_min) sigmoid(raw + shift) = sigma_init at raw = 0
-        frac = (s.sigma_init_deg - s.sigma_min_deg) / (s.sigma_max_deg - s.sigma_min_deg)
-        return math.log(frac / (1.0 - frac))
-
     def width(raw):
-        return s.sigma_min_deg + (s.sigma_max_deg - s.sigma_min_deg) * torch.sigmoid(raw + sigma_shift())
+        return s.sigma_min_deg + (s.sigma_max_deg - s.sigma_min_deg) * torch.sigmoid(raw + sigma_shift(s))
 
     class VariantNet(nn.Module):
         def __init__(self):
@@ -279,6 +282,97 @@ def make_nets(d_cfg: int, d_cand: int, n_diffuse: int, s: NetSettings, n_variant
     return (StructuredNet() if s.kind == "candidates" else VariantNet()), OkNet()
 
 
+BATCH_INPUTS = ("x", "cf", "mask", "pos", "logit_c", "logit_d", "diffuse", "masses", "offset_d")
+
+
+def batch_inputs(arrays: dict, rows, diffuse: np.ndarray, start: str = "candidates") -> dict:
+    """The networks' inputs of ``rows`` (:data:`BATCH_INPUTS`, numpy): the starting logits of
+    :func:`prior_logits` (``-1e9`` for a masked candidate) and, per diffuse component, the offset of
+    its starting logit (``arrays["neighbour_offset"]`` for the neighbours' components, else 0)."""
+    rows = np.asarray(rows)
+    n_extra = np.asarray(diffuse).shape[1] - len(DIFFUSE)
+    lc, ld = prior_logits(arrays["base_mass"][rows], arrays["mask"][rows], start, n_extra=n_extra)
+    offset = np.zeros(ld.shape)
+    if "neighbour_offset" in arrays:
+        offset[:, len(DIFFUSE) :] = arrays["neighbour_offset"][rows]
+    return {
+        "x": arrays["x"][rows],
+        "cf": arrays["cf"][rows],
+        "mask": arrays["mask"][rows],
+        "pos": arrays["pos"][rows],
+        "logit_c": np.where(np.isfinite(lc), lc, -1e9),
+        "logit_d": ld,
+        "diffuse": np.asarray(diffuse),
+        "masses": arrays["masses"][rows],
+        "offset_d": offset,
+    }
+
+
+# ----------------------------------------------------------------------------------------------
+# The PMF network in numpy (feeder predict never imports torch)
+# ----------------------------------------------------------------------------------------------
+def _linear(params: dict, name: str, a: np.ndarray) -> np.ndarray:
+    return a @ params[f"{name}.weight"].T + params[f"{name}.bias"]
+
+
+def _softmax(z: np.ndarray) -> np.ndarray:
+    e = np.exp(z - z.max(axis=1, keepdims=True))
+    return e / e.sum(axis=1, keepdims=True)
+
+
+def _width_np(raw, s: NetSettings) -> np.ndarray:
+    return s.sigma_min_deg + (s.sigma_max_deg - s.sigma_min_deg) / (1.0 + np.exp(-(np.asarray(raw) + sigma_shift(s))))
+
+
+def gaussians_np(s: NetSettings, pos, delta, sigma, weights, bins: int) -> np.ndarray:
+    """(N, bins): the torch networks' windowed sum of weighted Gaussians (``_gaussians``) in numpy."""
+    pos = np.asarray(pos, dtype=np.float64)
+    n = pos.shape[0]
+    width = FULL_TURN_DEG / bins
+    half = window_half_bins(s, bins)
+    steps = np.arange(-half, half + 1)
+    home = np.floor(pos / width).astype(np.int64)
+    d = (home[..., None] + steps + 0.5) * width - (pos + delta)[..., None]
+    g = np.exp(-0.5 * (d / np.asarray(sigma)[..., None]) ** 2)
+    g = g / g.sum(axis=-1, keepdims=True)
+    idx = np.mod(home[..., None] + steps, bins).reshape(n, -1)
+    out = np.zeros((n, bins))
+    np.add.at(
+        out, (np.repeat(np.arange(n), idx.shape[1]), idx.ravel()), (np.asarray(weights)[..., None] * g).reshape(-1)
+    )
+    return out
+
+
+def forward_numpy(params: dict, s: NetSettings, n_variants: int, b: dict) -> np.ndarray:
+    """The PMF network of ``s.kind`` (:func:`make_nets`) with the state ``params`` (its
+    ``state_dict`` as numpy arrays) on the inputs ``b`` of :func:`batch_inputs`, in float64: (N, bins)."""
+    x, mask, pos, diffuse = b["x"], np.asarray(b["mask"], dtype=bool), b["pos"], b["diffuse"]
+    bins = diffuse.shape[-1]
+    if s.kind == "variants":
+        logits = _linear(params, "net.2", np.maximum(_linear(params, "net.0", x), 0.0)) + params["start"]
+        logits = np.concatenate([logits[:, :n_variants], logits[:, n_variants:] + b["offset_d"]], axis=1)
+        a = _softmax(logits)
+        av, ad = a[:, :n_variants], a[:, n_variants:]
+        m = b["masses"] * mask[..., None]
+        wc = (m * av[:, None, :]).sum(axis=-1)
+        rest = (av * np.clip(1.0 - m.sum(axis=1), 0.0, None)).sum(axis=1)
+        wd = np.concatenate([ad[:, :1] + rest[:, None], ad[:, 1:]], axis=1)
+        sigma = np.broadcast_to(_width_np(params["sigma_raw"], s), pos.shape)
+        cand = gaussians_np(s, pos, np.zeros_like(pos), sigma, wc, bins)
+    else:
+        h = np.maximum(_linear(params, "cfg.0", x), 0.0)
+        k = b["cf"].shape[1]
+        z = np.concatenate([b["cf"], np.broadcast_to(h[:, None, :], (h.shape[0], k, h.shape[1]))], axis=-1)
+        out = _linear(params, "cand.2", np.maximum(_linear(params, "cand.0", z), 0.0))
+        lc = np.where(mask, b["logit_c"] + out[..., 0], -1e9)
+        ld = b["logit_d"] + b["offset_d"] + _linear(params, "diff", h)
+        w = _softmax(np.concatenate([lc, ld], axis=1))
+        wc, wd = w[:, :k], w[:, k:]
+        delta = s.max_offset_deg * np.tanh(out[..., 1])
+        cand = gaussians_np(s, pos, delta, _width_np(out[..., 2], s), wc, bins)
+    return cand + (wd[..., None] * diffuse).sum(axis=1)
+
+
 @dataclass
 class Batch:
     """Model inputs of a set of rows as torch tensors (float32)."""
@@ -296,23 +390,9 @@ class Batch:
     @classmethod
     def of(cls, arrays: dict, rows, diffuse: np.ndarray, start: str = "candidates"):
         torch = _torch()
+        b = batch_inputs(arrays, rows, diffuse, start)
         t = lambda a: torch.as_tensor(np.ascontiguousarray(a), dtype=torch.float32)  # noqa: E731
-        n_extra = np.asarray(diffuse).shape[1] - len(DIFFUSE)
-        lc, ld = prior_logits(arrays["base_mass"][rows], arrays["mask"][rows], start, n_extra=n_extra)
-        offset = np.zeros(ld.shape)
-        if "neighbour_offset" in arrays:
-            offset[:, len(DIFFUSE) :] = arrays["neighbour_offset"][rows]
-        return cls(
-            t(arrays["x"][rows]),
-            t(arrays["cf"][rows]),
-            torch.as_tensor(arrays["mask"][rows]),
-            t(arrays["pos"][rows]),
-            t(np.where(np.isfinite(lc), lc, -1e9)),
-            t(ld),
-            t(diffuse),
-            t(arrays["masses"][rows]),
-            t(offset),
-        )
+        return cls(**{k: torch.as_tensor(v) if k == "mask" else t(v) for k, v in b.items()})
 
     def args(self):
         return (

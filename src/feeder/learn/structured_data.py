@@ -74,15 +74,50 @@ def _frames(data: dict, parts, features_dir) -> dict[str, float]:
     return frames
 
 
-def compute_candidates(
-    parts, config_ids, frames, scene, variants, cand_cfg: dict, parts_dir, bins: int, units: str, progress=None
+def configuration_inputs(
+    geom, memo: dict, config_id: str, frame_deg: float, scene, variants, cand_cfg: dict, bins: int
 ):
-    """Per configuration: positions (K_i,), masses (K_i, V), variant ok masses (V,), and the push
-    block (P,) and analytic PMF (bins,) of the configuration (label smoothing ``cand_cfg``'s
-    ``label_smooth_deg``). ``progress(message)`` hears of every tenth part begun."""
+    """One configuration's (candidate positions (K,), their masses under each variant (K, V), each
+    variant's ok mass (V,), push block (P,), analytic PMF (bins,)) for a part's push geometry
+    ``geom`` (:func:`feeder.mechanics.hull.push_geometry`) in the label frame ``frame_deg``;
+    ``memo`` caches the part's push responses across its configurations."""
     from feeder.lane.fences import parse_config_id
     from feeder.mechanics.candidates import configuration_candidates
     from feeder.mechanics.features import push_block
+
+    loc1, loc2 = parse_config_id(config_id)
+    c = configuration_candidates(
+        geom,
+        loc1,
+        loc2,
+        scene,
+        variants,
+        frame_deg=float(frame_deg),
+        bins=bins,
+        min_mass=float(cand_cfg["min_mass"]),
+        window_deg=float(cand_cfg["window_deg"]),
+        merge_deg=float(cand_cfg["merge_deg"]),
+        max_candidates=int(cand_cfg["max_candidates"]),
+        responses=memo,
+    )
+    push, analytic = push_block(
+        geom,
+        loc1,
+        loc2,
+        scene,
+        frame_deg=float(frame_deg),
+        bins=bins,
+        pmf_smooth_deg=float(cand_cfg["label_smooth_deg"]),
+        responses=memo,
+    )
+    return c.positions, c.masses, c.ok, push, analytic
+
+
+def compute_candidates(
+    parts, config_ids, frames, scene, variants, cand_cfg: dict, parts_dir, bins: int, units: str, progress=None
+):
+    """:func:`configuration_inputs` of every configuration (label smoothing ``cand_cfg``'s
+    ``label_smooth_deg``). ``progress(message)`` hears of every tenth part begun."""
     from feeder.mechanics.hull import push_geometry
     from feeder.parts.geometry import load_profile
 
@@ -96,32 +131,7 @@ def compute_candidates(
                 raise FeederError(f"part file {path} is missing (the candidates need every part's outline)")
             outline, holes, _ = load_profile(path, units)
             geoms[part], memos[part] = push_geometry(outline, holes), {}
-        loc1, loc2 = parse_config_id(cid)
-        c = configuration_candidates(
-            geoms[part],
-            loc1,
-            loc2,
-            scene,
-            variants,
-            frame_deg=float(frame),
-            bins=bins,
-            min_mass=float(cand_cfg["min_mass"]),
-            window_deg=float(cand_cfg["window_deg"]),
-            merge_deg=float(cand_cfg["merge_deg"]),
-            max_candidates=int(cand_cfg["max_candidates"]),
-            responses=memos[part],
-        )
-        push, analytic = push_block(
-            geoms[part],
-            loc1,
-            loc2,
-            scene,
-            frame_deg=float(frame),
-            bins=bins,
-            pmf_smooth_deg=float(cand_cfg["label_smooth_deg"]),
-            responses=memos[part],
-        )
-        out.append((c.positions, c.masses, c.ok, push, analytic))
+        out.append(configuration_inputs(geoms[part], memos[part], cid, frame, scene, variants, cand_cfg, bins))
     return out
 
 
@@ -186,11 +196,46 @@ def candidate_features(masses, mask, present_mass: float) -> np.ndarray:
     return np.where(np.asarray(mask)[..., None], feats, 0.0)
 
 
+def row_inputs(cands, config_ids, n_variants: int, max_candidates: int, present_mass: float) -> dict:
+    """The model inputs of rows from their :func:`configuration_inputs` ``cands``: ``x`` (push block,
+    the 8 fence inputs with angles over 90°, each variant's ok mass), the candidates padded to
+    ``max_candidates`` (``pos``, ``masses``, ``mask``), their features ``cf``
+    (:func:`candidate_features`), ``base_mass``, ``analytic`` and ``analytic_ok``."""
+    from feeder.labels.dataset import feeder_vector
+    from feeder.lane.fences import parse_config_id
+
+    pos, masses, mask = _pad(cands, int(max_candidates), int(n_variants))
+    ok_var = np.stack([c[2] for c in cands])
+    push = np.stack([c[3] for c in cands])
+    fences = np.stack([feeder_vector(*parse_config_id(c)) for c in config_ids])
+    fences[:, [3, 7]] /= RIGHT_ANGLE_DEG
+    return {
+        "x": np.concatenate([push, fences, ok_var], axis=1),
+        "pos": pos,
+        "mask": mask,
+        "masses": masses,
+        "cf": candidate_features(masses, mask, float(present_mass)),
+        "base_mass": masses[:, :, 0],
+        "analytic": np.stack([c[4] for c in cands]),
+        "analytic_ok": ok_var[:, 0],
+    }
+
+
+def candidate_settings(candidates, bins: int, sigma_bins: float) -> dict:
+    """The settings the candidates depend on: ``candidates``' (``config/hydra/structured.yaml``)
+    ``min_mass``, ``window_deg``, ``merge_deg``, ``max_candidates``, ``present_mass`` and the labels'
+    smoothing in degrees (``label_smooth_deg``), as plain numbers."""
+    from feeder.labels.dataset import label_smooth_deg
+
+    out = {k: candidates[k] for k in ("min_mass", "window_deg", "merge_deg", "max_candidates", "present_mass")}
+    out = {k: (int(v) if k == "max_candidates" else float(v)) for k, v in out.items()}
+    out["label_smooth_deg"] = label_smooth_deg(int(bins), float(sigma_bins))
+    return out
+
+
 def structured_arrays(data: dict, cfg, sim_dir, parts_dir, features_dir, cache_path=None, progress=None) -> dict:
     """The arrays of the module doc for ``data`` (:func:`feeder.labels.dataset.load_dataset`),
     with the candidate settings ``cfg.candidates`` of ``config/hydra/structured.yaml``."""
-    from feeder.labels.dataset import feeder_vector, label_smooth_deg
-    from feeder.lane.fences import parse_config_id
     from feeder.mechanics.candidates import variants_from_config
     from feeder.mechanics.fence import default_scene
 
@@ -206,8 +251,7 @@ def structured_arrays(data: dict, cfg, sim_dir, parts_dir, features_dir, cache_p
     frames_of = _frames(data, sorted(set(parts)), features_dir)
     frames = [frames_of[p] for p in parts]
     variants = variants_from_config(cfg.candidates.variants)
-    cand_cfg = {k: cfg.candidates[k] for k in ("min_mass", "window_deg", "merge_deg", "max_candidates", "present_mass")}
-    cand_cfg["label_smooth_deg"] = label_smooth_deg(bins, float(labels["sigma_bins"]))
+    cand_cfg = candidate_settings(cfg.candidates, bins, float(labels["sigma_bins"]))
     key = candidates_key(parts, cids, frames, scene, variants, cand_cfg, parts_dir)
     cands = read_candidates_cache(cache_path, key) if cache_path is not None else None
     if cands is None:
@@ -215,15 +259,11 @@ def structured_arrays(data: dict, cfg, sim_dir, parts_dir, features_dir, cache_p
         cands = compute_candidates(parts, cids, frames, scene, variants, cand_cfg, parts_dir, bins, units, progress)
         if cache_path is not None:
             write_candidates_cache(cache_path, key, cands, len(variants))
-    k_max = int(cfg.candidates.max_candidates)
-    pos, masses, mask = _pad(cands, k_max, len(variants))
-    ok_var = np.stack([c[2] for c in cands])
-    push = np.stack([c[3] for c in cands])
-    if "push_raw" in data and not np.allclose(push[:n_kept], data["push_raw"]):
+    if "push_raw" in data and not np.allclose(np.stack([c[3] for c in cands])[:n_kept], data["push_raw"]):
         raise FeederError("the dataset's push_raw differs from this code's push block: rebuild the dataset")
-    fences = np.stack([feeder_vector(*parse_config_id(c)) for c in cids])
-    fences[:, [3, 7]] /= RIGHT_ANGLE_DEG
-    x = np.concatenate([push, fences, ok_var], axis=1)
+    inputs = row_inputs(
+        cands, cids, len(variants), int(cfg.candidates.max_candidates), float(cfg.candidates.present_mass)
+    )
     sim_dir = Path(sim_dir)
     ok = np.array(
         [
@@ -234,7 +274,6 @@ def structured_arrays(data: dict, cfg, sim_dir, parts_dir, features_dir, cache_p
     n = len(parts)
     pmf = np.zeros((n, bins))
     pmf[:n_kept] = data["pmf"]
-    analytic = np.stack([c[4] for c in cands])
     fold_of = {str(p): int(f) for p, f in zip(data["part"], data["group_fold"], strict=True)}
     n_folds = int(np.max(data["group_fold"])) + 1
     group_fold = np.array([fold_of.get(p, int(hashlib.sha256(p.encode()).hexdigest(), 16) % n_folds) for p in parts])
@@ -243,18 +282,12 @@ def structured_arrays(data: dict, cfg, sim_dir, parts_dir, features_dir, cache_p
         "config_id": np.array(cids),
         "split": np.array(splits),
         "kept": np.arange(n) < n_kept,
+        "frame_deg": np.array(frames, dtype=np.float64),
         "group_fold": group_fold,
         "ok": ok,
-        "x": x,
-        "pos": pos,
-        "mask": mask,
-        "masses": masses,
-        "cf": candidate_features(masses, mask, float(cfg.candidates.present_mass)),
-        "base_mass": masses[:, :, 0],
+        **inputs,
         "pmf": pmf,
         "cdf": np.cumsum(pmf, axis=1),
-        "analytic": analytic,
-        "analytic_ok": ok_var[:, 0],
         "wide_sigma_bins": float(cfg.model.wide_sigma_bins),
     }
 
@@ -393,7 +426,19 @@ def basin_components(pmfs, analytic, idx, basins: int) -> tuple[np.ndarray, np.n
     return feats, comps, offsets
 
 
-def neighbour_block(arrays: dict, pool, k: int, near_deg: float, cross: int = 0) -> tuple[np.ndarray, np.ndarray]:
+def label_miss(pmf, analytic) -> np.ndarray:
+    """Per row: the circular W1 between its label and its analytic PMF, over 90° (a neighbour input)."""
+    from feeder.labels.metrics import circular_w1
+
+    a = np.atleast_2d(np.asarray(analytic, np.float64))
+    return circular_w1(np.cumsum(np.atleast_2d(np.asarray(pmf, np.float64)), axis=1), np.cumsum(a, axis=1)) / (
+        RIGHT_ANGLE_DEG
+    )
+
+
+def neighbour_block(
+    arrays: dict, pool, k: int, near_deg: float, cross: int = 0, miss=None
+) -> tuple[np.ndarray, np.ndarray]:
     """Every row's ``k`` nearest labelled rows of ``pool`` (kept rows of the same part and fence
     types, :func:`nearest_rows`), then its ``cross`` nearest under the same downstream fence in
     other type combinations (:func:`nearest_cross_rows`, distance ``|Δθ1|``), as inputs of the
@@ -405,7 +450,9 @@ def neighbour_block(arrays: dict, pool, k: int, near_deg: float, cross: int = 0)
     analytic PMF (over 90°; 0 when missing); its ok share (the row's analytic ok mass when
     missing). Then the mean W1 between label and analytic PMF over the part's other pool rows
     (over 90°) and whether there are any. A missing neighbour's PMF is the
-    row's analytic PMF, so its component changes nothing. No label of the row itself is read."""
+    row's analytic PMF, so its component changes nothing. No label of the row itself is read.
+    ``miss``: each pool row's :func:`label_miss`, when known (then only the neighbours' analytic
+    PMFs are read: the others may be anything)."""
     from feeder.labels.metrics import circular_w1
 
     pool = np.asarray(pool, dtype=bool) & np.asarray(arrays["kept"], dtype=bool)
@@ -413,9 +460,11 @@ def neighbour_block(arrays: dict, pool, k: int, near_deg: float, cross: int = 0)
     idx, dist = neighbour_rows(arrays, pool, k, cross)
     k = idx.shape[1]
     analytic, pmf = np.asarray(arrays["analytic"], np.float64), np.asarray(arrays["pmf"], np.float64)
-    a_cdf, l_cdf = np.cumsum(analytic, axis=1), np.cumsum(pmf, axis=1)
-    miss = np.zeros(n)  # each pool row's label against its analytic PMF
-    miss[pool] = circular_w1(l_cdf[pool], a_cdf[pool]) / RIGHT_ANGLE_DEG
+    a_cdf = np.cumsum(analytic, axis=1)
+    if miss is None:  # each pool row's label against its analytic PMF
+        miss = np.zeros(n)
+        miss[pool] = label_miss(pmf[pool], analytic[pool])
+    miss = np.where(pool, np.asarray(miss, dtype=np.float64), 0.0)
     feats, pmfs = [], np.repeat(analytic[:, None, :], int(k), axis=1)
     for j in range(int(k)):
         has = idx[:, j] >= 0

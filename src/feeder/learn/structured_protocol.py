@@ -80,7 +80,8 @@ def fit_protocol(arrays: dict, train: np.ndarray, cfg, key: str, known: bool = T
     """Fit the structured predictor on the configurations ``train`` (a boolean mask over
     ``arrays``; kept rows train the PMF, all of them the ok head): validation parts, the search
     and the seeds, all derived from ``cfg.seed`` and ``key``. Returns the fitted seeds and what
-    predicting needs (input scaling, training-mean PMF) with the choice made.
+    predicting needs (input scaling ``x_mean``/``x_sd``, training-mean PMF, the chosen network's
+    ``settings``) with the choice made.
 
     ``known``: the fit is scored on parts it has labels of (Test, Fences), so a validation row sees
     its part's other validation rows as neighbours; otherwise (unseen parts) validation rows see
@@ -168,7 +169,16 @@ def fit_protocol(arrays: dict, train: np.ndarray, cfg, key: str, known: bool = T
         "neighbour_basins": int(basins),
         "val_neighbours": bool(known and k + cross > 0),
     }
-    return {"fits": fits, "scaled": scaled_eval, "mean_pmf": mean_pmf, "choice": choice, "train": train}
+    return {
+        "fits": fits,
+        "scaled": scaled_eval,
+        "mean_pmf": mean_pmf,
+        "choice": choice,
+        "train": train,
+        "x_mean": mu,
+        "x_sd": sd,
+        "settings": net(hp),
+    }
 
 
 def neighbour_count(cfg, key: str = "neighbours") -> int:
@@ -276,11 +286,17 @@ def protocol_jobs(arrays: dict, cfg) -> tuple[list[tuple], set]:
     return jobs, locked
 
 
+def check_count(value, key: str) -> int:
+    """A count setting (``train.workers``, ``seeds``) checked: a one-line FeederError naming ``key``
+    unless it is an integer >= 1."""
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
+        raise FeederError(f"{key} must be an integer >= 1, got {value!r}")
+    return int(value)
+
+
 def check_workers(workers) -> int:
     """``train.workers`` checked: a one-line FeederError unless it is an integer >= 1."""
-    if isinstance(workers, bool) or not isinstance(workers, (int, np.integer)) or workers < 1:
-        raise FeederError(f"train.workers must be an integer >= 1, got {workers!r}")
-    return int(workers)
+    return check_count(workers, "train.workers")
 
 
 _SHARED: dict = {}  # what a forked worker of run_protocol reads (arrays are not pickled per job)

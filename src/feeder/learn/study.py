@@ -37,6 +37,7 @@ import pandas as pd
 
 from feeder.errors import FeederError
 from feeder.learn.analytic import AnalyticModel, AnalyticSpec
+from feeder.learn.structured_shipped import SHIPPED_FILE
 
 STUDY_MODEL = "study"  # the --model value that names this predictor (the default)
 STUDY_DIR = "study"  # its folder under the shipped-model root (models/study)
@@ -45,7 +46,7 @@ CARD_FILE = "card.json"
 CARD_MARKDOWN = "MODEL_CARD.md"
 LIBRARY_FORMAT = 1  # version of the layout of labels.npz and card.json
 # how a row was answered (StudyModel.sources)
-SIMULATED, NEIGHBOUR, ANALYTIC = "simulated", "neighbour", "analytic"
+SIMULATED, NEIGHBOUR, STRUCTURED, ANALYTIC = "simulated", "neighbour", "structured", "analytic"
 
 
 # ----------------------------------------------------------------------------------------------
@@ -123,6 +124,7 @@ class Library:
     part_ids: np.ndarray  # (p,) every part of the library ...
     part_digests: np.ndarray  # (p,) ... and the SHA-256 of its STL
     card: dict
+    structured: object = None  # the shipped structured predictor (structured.npz), when exported with one
 
     def record(self, i: int):
         """Row ``i`` as the :class:`feeder.sim.record.SimRecord` its simulation file held."""
@@ -228,8 +230,45 @@ def neighbour_evidence(table: pd.DataFrame) -> dict:
     return {k: (r[k].item() if hasattr(r[k], "item") else r[k]) for k in keys}
 
 
-def export_study(configurations, sim_dir, parts_dir, dataset_path, neighbour_table, gates, out) -> dict:
-    """Write ``out`` (``labels.npz``, ``card.json``, ``MODEL_CARD.md``) atomically; returns the card."""
+def structured_evidence(table: pd.DataFrame) -> list[dict]:
+    """The rows of ``results/tables/structured_protocol.csv`` the card quotes: the structured
+    predictor against the analytic PMF and the gated neighbour by circular W1 on Test and Fences."""
+    hit = table[
+        table.experiment.isin(["test", "fences"])
+        & table.baseline.isin(["analytic_pmf", "neighbour_gated"])
+        & (table.metric == "cw1")
+    ]
+    if hit.empty:
+        raise FeederError("export-study: the structured table has no test/fences cw1 row against analytic_pmf")
+    keys = (
+        "experiment",
+        "baseline",
+        "n",
+        "structured",
+        "baseline_value",
+        "diff",
+        "diff_low",
+        "diff_high",
+        "level",
+        "verdict",
+    )
+    return [{k: (r[k].item() if hasattr(r[k], "item") else r[k]) for k in keys} for _, r in hit.iterrows()]
+
+
+def export_study(
+    configurations,
+    sim_dir,
+    parts_dir,
+    dataset_path,
+    neighbour_table,
+    gates,
+    out,
+    structured=None,
+    structured_table=None,
+) -> dict:
+    """Write ``out`` (``labels.npz``, ``card.json``, ``MODEL_CARD.md`` and, given ``structured``, the
+    shipped structured predictor of :mod:`feeder.learn.structured_shipped` with the evidence of
+    ``structured_table``) atomically; returns the card."""
     with np.load(dataset_path, allow_pickle=False) as z:
         dataset = {k: z[k] for k in ("part", "config_id", "pmf", "pmf_analytic", "settings")}
     settings = json.loads(str(dataset["settings"]))
@@ -248,11 +287,27 @@ def export_study(configurations, sim_dir, parts_dir, dataset_path, neighbour_tab
         "sim": settings.get("sim", {}),
         "test_evidence": neighbour_evidence(pd.read_csv(neighbour_table)),
     }
-    _write_folder(Path(out), arrays, card)
+    shipped = None
+    if structured is not None:
+        from feeder.learn.structured_shipped import ShippedStructured
+
+        with np.load(structured, allow_pickle=False) as z:
+            shipped = {k: z[k] for k in z.files}
+        model = ShippedStructured(shipped)
+        if model.meta["scene_sha256"] != card["scene_sha256"]:
+            raise FeederError(f"export-study: {structured} was trained in another scene than the dataset's")
+        card["structured"] = {
+            "choice": model.meta["choice"],
+            "seeds": model.meta["seeds"],
+            "neighbours": model.meta["neighbours"],
+            "cross_neighbours": model.meta["cross_neighbours"],
+            "evidence": [] if structured_table is None else structured_evidence(pd.read_csv(structured_table)),
+        }
+    _write_folder(Path(out), arrays, card, shipped)
     return card
 
 
-def _write_folder(out: Path, arrays: dict, card: dict) -> None:
+def _write_folder(out: Path, arrays: dict, card: dict, structured: dict | None = None) -> None:
     """``out`` with the library's files, all or nothing: written in a sibling folder, then swapped in
     (:func:`feeder.learn.export.replace_dir`). Only an earlier export (or an empty folder) is replaced."""
     from feeder.io import write_json, write_npz, write_text
@@ -263,6 +318,8 @@ def _write_folder(out: Path, arrays: dict, card: dict) -> None:
 
     def fill(work: Path) -> None:
         write_npz(work / LABELS_FILE, **arrays)
+        if structured is not None:
+            write_npz(work / SHIPPED_FILE, **structured)
         write_json(work / CARD_FILE, card)
         write_text(work / CARD_MARKDOWN, card_markdown(card))
 
@@ -279,8 +336,7 @@ def card_markdown(card: dict) -> str:
         f"({card['labelled']} labelled, the rest excluded as jammed), as raw drops (`labels.npz`).",
         "",
         "- A configuration the study simulated: its label (the simulator's answer).",
-        f"- A simulated part at a new angle: the label of its nearest simulated angle of the same fence types "
-        f"within {card['gate_deg']:g} degrees (|d theta1| + |d theta2|), else the analytic push PMF.",
+        *_card_new_angle(card),
         "- A new part, or another scene: the analytic push PMF.",
         "",
         f"Test evidence (`results/tables/neighbour.csv`, {ev['configurations']} configurations x {ev['repeats']} "
@@ -295,6 +351,40 @@ def card_markdown(card: dict) -> str:
     for s in card["gate_scores"]:
         lines.append(f"| {s['gate_deg']:g} | {s['neighbour_share']:.0%} | {s['circular_w1_deg']:.2f} |")
     return "\n".join(lines) + "\n"
+
+
+def _card_new_angle(card: dict) -> list[str]:
+    """The card's lines on a simulated part at a configuration the study did not simulate."""
+    gated = (
+        f"the label of its nearest simulated angle of the same fence types within {card['gate_deg']:g} degrees "
+        "(|d theta1| + |d theta2|), else the analytic push PMF"
+    )
+    st = card.get("structured")
+    if st is None:
+        return [f"- A simulated part at a new angle: {gated}."]
+    c = st["choice"]
+    lines = [
+        "- A simulated part at a new angle: the structured predictor (`structured.npz`, docs/structured.md) "
+        f"when the part has a labelled configuration of the same fence types or of the same downstream fence "
+        f"type ({st['neighbours']} + {st['cross_neighbours']} neighbours), else {gated}. It was trained on every "
+        f"configuration ({c['kind']}, hidden {c['hidden']}, weight decay {c['weight_decay']:g}, {st['seeds']} seeds, "
+        f"PMFs averaged), early-stopped and chosen on {c['val_parts']} validation parts "
+        f"(circular W1 {c['val_cw1']:.2f} deg). Its ok mass is the analytic one.",
+    ]
+    if st["evidence"]:
+        lines += [
+            "",
+            "Evidence (`results/tables/structured_protocol.csv`, `feeder structured`; 95 % paired bootstrap):",
+            "",
+        ]
+        lines += ["| set | against | n | structured (deg) | baseline (deg) | difference |", "|---|---|---|---|---|---|"]
+        for e in st["evidence"]:
+            lines.append(
+                f"| {e['experiment']} | {e['baseline']} | {e['n']} | {e['structured']:.2f} | {e['baseline_value']:.2f} "
+                f"| {e['diff']:+.2f} [{e['diff_low']:.2f}, {e['diff_high']:.2f}] |"
+            )
+        lines.append("")
+    return lines
 
 
 def study_dir() -> Path:
@@ -323,7 +413,12 @@ def load_library(folder: Path | None = None) -> Library:
         raise FeederError(f"{card_path}: format {found!r}, this code reads {LIBRARY_FORMAT}: export the study again")
     with np.load(labels, allow_pickle=False) as z:
         arrays = {k: z[k] for k in z.files}
-    return Library(**arrays, card=card)
+    structured = None
+    if (folder / SHIPPED_FILE).is_file():
+        from feeder.learn.structured_shipped import ShippedStructured
+
+        structured = ShippedStructured.load(folder / SHIPPED_FILE)
+    return Library(**arrays, card=card, structured=structured)
 
 
 # ----------------------------------------------------------------------------------------------
@@ -339,8 +434,16 @@ class StudyModel(AnalyticModel):
         self.spec = AnalyticSpec(STUDY_MODEL, int(bins))
         self.sigma = float(sigma)
         self.library = library
+        self.scene = scene
         self.same_scene = scene_digest(scene) == library.card["scene_sha256"]
+        shipped = library.structured
+        self.structured = shipped if shipped is not None and shipped.serves(bins, sigma, scene_digest(scene)) else None
         self.answers: list[tuple[str, int, float]] | None = None  # per row: (source, library row, distance)
+        self.known: str | None = None  # the bound part's id in the library
+        self.part_path: Path | None = None
+        self.config_ids: list[str] = []
+        self._structured_pmf: dict[int, np.ndarray] | None = None  # per structured row: its PMF (part frame)
+        self.progress = None  # called with a message during a long structured answer (feeder recommend)
 
     @property
     def gate_deg(self) -> float:
@@ -351,7 +454,8 @@ class StudyModel(AnalyticModel):
         PMF throughout); returns one line saying what the study knows of the part."""
         lib = self.library
         known = None if part is None or not self.same_scene else lib.part_of(file_digest(part))
-        self.answers = []
+        self.answers, self.known, self.part_path, self._structured_pmf = [], known, part, None
+        self.config_ids = [str(c) for c in config_ids]
         if known is None:
             self.answers = [(ANALYTIC, -1, float("inf"))] * len(config_ids)
             if part is not None and not self.same_scene:
@@ -366,7 +470,9 @@ class StudyModel(AnalyticModel):
                 self.answers.append((SIMULATED, by_id[cid], 0.0))
                 continue
             k, dist = nearest_configuration(cid, pool_ids)
-            if k >= 0 and dist <= self.gate_deg:
+            if self.structured is not None and self.structured.has_neighbour(cid, pool_ids):
+                self.answers.append((STRUCTURED, pool[k] if k >= 0 else -1, dist))
+            elif k >= 0 and dist <= self.gate_deg:
                 self.answers.append((NEIGHBOUR, pool[k], dist))
             else:
                 self.answers.append((ANALYTIC, -1, dist))
@@ -377,6 +483,13 @@ class StudyModel(AnalyticModel):
         source, i, dist = self._answers()[row]
         if source == SIMULATED:
             return f"the study's simulated label of {self.library.config_id[i]}"
+        if source == STRUCTURED:
+            near = (
+                f"; nearest simulated angle of its fence types {self.library.config_id[i]}, {dist:g} deg away"
+                if i >= 0
+                else "; none of its fence types, only of its downstream fence"
+            )
+            return f"the structured predictor from the part's labelled configurations{near} (docs/structured.md)"
         if source == NEIGHBOUR:
             return (
                 f"the study's label of the nearest simulated angle {self.library.config_id[i]} "
@@ -394,14 +507,51 @@ class StudyModel(AnalyticModel):
             raise FeederError("the study's predictor needs bind(part, configurations) before it answers")
         return self.answers
 
-    def _label(self, i: int):
+    def _label(self, i: int, frame_deg: float = 0.0):
+        """(PMF or None, ok mass) of library row ``i``, labelled as the workflow labels it, its yaws
+        turned by ``frame_deg`` (the label frame of a ``principal``-frame study)."""
+        from feeder.labels.dataset import label_yaws
         from feeder.labels.pmf import sim_label
 
         rec = self.library.record(i)
         if not rec.ok.any():
             return None, 0.0
+        if frame_deg:
+            rec.yaws = label_yaws(rec.yaws, "principal", float(frame_deg))
         label = sim_label(rec, self.spec.bins, self.sigma)
         return label.pmf, float(label.ok_mass)
+
+    def _structured(self) -> dict[int, np.ndarray]:
+        """The structured predictor's PMF (part frame) of every row :meth:`bind` gave it, computed
+        once per binding (:meth:`feeder.learn.structured_shipped.ShippedStructured.answer`)."""
+        if self._structured_pmf is not None:
+            return self._structured_pmf
+        rows = [r for r, a in enumerate(self._answers()) if a[0] == STRUCTURED]
+        self._structured_pmf = {}
+        if not rows:
+            return self._structured_pmf
+        from feeder.labels.metrics import shift_pmf
+        from feeder.mechanics.hull import push_geometry
+        from feeder.parts.geometry import load_profile
+
+        lib, shipped = self.library, self.structured
+        frame = shipped.frame_of(self.known)
+        pool = [int(i) for i in np.flatnonzero(lib.part == self.known) if lib.kept[i]]
+        labels = [self._label(i, frame) for i in pool]
+        outline, holes, _ = load_profile(self.part_path, "auto")
+        pmf = shipped.answer(
+            push_geometry(outline, holes),
+            self.known,
+            [self.config_ids[r] for r in rows],
+            [str(lib.config_id[i]) for i in pool],
+            [p for p, _ in labels],
+            [ok for _, ok in labels],
+            self.scene,
+            self.progress,
+        )
+        pmf = shift_pmf(pmf, -frame) if frame else pmf
+        self._structured_pmf = dict(zip(rows, pmf, strict=True))
+        return self._structured_pmf
 
     def predict(self, part_raw, feeder_raw, push_raw=None, analytic=None) -> tuple[np.ndarray, np.ndarray]:
         """(pmf, cdf) of each row: the study's label where :meth:`bind` found one, else the analytic
@@ -412,17 +562,20 @@ class StudyModel(AnalyticModel):
         if len(answers) != pmf.shape[0]:
             raise FeederError(f"the study's predictor was bound to {len(answers)} configurations, asked {pmf.shape[0]}")
         for r, (source, i, _) in enumerate(answers):
-            if source != ANALYTIC:
+            if source == STRUCTURED:
+                pmf[r] = self._structured()[r]
+            elif source != ANALYTIC:
                 label, _ = self._label(i)
                 pmf[r] = 0.0 if label is None else label
         return pmf, np.cumsum(pmf, axis=1)
 
     def ok_mass(self, push_raw) -> np.ndarray:
         """The share of drops that leave without jamming: simulated where the row's answer is a label,
-        analytic elsewhere."""
+        analytic elsewhere (the structured predictor's ok head ties with the analytic ok mass on every
+        set of results/tables/structured_protocol.csv, so it is not shipped)."""
         ok = np.array(super().ok_mass(push_raw), dtype=np.float64)
         for r, (source, i, _) in enumerate(self._answers()):
-            if source != ANALYTIC:
+            if source in (SIMULATED, NEIGHBOUR):
                 ok[r] = self._label(i)[1]
         return ok
 
@@ -459,21 +612,37 @@ def main(argv: list[str]) -> int:
     parser.add_argument("--neighbour-table", type=Path, required=True, help="results/tables/neighbour.csv")
     parser.add_argument("--out", type=Path, required=True, help="the folder to write (models/study; replaced)")
     parser.add_argument(
+        "--structured", type=Path, help="the shipped structured predictor (feeder fit-structured) to answer new angles"
+    )
+    parser.add_argument(
+        "--structured-table", type=Path, help="results/tables/structured_protocol.csv: its evidence, quoted by the card"
+    )
+    parser.add_argument(
         "overrides", nargs="*", help="Hydra overrides of config/hydra/structured.yaml (the gates: neighbour.gates_deg)"
     )
     args = parser.parse_args(argv)
     from feeder.config import compose_config
 
     gates = check_gates(compose_config("structured", args.overrides)["neighbour"]["gates_deg"])
-    for path in (args.configurations, args.dataset, args.neighbour_table):
-        if not path.is_file():
+    if args.structured_table is not None and args.structured is None:
+        raise FeederError("--structured-table is the evidence of --structured: give both")
+    for path in (args.configurations, args.dataset, args.neighbour_table, args.structured, args.structured_table):
+        if path is not None and not path.is_file():
             raise FeederError(f"{path} is missing")
     configurations = pd.read_csv(args.configurations)
     missing = {"part", "config_id"} - set(configurations.columns)
     if missing:
         raise FeederError(f"{args.configurations}: no column {', '.join(sorted(missing))} (a configuration table)")
     card = export_study(
-        configurations, args.sim_dir, args.parts_dir, args.dataset, args.neighbour_table, gates, args.out
+        configurations,
+        args.sim_dir,
+        args.parts_dir,
+        args.dataset,
+        args.neighbour_table,
+        gates,
+        args.out,
+        args.structured,
+        args.structured_table,
     )
     print(
         f"feeder export-study: {card['configurations']} configurations of {card['parts']} parts, "

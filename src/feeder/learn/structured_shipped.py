@@ -1,0 +1,284 @@
+"""The structured predictor as shipped (issue #39, item 5): trained once on every configuration of
+the study, answering for a part the study has labelled at a configuration it did not simulate.
+
+    feeder fit-structured --dataset results/datasets/dataset.npz --sim-dir results/sim \\
+        --parts-dir parts --features-dir results/features --out results/models/structured.npz [overrides]
+
+trains it under the protocol's fit (:func:`feeder.learn.structured_protocol.fit_protocol`: validation
+parts, the search and the seeds, all from ``config/hydra/structured.yaml``) on every configuration
+(no part locked away: the protocol's tables already report it) and writes one ``.npz``: each seed's
+network state, the input scaling, the training-mean PMF, each part's label frame and the settings.
+``feeder export-study --structured`` puts it into ``models/study``, where
+:class:`feeder.learn.study.StudyModel` answers with it (docs/structured.md).
+
+At an answer (:meth:`ShippedStructured.answer`, numpy only) the query's candidates and push inputs
+come from the part's outline (:func:`feeder.learn.structured_data.configuration_inputs`, about a
+third of a second a configuration), its neighbour inputs from the part's labelled configurations
+(:func:`feeder.learn.structured_data.neighbour_block`, with every labelled configuration of the
+part as the pool, as for a scored row of the protocol), and the PMF is the mean of the seeds' PMFs
+(circular W1 is convex, so the mean scores no worse than the seeds' mean score).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from dataclasses import asdict
+from pathlib import Path
+
+import numpy as np
+
+from feeder.errors import FeederError
+
+SHIPPED_FORMAT = 1  # version of the layout of the file
+SHIPPED_FILE = "structured.npz"  # its name in models/study
+SHIPPED_KEY = "shipped"  # the fit id its validation parts and seeds derive from
+PROGRESS_EVERY = 50  # configurations between progress messages of an answer
+
+
+def state_arrays(fits) -> dict[str, np.ndarray]:
+    """Each fitted seed's PMF network state as float64 arrays named ``seed<i>/<parameter>``."""
+    out = {}
+    for i, f in enumerate(fits):
+        for name, value in f.net.state_dict().items():
+            out[f"seed{i}/{name}"] = value.detach().cpu().numpy().astype(np.float64)
+    return out
+
+
+def fit_shipped(arrays: dict, cfg, label_frame: str, bins: int, sigma_bins: float, scene: dict) -> dict:
+    """The arrays of the shipped file: the protocol's fit on every configuration of ``arrays``
+    (:func:`feeder.learn.structured_data.structured_arrays`), in :func:`shipped_arrays`."""
+    from feeder.learn.structured_protocol import fit_protocol
+
+    if int(cfg.model.get("neighbour_basins", 0)):
+        raise FeederError("fit-structured ships whole-label neighbours only (model.neighbour_basins: 0)")
+    fitted = fit_protocol(arrays, np.ones(len(arrays["part"]), dtype=bool), cfg, SHIPPED_KEY, known=True)
+    return shipped_arrays(fitted, arrays, cfg, label_frame, bins, sigma_bins, scene)
+
+
+def shipped_arrays(fitted: dict, arrays: dict, cfg, label_frame: str, bins: int, sigma_bins: float, scene: dict):
+    """The shipped file's arrays of a fit of :func:`feeder.learn.structured_protocol.fit_protocol`
+    on ``arrays``: ``meta`` (JSON: the settings an answer needs and the choice made), the input
+    scaling, the training-mean PMF, each part's label frame and each seed's network state."""
+    from omegaconf import OmegaConf
+
+    from feeder.learn.structured_data import candidate_settings, label_miss
+    from feeder.learn.structured_protocol import neighbour_count
+    from feeder.learn.study import scene_digest
+
+    parts, first = np.unique(arrays["part"], return_index=True)
+    kept = np.asarray(arrays["kept"], dtype=bool)
+    meta = {
+        "format": SHIPPED_FORMAT,
+        "net": asdict(fitted["settings"]),
+        "n_variants": int(arrays["masses"].shape[2]),
+        "seeds": len(fitted["fits"]),
+        "neighbours": neighbour_count(cfg),
+        "cross_neighbours": neighbour_count(cfg, "cross_neighbours"),
+        "neighbour_near_deg": float(cfg.model.neighbour_near_deg),
+        "wide_sigma_bins": float(cfg.model.wide_sigma_bins),
+        "variants": OmegaConf.to_container(cfg.candidates.variants, resolve=True),
+        "candidates": candidate_settings(cfg.candidates, bins, sigma_bins),
+        "bins": int(bins),
+        "sigma_bins": float(sigma_bins),
+        "label_frame": str(label_frame),
+        "scene_sha256": scene_digest(scene),
+        "choice": fitted["choice"],
+    }
+    return {
+        "meta": np.array(json.dumps(meta, sort_keys=True)),
+        "x_mean": fitted["x_mean"],
+        "x_sd": fitted["x_sd"],
+        "mean_pmf": fitted["mean_pmf"],
+        "part_ids": parts,
+        "frame_deg": np.asarray(arrays["frame_deg"], dtype=np.float64)[first],
+        # each labelled configuration's label against its analytic PMF: a neighbour input, kept so that an
+        # answer computes the analytic PMFs of its few neighbours only
+        "miss_part": np.asarray(arrays["part"])[kept],
+        "miss_config_id": np.asarray(arrays["config_id"])[kept],
+        "miss": label_miss(arrays["pmf"][kept], arrays["analytic"][kept]),
+        **state_arrays(fitted["fits"]),
+    }
+
+
+class ShippedStructured:
+    """The shipped file, answering in numpy (:meth:`answer`)."""
+
+    def __init__(self, arrays: dict):
+        from feeder.learn.structured import NetSettings
+
+        self.meta = json.loads(str(arrays["meta"]))
+        if self.meta.get("format") != SHIPPED_FORMAT:
+            raise FeederError(
+                f"the structured predictor's file has format {self.meta.get('format')!r}, this code reads "
+                f"{SHIPPED_FORMAT}: run feeder fit-structured and feeder export-study again"
+            )
+        self.settings = NetSettings(**self.meta["net"])
+        self.x_mean, self.x_sd, self.mean_pmf = arrays["x_mean"], arrays["x_sd"], arrays["mean_pmf"]
+        self.frames = {str(p): float(f) for p, f in zip(arrays["part_ids"], arrays["frame_deg"], strict=True)}
+        self.miss = {
+            (str(p), str(c)): float(m)
+            for p, c, m in zip(arrays["miss_part"], arrays["miss_config_id"], arrays["miss"], strict=True)
+        }
+        self.params = [
+            {k.split("/", 1)[1]: arrays[k] for k in arrays if k.startswith(f"seed{i}/")}
+            for i in range(int(self.meta["seeds"]))
+        ]
+
+    @classmethod
+    def load(cls, path) -> ShippedStructured:
+        with np.load(path, allow_pickle=False) as z:
+            return cls({k: z[k] for k in z.files})
+
+    @property
+    def bins(self) -> int:
+        return int(self.meta["bins"])
+
+    def serves(self, bins: int, sigma_bins: float, scene_sha256: str) -> bool:
+        """Whether it answers for labels of ``bins`` and ``sigma_bins`` in the scene of that digest."""
+        m = self.meta
+        return int(bins) == m["bins"] and float(sigma_bins) == m["sigma_bins"] and scene_sha256 == m["scene_sha256"]
+
+    def frame_of(self, part: str) -> float:
+        """The part's label frame (degrees; 0 for ``part``-frame labels)."""
+        if part not in self.frames:
+            raise FeederError(f"the structured predictor was not trained with part {part}")
+        return self.frames[part] if self.meta["label_frame"] == "principal" else 0.0
+
+    def has_neighbour(self, config_id: str, pool_ids) -> bool:
+        """Whether ``config_id`` has a neighbour among the part's labelled ``pool_ids`` (same fence
+        types, or the same downstream fence type when cross neighbours are used)."""
+        from feeder.learn.structured_data import fence_key
+
+        (t1, t2), _ = fence_key(config_id)
+        for other in pool_ids:
+            (o1, o2), _ = fence_key(other)
+            if self.meta["neighbours"] > 0 and (o1, o2) == (t1, t2):
+                return True
+            if self.meta["cross_neighbours"] > 0 and t1 != "none" and o1 == t1 and (o1, o2) != (t1, t2):
+                return True
+        return False
+
+    def answer(
+        self, geom, part: str, config_ids, pool_ids, pool_pmf, pool_ok, scene: dict, progress=None
+    ) -> np.ndarray:
+        """(len(config_ids), bins) PMFs in the label frame of ``part`` (push geometry ``geom``) at
+        ``config_ids``, from its labelled configurations ``pool_ids`` with their labels ``pool_pmf``
+        (label frame) and ok shares ``pool_ok``. ``progress(message)`` hears of every
+        :data:`PROGRESS_EVERY` configurations' candidates."""
+        from feeder.lane.fences import parse_config_id
+        from feeder.learn.structured import batch_inputs, diffuse_components, forward_numpy
+        from feeder.learn.structured_data import (
+            configuration_inputs,
+            label_miss,
+            neighbour_block,
+            neighbour_rows,
+            row_inputs,
+        )
+        from feeder.mechanics.candidates import variants_from_config
+        from feeder.mechanics.features import push_block
+
+        m, bins = self.meta, self.bins
+        frame = self.frame_of(part)
+        variants = variants_from_config(m["variants"])
+        cand_cfg, memo = m["candidates"], {}
+        config_ids, pool_ids = [str(c) for c in config_ids], [str(c) for c in pool_ids]
+        cands = []
+        for c in config_ids:
+            cands.append(configuration_inputs(geom, memo, c, frame, scene, variants, cand_cfg, bins))
+            if progress is not None and len(cands) % PROGRESS_EVERY == 0 and len(cands) < len(config_ids):
+                progress(f"structured predictor: candidates of {len(cands)} of {len(config_ids)} configurations")
+        q = row_inputs(cands, config_ids, m["n_variants"], int(cand_cfg["max_candidates"]), cand_cfg["present_mass"])
+        n_pool, n_q = len(pool_ids), len(config_ids)
+        rows = {
+            "part": np.array([part] * (n_pool + n_q)),
+            "config_id": np.array(pool_ids + config_ids),
+            "kept": np.arange(n_pool + n_q) < n_pool,
+            "analytic": np.concatenate([np.zeros((n_pool, bins)), q["analytic"]]),
+            "pmf": np.concatenate(
+                [np.reshape(np.asarray(pool_pmf, np.float64), (n_pool, bins)), np.zeros((n_q, bins))]
+            ),
+            "ok": np.concatenate([np.asarray(pool_ok, np.float64), q["analytic_ok"]]),
+            "analytic_ok": np.concatenate([np.zeros(n_pool), q["analytic_ok"]]),
+        }
+        # the analytic PMFs of the pool rows that are some query's neighbour, or whose miss is not kept
+        idx, _ = neighbour_rows(rows, rows["kept"], m["neighbours"], m["cross_neighbours"])
+        miss = np.array([self.miss.get((part, c), np.nan) for c in pool_ids] + [0.0] * n_q)
+        for i in sorted(set(idx[n_pool:][idx[n_pool:] >= 0].tolist()) | set(np.flatnonzero(np.isnan(miss)).tolist())):
+            rows["analytic"][i] = push_block(
+                geom,
+                *parse_config_id(pool_ids[i]),
+                scene,
+                frame_deg=frame,
+                bins=bins,
+                pmf_smooth_deg=float(cand_cfg["label_smooth_deg"]),
+                responses=memo,
+            )[1]
+            if np.isnan(miss[i]):
+                miss[i] = label_miss(rows["pmf"][i], rows["analytic"][i])[0]
+        feats, npmf = neighbour_block(
+            rows, rows["kept"], m["neighbours"], m["neighbour_near_deg"], m["cross_neighbours"], miss
+        )
+        x = (np.concatenate([q["x"], feats[n_pool:]], axis=1) - self.x_mean) / self.x_sd
+        diffuse = diffuse_components(q["analytic"], self.mean_pmf, m["wide_sigma_bins"], npmf[n_pool:])
+        b = batch_inputs(dict(q, x=x), np.arange(n_q), diffuse, self.settings.start)
+        out = np.zeros((n_q, bins))
+        for params in self.params:
+            pmf = np.clip(forward_numpy(params, self.settings, m["n_variants"], b), 0.0, None)
+            out += pmf / pmf.sum(axis=1, keepdims=True)
+        return out / len(self.params)
+
+
+# ----------------------------------------------------------------------------------------------
+# feeder fit-structured
+# ----------------------------------------------------------------------------------------------
+def main(argv: list[str]) -> int:
+    parser = argparse.ArgumentParser(prog="feeder fit-structured", description=__doc__.split("\n\n")[0])
+    parser.add_argument("--dataset", type=Path, required=True, help="results/datasets/dataset.npz")
+    parser.add_argument("--sim-dir", type=Path, required=True, help="results/sim (the ok shares)")
+    parser.add_argument("--parts-dir", type=Path, required=True, help="the parts' STLs (parts)")
+    parser.add_argument("--features-dir", type=Path, required=True, help="results/features (frames of excluded parts)")
+    parser.add_argument("--out", type=Path, required=True, help="the .npz to write")
+    parser.add_argument("--cache", type=Path, default=None, help="the candidates cache (.npz), read and written")
+    parser.add_argument("overrides", nargs="*", help="Hydra overrides of config/hydra/structured.yaml")
+    args = parser.parse_args(argv)
+    from feeder import io
+    from feeder.config import compose_config
+    from feeder.labels.dataset import load_dataset
+    from feeder.learn.structured_data import structured_arrays
+    from feeder.learn.structured_protocol import check_count
+    from feeder.mechanics.fence import default_scene
+
+    if args.out.suffix != ".npz":
+        raise FeederError(f"--out {args.out}: the file to write ends in .npz")
+    cfg = compose_config("structured", args.overrides)
+    check_count(cfg.seeds, "seeds")
+    if not args.dataset.is_file():
+        raise FeederError(f"{args.dataset} is missing")
+    data = load_dataset(args.dataset)
+    if "push_raw" not in data:
+        raise FeederError(f"{args.dataset}: no push block (build the dataset with the part files)")
+    import torch
+
+    torch.set_num_threads(int(cfg.train.threads))
+    settings = json.loads(str(data["settings"]))
+    say = lambda msg: print(f"feeder fit-structured: {msg}", file=sys.stderr, flush=True)  # noqa: E731
+    arrays = structured_arrays(data, cfg, args.sim_dir, args.parts_dir, args.features_dir, args.cache, say)
+    say(f"training on {len(arrays['part'])} configurations of {len(set(arrays['part']))} parts")
+    labels = settings["labels"]
+    out = fit_shipped(
+        arrays,
+        cfg,
+        str(data["label_frame"]),
+        int(labels["bins"]),
+        float(labels["sigma_bins"]),
+        settings.get("scene") or default_scene(),
+    )
+    io.write_npz(args.out, **out)
+    choice = json.loads(str(out["meta"]))["choice"]
+    say(
+        f"{choice['kind']} (hidden {choice['hidden']}), validation circular W1 {choice['val_cw1']:.2f} deg "
+        f"({choice['val_parts']} validation part{'' if choice['val_parts'] == 1 else 's'}) -> {args.out}"
+    )
+    return 0

@@ -1,0 +1,184 @@
+"""The shipped structured predictor (feeder.learn.structured_shipped): its numpy network is the
+torch one, and its answer for a part's configuration is the protocol's prediction of that row."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from feeder.errors import FeederError
+
+BINS = 360
+PARTS_DIR = __import__("pathlib").Path(__file__).resolve().parents[1] / "parts"
+
+
+@pytest.mark.parametrize("kind", ["candidates", "variants"])
+def test_the_numpy_network_is_the_torch_network(kind):
+    torch = pytest.importorskip("torch")
+    from feeder.learn.structured import (
+        DIFFUSE,
+        Batch,
+        NetSettings,
+        batch_inputs,
+        diffuse_components,
+        forward_numpy,
+        make_nets,
+    )
+    from feeder.learn.structured_data import candidate_features
+
+    rng = np.random.default_rng(3)
+    n, k, v = 5, 4, 3
+    masses = rng.dirichlet(np.ones(k), size=(n, v)).transpose(0, 2, 1) * 0.9  # (n, k, v)
+    mask = np.ones((n, k), dtype=bool)
+    mask[0, 3] = mask[2, 2:] = False
+    arrays = {
+        "x": rng.normal(size=(n, 6)),
+        "pos": rng.uniform(0, 360, size=(n, k)),
+        "mask": mask,
+        "masses": masses,
+        "cf": candidate_features(masses, mask, 0.05),
+        "base_mass": masses[:, :, 0],
+        "neighbour_offset": rng.normal(size=(n, 2)),
+    }
+    arrays["pos"][1, 0] = 359.9  # a candidate at the seam
+    extra = rng.dirichlet(np.ones(BINS), size=(n, 2))
+    diffuse = diffuse_components(rng.dirichlet(np.ones(BINS), size=n), np.full(BINS, 1 / BINS), 8.0, extra)
+    s = NetSettings(7, 4.0, 0.5, 1.5, 6.0, kind, "analytic", -1.0)
+    torch.manual_seed(0)
+    net, _ = make_nets(6, arrays["cf"].shape[2], len(DIFFUSE) + 2, s, n_variants=v)
+    net = net.double()
+    with torch.no_grad():
+        for p in net.parameters():  # away from the zero start, so every weight counts
+            p.copy_(torch.randn_like(p))
+    b = Batch.of(arrays, np.arange(n), diffuse, s.start)
+    with torch.no_grad():
+        want = net(*(t.double() if t.dtype == torch.float32 else t for t in b.args())).numpy()
+    params = {name: value.numpy() for name, value in net.state_dict().items()}
+    got = forward_numpy(params, s, v, batch_inputs(arrays, np.arange(n), diffuse, s.start))
+    assert got == pytest.approx(want, abs=1e-8)  # Batch rounds the inputs to float32
+    assert got.sum(axis=1) == pytest.approx(np.ones(n))
+
+
+# a protocol small enough for two parts and a few configurations: three variants, 30 steps
+SMALL = [
+    "seeds=2",
+    "train.max_steps=30",
+    "train.patience_steps=10",
+    "train.eval_every=5",
+    "search=[{kind: candidates, hidden: 4, weight_decay: 0.01}]",
+    "protocol.val_part_fraction=0.5",
+    "candidates.variants=[{name: base},{name: no_exit, exit_turns: false},{name: mu0.3, mu: 0.3}]",
+]
+CONFIGS = ["straight30_none", "straight40_none", "straight50_none", "curved30_none", "straight30_straight45"]
+
+
+def _small_study(frame_deg: float):
+    """Two parts x five configurations with labels made from their analytic PMFs (rolled 7 bins,
+    so the network has something to learn), a label frame of ``frame_deg`` for the first part."""
+    from feeder.config import compose_config
+    from feeder.labels.dataset import label_smooth_deg
+    from feeder.learn.structured_data import candidate_settings, compute_candidates, row_inputs
+    from feeder.mechanics.candidates import variants_from_config
+    from feeder.mechanics.fence import default_scene
+
+    cfg = compose_config("structured", SMALL)
+    parts = ["rect-a3"] * 5 + ["hex-a"] * 5
+    cids = CONFIGS * 2
+    frames = [frame_deg] * 5 + [0.0] * 5
+    scene = default_scene()
+    variants = variants_from_config(cfg.candidates.variants)
+    cand_cfg = candidate_settings(cfg.candidates, BINS, 1.0)
+    assert cand_cfg["label_smooth_deg"] == label_smooth_deg(BINS, 1.0)
+    cands = compute_candidates(parts, cids, frames, scene, variants, cand_cfg, PARTS_DIR, BINS, "auto")
+    a = row_inputs(cands, cids, len(variants), cand_cfg["max_candidates"], cand_cfg["present_mass"])
+    pmf = np.roll(a["analytic"], 7, axis=1)
+    a.update(
+        part=np.array(parts),
+        config_id=np.array(cids),
+        kept=np.ones(10, dtype=bool),
+        frame_deg=np.array(frames),
+        ok=np.linspace(0.5, 0.95, 10),
+        pmf=pmf,
+        cdf=np.cumsum(pmf, axis=1),
+        wide_sigma_bins=float(cfg.model.wide_sigma_bins),
+    )
+    return cfg, a, scene
+
+
+def test_the_shipped_answer_is_the_protocols_prediction_of_the_row():
+    pytest.importorskip("torch")
+    from feeder.learn.structured import predict
+    from feeder.learn.structured_protocol import fit_protocol
+    from feeder.learn.structured_shipped import ShippedStructured, shipped_arrays
+    from feeder.mechanics.hull import push_geometry
+    from feeder.parts.geometry import load_profile
+
+    cfg, a, scene = _small_study(frame_deg=17.0)
+    fitted = fit_protocol(a, np.ones(10, dtype=bool), cfg, "shipped", known=True)
+    shipped = ShippedStructured(shipped_arrays(fitted, a, cfg, "principal", BINS, 1.0, scene))
+    assert shipped.frame_of("rect-a3") == 17.0 and shipped.frame_of("hex-a") == 0.0
+    outline, holes, _ = load_profile(PARTS_DIR / "rect-a3.stl", "auto")
+    geom = push_geometry(outline, holes)
+    for row in (1, 4):  # one of three same-type neighbours; one with only a cross neighbour
+        pool = [i for i in range(5) if i != row]
+        got = shipped.answer(
+            geom, "rect-a3", [CONFIGS[row]], [CONFIGS[i] for i in pool], a["pmf"][pool], a["ok"][pool], scene
+        )
+        want = np.mean([predict(f, fitted["scaled"], [row], fitted["mean_pmf"])[0] for f in fitted["fits"]], axis=0)
+        assert got == pytest.approx(want, abs=2e-5)  # the protocol's network runs in float32
+        assert not np.allclose(got, a["analytic"][row], atol=1e-3)  # the network did something
+    with pytest.raises(FeederError, match="not trained with part nope"):
+        shipped.frame_of("nope")
+
+
+def test_a_neighbour_is_of_the_same_fence_types_or_of_the_same_downstream_fence_type():
+    from feeder.learn.structured_shipped import ShippedStructured
+
+    shipped = ShippedStructured.__new__(ShippedStructured)
+    shipped.meta = {"neighbours": 2, "cross_neighbours": 1}
+    pool = ["straight30_none", "curved40_straight20"]
+    assert shipped.has_neighbour("straight55_none", pool)  # same types
+    assert shipped.has_neighbour("straight20_curved30", pool)  # same downstream fence type, other combination
+    assert shipped.has_neighbour("curved60_straight45", pool)
+    assert shipped.has_neighbour("curved20_none", pool)  # the curved one, after a straight upstream
+    assert not shipped.has_neighbour("curved20_none", pool[:1])  # no curved downstream fence at all
+    assert not shipped.has_neighbour("none_straight30", pool)  # no downstream fence: no cross neighbour
+    shipped.meta = {"neighbours": 2, "cross_neighbours": 0}
+    assert not shipped.has_neighbour("straight20_curved30", pool)
+
+
+def test_a_file_of_another_format_is_refused():
+    from feeder.learn.structured_shipped import ShippedStructured
+
+    with pytest.raises(FeederError, match="format 99"):
+        ShippedStructured({"meta": np.array('{"format": 99}')})
+
+
+def test_fit_structured_refuses_bad_input_in_one_line_and_writes_nothing(tmp_path):
+    import os
+    import subprocess
+    import sys
+
+    def cli(*args):
+        proc = subprocess.run([sys.executable, "-m", "feeder", "fit-structured", *args], capture_output=True, text=True)
+        return proc.returncode, proc.stderr.strip()
+
+    out = tmp_path / "structured.npz"
+    base = ["--sim-dir", str(tmp_path), "--parts-dir", str(PARTS_DIR), "--features-dir", str(tmp_path)]
+    for args, message in [
+        (["--dataset", str(tmp_path / "none.npz"), "--out", str(out)], "none.npz is missing"),
+        (["--dataset", str(tmp_path / "none.npz"), "--out", str(tmp_path / "model.pt")], "ends in .npz"),
+        (["--dataset", str(tmp_path / "none.npz"), "--out", str(out), "seeds=oops"], "seeds must be an integer >= 1"),
+    ]:
+        code, err = cli(*base, *args)
+        assert code != 0 and message in err and "\n" not in err and "Traceback" not in err, err
+        assert os.listdir(tmp_path) == []
+
+
+def test_fit_structured_ships_whole_label_neighbours_only():
+    from feeder.config import compose_config
+    from feeder.learn.structured_shipped import fit_shipped
+
+    cfg = compose_config("structured", ["model.neighbour_basins=3"])
+    with pytest.raises(FeederError, match="neighbour_basins: 0"):
+        fit_shipped({"part": np.array(["a"])}, cfg, "part", BINS, 1.0, {})
