@@ -166,6 +166,11 @@ class _Shipped:
     def frame_of(self, part):
         return self.frame
 
+    units = "auto"
+
+    def knows(self, part):
+        return part == "p"
+
     def answer(self, geom, part, config_ids, pool_ids, pool_pmf, pool_ok, scene, progress=None):
         self.calls.append((part, list(config_ids), list(pool_ids), np.asarray(pool_pmf), list(pool_ok)))
         out = np.zeros((len(config_ids), 360))
@@ -195,6 +200,28 @@ def test_a_known_part_at_a_new_angle_gets_the_structured_predictor_where_it_has_
     assert model.ok_mass(_push(0.5, 5)).tolist() == [1.0, 0.5, 0.5, 0.5, 0.5]  # the analytic ok mass
     elsewhere = S.StudyModel(360, 1.0, {**SCENE, "belt": {"speed": 0.2, "friction": 1.0}}, lib)
     assert elsewhere.structured is None
+    lib.structured.knows = lambda part: False  # a library part the shipped file was not trained with
+    model = S.StudyModel(360, 1.0, SCENE, lib)
+    model.bind(stl, ids)
+    assert model.sources() == ["simulated", "neighbour", "analytic", "analytic", "analytic"]
+
+
+def test_a_broken_structured_file_is_a_one_line_error(tmp_path):
+    parts_dir, sim_dir = _study_inputs(tmp_path)
+    out = tmp_path / "study"
+    S.export_study(
+        pd.read_csv(tmp_path / "configurations.csv"),
+        sim_dir,
+        parts_dir,
+        tmp_path / "dataset.npz",
+        tmp_path / "neighbour.csv",
+        [0],
+        out,
+    )
+    assert S.load_library(out).structured is None  # exported without one: the nearest labels answer
+    (out / "structured.npz").write_bytes(b"not a zip")
+    with pytest.raises(FeederError, match="not a structured predictor's file"):
+        S.load_library(out)
 
 
 # ------------------------------------------------------------------------------- export and load

@@ -221,9 +221,10 @@ rule neighbour:
 
 
 STRUCTURED_OVERRIDES = config["structured"]["hydra_overrides"]
-# the structured predictor's evidence, quoted by the study's card: the protocol's table, committed (feeder
-# structured, run by hand: about 40 minutes, not in the DAG); an input only where it is
-STRUCTURED_TABLE = "results/tables/structured_protocol.csv"
+# the structured predictor's evidence, quoted by the study's card: the protocol's table of this results
+# folder, committed for the default study (feeder structured, run by hand: about 40 minutes, not in the
+# DAG); an input only where it is (checked when the workflow is read)
+STRUCTURED_TABLE = f"{RESULTS}/tables/structured_protocol.csv"
 
 
 rule fit_structured:

@@ -48,7 +48,10 @@ def candidates_key(parts, config_ids, frames, scene: dict, variants, cand_cfg: d
     h.update(json.dumps(cand_cfg, sort_keys=True).encode())
     h.update(f"{CANDIDATES_VERSION}:{PUSH_FEATURES_VERSION}".encode())
     for part in sorted(set(map(str, parts))):
-        h.update((Path(parts_dir) / f"{part}.stl").read_bytes())
+        path = Path(parts_dir) / f"{part}.stl"
+        if not path.is_file():
+            raise FeederError(f"part file {path} is missing (the candidates need every part's outline)")
+        h.update(path.read_bytes())
     return h.hexdigest()
 
 
@@ -252,6 +255,13 @@ def structured_arrays(data: dict, cfg, sim_dir, parts_dir, features_dir, cache_p
     frames = [frames_of[p] for p in parts]
     variants = variants_from_config(cfg.candidates.variants)
     cand_cfg = candidate_settings(cfg.candidates, bins, float(labels["sigma_bins"]))
+    sim_dir = Path(sim_dir)
+    ok = np.array(  # first: a missing or broken simulation file stops the run before the candidates' minutes
+        [
+            _ok_share(sim_dir / p / f"{c}.npz", bins, float(labels["sigma_bins"]))
+            for p, c in zip(parts, cids, strict=True)
+        ]
+    )
     key = candidates_key(parts, cids, frames, scene, variants, cand_cfg, parts_dir)
     cands = read_candidates_cache(cache_path, key) if cache_path is not None else None
     if cands is None:
@@ -263,13 +273,6 @@ def structured_arrays(data: dict, cfg, sim_dir, parts_dir, features_dir, cache_p
         raise FeederError("the dataset's push_raw differs from this code's push block: rebuild the dataset")
     inputs = row_inputs(
         cands, cids, len(variants), int(cfg.candidates.max_candidates), float(cfg.candidates.present_mass)
-    )
-    sim_dir = Path(sim_dir)
-    ok = np.array(
-        [
-            _ok_share(sim_dir / p / f"{c}.npz", bins, float(labels["sigma_bins"]))
-            for p, c in zip(parts, cids, strict=True)
-        ]
     )
     n = len(parts)
     pmf = np.zeros((n, bins))

@@ -46,7 +46,9 @@ def state_arrays(fits) -> dict[str, np.ndarray]:
     return out
 
 
-def fit_shipped(arrays: dict, cfg, label_frame: str, bins: int, sigma_bins: float, scene: dict) -> dict:
+def fit_shipped(
+    arrays: dict, cfg, label_frame: str, bins: int, sigma_bins: float, scene: dict, units: str = "auto"
+) -> dict:
     """The arrays of the shipped file: the protocol's fit on every configuration of ``arrays``
     (:func:`feeder.learn.structured_data.structured_arrays`), in :func:`shipped_arrays`."""
     from feeder.learn.structured_protocol import fit_protocol
@@ -54,10 +56,12 @@ def fit_shipped(arrays: dict, cfg, label_frame: str, bins: int, sigma_bins: floa
     if int(cfg.model.get("neighbour_basins", 0)):
         raise FeederError("fit-structured ships whole-label neighbours only (model.neighbour_basins: 0)")
     fitted = fit_protocol(arrays, np.ones(len(arrays["part"]), dtype=bool), cfg, SHIPPED_KEY, known=True)
-    return shipped_arrays(fitted, arrays, cfg, label_frame, bins, sigma_bins, scene)
+    return shipped_arrays(fitted, arrays, cfg, label_frame, bins, sigma_bins, scene, units)
 
 
-def shipped_arrays(fitted: dict, arrays: dict, cfg, label_frame: str, bins: int, sigma_bins: float, scene: dict):
+def shipped_arrays(
+    fitted: dict, arrays: dict, cfg, label_frame: str, bins: int, sigma_bins: float, scene: dict, units: str = "auto"
+):
     """The shipped file's arrays of a fit of :func:`feeder.learn.structured_protocol.fit_protocol`
     on ``arrays``: ``meta`` (JSON: the settings an answer needs and the choice made), the input
     scaling, the training-mean PMF, each part's label frame and each seed's network state."""
@@ -84,6 +88,7 @@ def shipped_arrays(fitted: dict, arrays: dict, cfg, label_frame: str, bins: int,
         "sigma_bins": float(sigma_bins),
         "label_frame": str(label_frame),
         "scene_sha256": scene_digest(scene),
+        "units": str(units),  # how the parts' STLs were read (parts.units)
         "choice": fitted["choice"],
     }
     return {
@@ -128,8 +133,26 @@ class ShippedStructured:
 
     @classmethod
     def load(cls, path) -> ShippedStructured:
-        with np.load(path, allow_pickle=False) as z:
-            return cls({k: z[k] for k in z.files})
+        """The file at ``path``; a one-line FeederError when it is not one."""
+        import zipfile
+
+        try:
+            with np.load(path, allow_pickle=False) as z:
+                return cls({k: z[k] for k in z.files})
+        except (OSError, ValueError, KeyError, TypeError, zipfile.BadZipFile, json.JSONDecodeError) as err:
+            raise FeederError(
+                f"{path} is not a structured predictor's file ({type(err).__name__}): run feeder fit-structured "
+                "and feeder export-study again, or delete it (the study then answers with its nearest labels)"
+            ) from None
+
+    @property
+    def units(self) -> str:
+        """How the parts' STLs were read in training (``parts.units``)."""
+        return str(self.meta.get("units", "auto"))
+
+    def knows(self, part: str) -> bool:
+        """Whether it was trained with the library part ``part``."""
+        return str(part) in self.frames
 
     @property
     def bins(self) -> int:
@@ -254,6 +277,9 @@ def main(argv: list[str]) -> int:
         raise FeederError(f"--out {args.out}: the file to write ends in .npz")
     cfg = compose_config("structured", args.overrides)
     check_count(cfg.seeds, "seeds")
+    check_count(cfg.train.threads, "train.threads")
+    if not cfg.search:
+        raise FeederError("search: at least one setting to try (config/hydra/structured.yaml)")
     if not args.dataset.is_file():
         raise FeederError(f"{args.dataset} is missing")
     data = load_dataset(args.dataset)
@@ -274,6 +300,7 @@ def main(argv: list[str]) -> int:
         int(labels["bins"]),
         float(labels["sigma_bins"]),
         settings.get("scene") or default_scene(),
+        str((settings.get("parts") or {}).get("units", "auto")),
     )
     io.write_npz(args.out, **out)
     choice = json.loads(str(out["meta"]))["choice"]

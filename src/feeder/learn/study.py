@@ -470,7 +470,11 @@ class StudyModel(AnalyticModel):
                 self.answers.append((SIMULATED, by_id[cid], 0.0))
                 continue
             k, dist = nearest_configuration(cid, pool_ids)
-            if self.structured is not None and self.structured.has_neighbour(cid, pool_ids):
+            if (
+                self.structured is not None
+                and self.structured.knows(known)
+                and self.structured.has_neighbour(cid, pool_ids)
+            ):
                 self.answers.append((STRUCTURED, pool[k] if k >= 0 else -1, dist))
             elif k >= 0 and dist <= self.gate_deg:
                 self.answers.append((NEIGHBOUR, pool[k], dist))
@@ -538,7 +542,7 @@ class StudyModel(AnalyticModel):
         frame = shipped.frame_of(self.known)
         pool = [int(i) for i in np.flatnonzero(lib.part == self.known) if lib.kept[i]]
         labels = [self._label(i, frame) for i in pool]
-        outline, holes, _ = load_profile(self.part_path, "auto")
+        outline, holes, _ = load_profile(self.part_path, shipped.units)
         pmf = shipped.answer(
             push_geometry(outline, holes),
             self.known,
