@@ -209,15 +209,7 @@ def test_a_known_part_at_a_new_angle_gets_the_structured_predictor_where_it_has_
 def test_a_broken_structured_file_is_a_one_line_error(tmp_path):
     parts_dir, sim_dir = _study_inputs(tmp_path)
     out = tmp_path / "study"
-    S.export_study(
-        pd.read_csv(tmp_path / "configurations.csv"),
-        sim_dir,
-        parts_dir,
-        tmp_path / "dataset.npz",
-        tmp_path / "neighbour.csv",
-        [0],
-        out,
-    )
+    _export(tmp_path, sim_dir, parts_dir, [0], out)
     assert S.load_library(out).structured is None  # exported without one: the nearest labels answer
     (out / "structured.npz").write_bytes(b"not a zip")
     with pytest.raises(FeederError, match="not a structured predictor's file"):
@@ -264,18 +256,23 @@ def _study_inputs(tmp_path: Path):
     return parts_dir, sim_dir
 
 
-def test_export_writes_a_library_that_loads_back(tmp_path):
-    parts_dir, sim_dir = _study_inputs(tmp_path)
-    out = tmp_path / "models" / "study"
-    card = S.export_study(
+def _export(tmp_path: Path, sim_dir: Path, parts_dir: Path, gates, out: Path) -> dict:
+    """:func:`S.export_study` of the inputs of :func:`_study_inputs` into ``out``."""
+    return S.export_study(
         pd.read_csv(tmp_path / "configurations.csv"),
         sim_dir,
         parts_dir,
         tmp_path / "dataset.npz",
         tmp_path / "neighbour.csv",
-        [0, 5, 20, 180],
+        gates,
         out,
     )
+
+
+def test_export_writes_a_library_that_loads_back(tmp_path):
+    parts_dir, sim_dir = _study_inputs(tmp_path)
+    out = tmp_path / "models" / "study"
+    card = _export(tmp_path, sim_dir, parts_dir, [0, 5, 20, 180], out)
     # each labelled row from its nearest other: 30 <- 40 (10 deg, W1 2), 40 <- 30 (2), 80 <- 40 (40 deg, 172
     # around the circle); the analytic PMF is 40 deg off everywhere. Gate 20 takes the first two only.
     scores = pd.DataFrame(card["gate_scores"]).set_index("gate_deg").circular_w1_deg
@@ -292,15 +289,7 @@ def test_export_writes_a_library_that_loads_back(tmp_path):
     (tmp_path / "plain").mkdir()
     (tmp_path / "plain" / "notes.txt").write_text("mine")
     with pytest.raises(FeederError, match="not an exported study folder"):
-        S.export_study(
-            pd.read_csv(tmp_path / "configurations.csv"),
-            sim_dir,
-            parts_dir,
-            tmp_path / "dataset.npz",
-            tmp_path / "neighbour.csv",
-            [0],
-            tmp_path / "plain",
-        )
+        _export(tmp_path, sim_dir, parts_dir, [0], tmp_path / "plain")
     assert (tmp_path / "plain" / "notes.txt").read_text() == "mine"
 
 
