@@ -22,6 +22,7 @@ part as the pool, as for a scored row of the protocol), and the PMF is the mean 
 from __future__ import annotations
 
 import argparse
+import hashlib
 import json
 import sys
 from dataclasses import asdict
@@ -35,6 +36,12 @@ SHIPPED_FORMAT = 1  # version of the layout of the file
 SHIPPED_FILE = "structured.npz"  # its name in models/study
 SHIPPED_KEY = "shipped"  # the fit id its validation parts and seeds derive from
 PROGRESS_EVERY = 50  # configurations between progress messages of an answer
+
+
+def scene_digest(scene: dict) -> str:
+    """SHA-256 (hex) of a scene as canonical JSON (sorted keys): two scenes that differ in any
+    value differ here (how the study and this file know the scene they were made in)."""
+    return hashlib.sha256(json.dumps(scene, sort_keys=True, separators=(",", ":")).encode()).hexdigest()
 
 
 def state_arrays(fits) -> dict[str, np.ndarray]:
@@ -69,7 +76,6 @@ def shipped_arrays(
 
     from feeder.learn.structured_data import candidate_settings, label_miss
     from feeder.learn.structured_protocol import neighbour_count
-    from feeder.learn.study import scene_digest
 
     parts, first = np.unique(arrays["part"], return_index=True)
     kept = np.asarray(arrays["kept"], dtype=bool)

@@ -37,7 +37,7 @@ import pandas as pd
 
 from feeder.errors import FeederError
 from feeder.learn.analytic import AnalyticModel, AnalyticSpec
-from feeder.learn.structured_shipped import SHIPPED_FILE
+from feeder.learn.structured_shipped import SHIPPED_FILE, scene_digest
 
 STUDY_MODEL = "study"  # the --model value that names this predictor (the default)
 STUDY_DIR = "study"  # its folder under the shipped-model root (models/study)
@@ -59,12 +59,6 @@ def file_digest(path) -> str:
         for block in iter(lambda: f.read(1 << 20), b""):
             h.update(block)
     return h.hexdigest()
-
-
-def scene_digest(scene: dict) -> str:
-    """SHA-256 (hex) of a scene as canonical JSON (sorted keys): two scenes that differ in any
-    value differ here."""
-    return hashlib.sha256(json.dumps(scene, sort_keys=True, separators=(",", ":")).encode()).hexdigest()
 
 
 def nearest_configuration(config_id: str, pool: list[str]) -> tuple[int, float]:
