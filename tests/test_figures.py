@@ -341,6 +341,31 @@ def _frontier(path):
     pd.DataFrame(rows).to_csv(path, index=False)
 
 
+def _frontier_known(path):
+    # two predictors (one a lookup at 0 s) and two budgets on the simulated set; predictors on Test
+    rows = [
+        {
+            "configurations": subset,
+            "answer": answer,
+            "kind": kind,
+            "budget": budget,
+            "n": 3,
+            "cpu_s_mean": cpu,
+            "circular_w1_deg": w1,
+            "circular_w1_low": w1 - 1.0,
+            "circular_w1_high": w1 + 2.0,
+        }
+        for subset, answer, kind, budget, cpu, w1 in (
+            ("all", "mean_pmf", "predictor", 0, 0.0, 29.0),
+            ("all", "structured", "predictor", 0, 0.3, 9.0),
+            ("all", "simulate8", "simulate", 8, 3.0, 4.0),
+            ("all", "simulate40", "simulate", 40, 12.0, 1.5),
+            ("test", "structured", "predictor", 0, 0.3, 10.0),
+        )
+    ]
+    pd.DataFrame(rows).to_csv(path, index=False)
+
+
 def _step(path):
     # one part: the bare world (no configuration, no fit) and two configurations' drops
     rows = [
@@ -387,6 +412,7 @@ def _physics(path):
 CASES = {
     "step_cost": ("step.csv", _step, []),
     "frontier": ("frontier.csv", _frontier, []),
+    "frontier_known": ("frontier_known.csv", _frontier_known, []),
     "label_designs": ("label_designs_summary.csv", _label_designs, []),
     "label_emulation": ("label_emulation.csv", _label_emulation, []),
     "fig6_dft_reconstruction": ("fig6.npz", _fig6, []),

@@ -36,6 +36,10 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "bench-errest": ("feeder.bench.errest", "does a label's error estimate cover its error (emulated designs)"),
     "bench-mirror": ("feeder.bench.mirror", "a fence at Location 2 against its mirror image at Location 1, paired"),
     "bench-frontier": ("feeder.bench.frontier", "each predictor and simulation budget: its error against its cost"),
+    "bench-frontier-known": (
+        "feeder.bench.frontier_known",
+        "the same on the study's Test configurations (known parts at new angles), the structured predictor included",
+    ),
     "bench-emulation": (
         "feeder.bench.emulation",
         "JS(P_N, P_all) of drops emulated through the adaptive design against real independent drops",

@@ -12,6 +12,7 @@
 #   results/tables/contact_decomposition.csv  (+ figure)  each contact model under other convex decompositions
 #   results/tables/step_cost.csv              (+ figure)  CPU of one step against a bare one-box world
 #   results/tables/physics_sensitivity.csv    (+ figure)  how far the labels move with each physical parameter
+#   results/tables/frontier_known.csv         (+ figure)  every answer for a known part at a new angle, and its cost
 
 from feeder.bench.emulation import entries as emulation_bench_entries, run_settings as emulation_run_settings
 from feeder.bench.predict import DEFAULT_PARTS as PREDICT_BENCH_DEFAULT_PARTS
@@ -31,6 +32,8 @@ BENCH_TARGETS = [
     f"{RESULTS}/tables/design_error_estimate.csv",
     f"{RESULTS}/tables/design_error_estimate_summary.csv",
     f"{RESULTS}/tables/frontier.csv",
+    f"{RESULTS}/tables/frontier_known.csv",
+    f"{RESULTS}/figures/frontier_known.png",
     f"{RESULTS}/tables/mirror_locations.csv",
     f"{RESULTS}/figures/frontier.png",
     f"{RESULTS}/tables/label_emulation.csv",
@@ -464,6 +467,54 @@ rule bench_frontier:
     shell:
         "feeder bench-frontier --references {input.references} --dataset {input.dataset} --models {params.models}"
         " --settings '{params.settings}' --out-raw {output.raw} --out-csv {output.csv}"
+        " > {log} 2>&1"
+
+
+# the known-part frontier's shipped models: those of sim.frontier_known.models the run ships
+FRONTIER_KNOWN_MODELS = [m for m in config["sim"]["frontier_known"]["models"] if m in SHIPPED]
+
+
+rule bench_frontier_known:
+    """Every predictor (the structured one included) and simulation budget on the dataset's Test
+    configurations: its error against their labels, its cost (feeder bench-frontier-known). Keeps its
+    fit and simulation files in results/bench/frontier_known/ and reuses them on a rerun."""
+    input:
+        code("bench-frontier-known"),
+        dataset=DATASET,
+        sims=[sim_path(p, c) for p, c in zip(CONFIGS["part"], CONFIGS["config_id"])],
+        parts=expand("{dir}/{part}.stl", dir=config["parts"]["dir"], part=sorted(set(CONFIGS["part"]))),
+        features=expand(f"{RESULTS}/features/{{part}}.json", part=sorted(set(CONFIGS["part"]))),
+        candidates=f"{RESULTS}/datasets/structured_candidates.npz",
+        models=[f"{EXPORT_DIR}/{m}" for m in FRONTIER_KNOWN_MODELS],
+    output:
+        raw=f"{RESULTS}/bench/frontier_known/answers.csv",
+        csv=report(f"{RESULTS}/tables/frontier_known.csv", caption="../report/frontier_known.rst", category="Cost"),
+    log:
+        f"{LOGS}/bench_frontier_known/table.log",
+    benchmark:
+        f"{BENCHMARKS}/bench_frontier_known/table.tsv"
+    conda:
+        "../envs/feeder.yaml"
+    params:
+        settings=settings_json(
+            "scene",
+            "labels",
+            "parts",
+            "sim.frontier_known",
+            "sim.adaptive",
+            "sim.presets",
+            "sim.preset",
+            "sim.base_seed",
+            "models.export_dir",
+        ),
+        structured=resolved_yaml("structured", STRUCTURED_OVERRIDES, drop=("neighbour",)),
+        overrides=" ".join(shlex.quote(o) for o in STRUCTURED_OVERRIDES),
+        models=" ".join(FRONTIER_KNOWN_MODELS),
+    shell:
+        "feeder bench-frontier-known --dataset {input.dataset} --sim-dir $(dirname $(dirname {input.sims[0]}))"
+        " --parts-dir $(dirname {input.parts[0]}) --features-dir $(dirname {input.features[0]})"
+        " --cache {input.candidates} --work-dir $(dirname {output.raw}) --models {params.models}"
+        " --settings '{params.settings}' --out-raw {output.raw} --out-csv {output.csv} {params.overrides}"
         " > {log} 2>&1"
 
 

@@ -66,6 +66,7 @@ FIGURE_TABLE = {
     "yaw_sampling": (f"{TABLES}/yaw_sampling.csv", "yaw_sampling", "Simulation", {}),
     "sim_cost": (f"{TABLES}/sim_cost_sample.csv", "sim_cost_figure", "Cost", {}),
     "frontier": (f"{TABLES}/frontier.csv", "frontier_figure", "Cost", {}),
+    "frontier_known": (f"{TABLES}/frontier_known.csv", "frontier_known_figure", "Cost", {}),
     "label_designs": (f"{TABLES}/label_designs_summary.csv", "label_designs_figure", "Simulation", {}),
     "label_emulation": (f"{TABLES}/label_emulation.csv", "label_emulation_figure", "Simulation", {}),
     "fig4_js_vs_drops": (f"{RESULTS}/figdata/fig4_js_vs_drops.csv", "fig4_js_vs_drops", "Datasets", {}),

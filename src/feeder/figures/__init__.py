@@ -40,6 +40,8 @@ module (= PNG name)            figure                                    data fi
                                                                          (``feeder cost``)
 ``frontier``                   error against CPU per answer: predictors  ``results/tables/frontier.csv``
                                and simulation budgets                    (``feeder bench-frontier``)
+``frontier_known``             the same on the study's Test              ``results/tables/frontier_known.csv``
+                               configurations (known parts)              (``feeder bench-frontier-known``)
 =============================  ========================================  =============================================
 
 Figure modules import only :mod:`feeder.figures.style`, the core (``feeder.io``,
