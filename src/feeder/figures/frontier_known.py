@@ -38,8 +38,17 @@ def draw(table):
         y = g["circular_w1_deg"].to_numpy(float)
         err = np.vstack([y - g["circular_w1_low"].to_numpy(float), g["circular_w1_high"].to_numpy(float) - y])
         ax.errorbar(x, y, yerr=err, fmt=marker, capsize=3, label=kind)
-        for xi, yi, name in zip(x, y, g["answer"]):
-            ax.annotate(name, (xi, yi), textcoords="offset points", xytext=(5, 4), fontsize=8)
+        names = g["answer"].to_numpy()
+        for k, n in enumerate(np.argsort(y, kind="stable")):  # by error, alternately right and left: close ones overlap
+            side = 1 if k % 2 == 0 else -1
+            ax.annotate(
+                names[n],
+                (x[n], y[n]),
+                textcoords="offset points",
+                xytext=(6 * side, -3),
+                ha="left" if side > 0 else "right",
+                fontsize=8,
+            )
     sims = t[t["kind"] == "simulate"]
     if len(sims):
         floor = float(sims.loc[sims["budget"].astype(int).idxmax(), "circular_w1_deg"])
