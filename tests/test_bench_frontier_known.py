@@ -91,6 +91,35 @@ def test_summary_pairs_the_structured_predictor_with_each_answer():
     assert low <= -3.0 <= high
 
 
+def test_summary_leaves_out_answers_without_a_score_and_counts_the_timed():
+    rows = [
+        {"config": f"c{k}", "answer": a, "kind": "predictor", "budget": 0, "simulated": True}
+        | {"cpu_s": cpu, "circular_w1_deg": w1, "sup_cdf": 0.1}
+        for k, (a, cpu, w1) in enumerate(
+            (("structured", 0.5, 2.0), ("structured", np.nan, 3.0), ("analytic", 0.1, np.nan), ("analytic", 0.1, 5.0))
+        )
+    ]
+    rows[2]["config"], rows[3]["config"] = "c0", "c1"
+    table = K.summary(pd.DataFrame(rows), resamples=200, seed=0).set_index(["configurations", "answer"])
+    analytic, ours = table.loc[("all", "analytic")], table.loc[("all", "structured")]
+    assert analytic["n"] == 1 and analytic["circular_w1_deg"] == 5.0  # c0's score is missing
+    assert analytic["diff"] == pytest.approx(3.0 - 5.0)  # paired on c1 alone
+    assert ours["n"] == 2 and ours["n_timed"] == 1 and ours["cpu_s_mean"] == 0.5
+
+
+def test_a_kept_file_is_reused_only_for_the_same_part_bytes_and_code(tmp_path):
+    settings = _settings()
+    stl = tmp_path / "p.stl"
+    stl.write_bytes(open(f"{PARTS_DIR}/rect-a3.stl", "rb").read())
+    first = K.replicate_request(stl, 8, 9, settings)
+    assert K.replicate_request(stl, 8, 9, settings) == first
+    assert K.replicate_request(stl, 16, 9, settings) != first
+    stl.write_bytes(open(f"{PARTS_DIR}/hex-a.stl", "rb").read())
+    assert K.replicate_request(stl, 8, 9, settings) != first  # another part under the same name
+    assert json.loads(first)["code"] == K.source_digest("feeder.sim.simulate")
+    assert K.source_digest("feeder.sim.simulate") != K.source_digest("feeder.learn.structured_protocol")
+
+
 def test_a_replicate_is_simulated_once_and_read_back(tmp_path, monkeypatch):
     settings = _settings()
     settings["sim"]["preset"] = "coarse"
@@ -125,3 +154,32 @@ def test_bad_input_is_one_line_and_writes_nothing(tmp_path, capsys):
     assert cli([*base, "--settings", json.dumps(_settings())]) != 0
     assert "is missing" in capsys.readouterr().err
     assert not out.exists() and not (tmp_path / "r.csv").exists() and not (tmp_path / "w").exists()
+
+
+def test_the_fit_key_follows_the_training_rows_inputs_and_settings():
+    from feeder.config import compose_config
+
+    cfg = compose_config("structured", [])
+    rng = np.random.default_rng(0)
+    arrays = {
+        "part": np.array(["a", "a", "b"]),
+        "config_id": np.array(["x", "y", "x"]),
+        "x": rng.random((3, 4)),
+        "analytic": rng.random((3, 6)),
+        "ok": np.ones(3),
+        "frame_deg": np.zeros(3),
+        "pmf": rng.random((3, 6)),
+        "kept": np.ones(3, dtype=bool),
+    }
+    data = {"settings": json.dumps({"labels": {"bins": 6}}), "label_frame": "principal"}
+    train = np.array([True, True, False])
+    key = K.fit_key(arrays, train, cfg, data)
+    assert K.fit_key(arrays, train, cfg, data) == key
+    other = dict(arrays, x=arrays["x"].copy())
+    other["x"][2] += 1.0  # a row outside the fit: the same key
+    assert K.fit_key(other, train, cfg, data) == key
+    other["x"][0] += 1.0  # an input of a training row
+    assert K.fit_key(other, train, cfg, data) != key
+    assert K.fit_key(arrays, np.array([True, False, False]), cfg, data) != key
+    assert K.fit_key(arrays, train, compose_config("structured", ["seeds=1"]), data) != key
+    assert K.fit_key(arrays, train, cfg, dict(data, label_frame="part")) != key

@@ -25,8 +25,8 @@ dataset (the study's adaptive design at ``sim.drops``), in the label frame:
   Each simulation file is kept (``<work>/sim/<part>/<config>__b<B>.npz``) and reused on a rerun.
 
 The reference is itself a label at the study's budget, so ``simulate<sim.drops>`` measures how far
-two labels of the same configuration lie apart (about twice the label's own error), and no answer
-can be shown closer than that. CPU seconds per answer: each predictor timed over ``repeats`` calls
+two labels of the same configuration lie apart, not the error of either against the exact answer:
+differences of that size are not resolved. CPU seconds per answer: each predictor timed over ``repeats`` calls
 on the simulated configurations (``time.process_time``, the median per configuration; a fresh
 process adds its start-up); a simulation's own measured CPU time.
 
@@ -91,6 +91,66 @@ def replicate_seed(seed: int, budget: int) -> int:
     return int(seed) + int(budget)
 
 
+def source_digest(*modules: str) -> str:
+    """SHA-256 of the source of ``modules`` and every ``feeder`` module they import (the files a
+    rule's code inputs list): a kept fit or simulation file is reused only under the same code."""
+    from feeder.workflow import code_modules, module_file
+
+    root = Path(__file__).resolve().parents[2]
+    h = hashlib.sha256()
+    for module in code_modules(*modules, root=root):
+        h.update(module.encode())
+        h.update(Path(module_file(module, root)).read_bytes())
+    return h.hexdigest()
+
+
+def _digest(a) -> str:
+    return hashlib.sha256(np.ascontiguousarray(a).tobytes()).hexdigest()
+
+
+def fit_key(arrays: dict, train, cfg, data: dict) -> str:
+    """What a kept fit must match to be reused: the settings, the training rows' ids, labels and
+    inputs, the label settings and frame, and the fitting code."""
+    from omegaconf import OmegaConf
+
+    train = np.asarray(train, dtype=bool)
+    made = json.loads(str(data["settings"]))
+    inputs = [_digest(np.asarray(arrays[k])[train]) for k in ("x", "analytic", "ok", "frame_deg", "pmf", "kept")]
+    return hashlib.sha256(
+        json.dumps(
+            [
+                OmegaConf.to_container(cfg, resolve=True),
+                [str(a) for a in np.asarray(arrays["part"])[train]],
+                [str(a) for a in np.asarray(arrays["config_id"])[train]],
+                inputs,
+                made.get("labels"),
+                str(data["label_frame"]),
+                source_digest("feeder.learn.structured_shipped", "feeder.learn.structured_protocol"),
+            ],
+            sort_keys=True,
+        ).encode()
+    ).hexdigest()
+
+
+def replicate_request(stl: Path, budget: int, seed: int, settings: dict) -> str:
+    """What a kept simulation file must match to be reused: budget, seed, design, scene, preset,
+    units, the part file's bytes and the simulator's code."""
+    from feeder.bench.frontier import budget_design
+
+    sim = settings["sim"]
+    request = {
+        "budget": int(budget),
+        "seed": int(seed),
+        "design": budget_design(sim["adaptive"], budget),
+        "scene": settings["scene"],
+        "preset": sim["presets"][sim["preset"]],
+        "units": settings["parts"]["units"],
+        "part_sha256": hashlib.sha256(Path(stl).read_bytes()).hexdigest(),
+        "code": source_digest("feeder.sim.simulate"),
+    }
+    return json.dumps(request, sort_keys=True)
+
+
 def pick_rows(parts, config_ids, rows, n: int, seed: int) -> np.ndarray:
     """The ``n`` of ``rows`` first by sha256(seed:part:config), in index order (pure): the same
     configurations for the same ids whatever else the dataset holds."""
@@ -109,8 +169,9 @@ def scores(pmf, ref_pmf) -> dict[str, float]:
 
 def summary(raw: pd.DataFrame, resamples: int, seed: int) -> pd.DataFrame:
     """Per set of configurations and answer: n, mean CPU seconds, mean circular W1 and sup|ΔCDF|
-    with 95 % bootstrap intervals; for every answer but the structured predictor, the structured
-    predictor's paired difference in circular W1 on the same configurations (``diff_*``)."""
+    with 95 % bootstrap intervals (``n``: configurations with a finite score; ``n_timed``: those
+    timed, over which ``cpu_s_mean`` is taken); for every answer but the structured predictor, the
+    structured predictor's paired difference in circular W1 on the same configurations (``diff_*``)."""
     from feeder.bench.frontier import bootstrap_mean
     from feeder.learn.evaluate import paired_bootstrap
 
@@ -121,8 +182,11 @@ def summary(raw: pd.DataFrame, resamples: int, seed: int) -> pd.DataFrame:
             frame = frame[frame["kind"] == "predictor"]
         if frame.empty:
             continue
-        ours = frame[frame["answer"] == STRUCTURED].set_index("config")["circular_w1_deg"]
+        ours = frame[frame["answer"] == STRUCTURED].set_index("config")["circular_w1_deg"].dropna()
         for (answer, kind, budget), g in frame.groupby(["answer", "kind", "budget"], sort=False):
+            g = g[np.isfinite(g["circular_w1_deg"].astype(float))]  # an answer without a PMF is no score
+            if g.empty:
+                continue
             w1 = bootstrap_mean(g["circular_w1_deg"], resamples, seed)
             sup = bootstrap_mean(g["sup_cdf"], resamples, seed)
             row = {
@@ -131,6 +195,7 @@ def summary(raw: pd.DataFrame, resamples: int, seed: int) -> pd.DataFrame:
                 "kind": kind,
                 "budget": int(budget),
                 "n": len(g),
+                "n_timed": int(np.isfinite(g["cpu_s"].astype(float)).sum()),
                 "cpu_s_mean": float(g["cpu_s"].mean()),
                 "circular_w1_deg": w1[0],
                 "circular_w1_low": w1[1],
@@ -166,24 +231,12 @@ def _timed(fn, repeats: int) -> tuple[object, float]:
 def structured_fit(arrays: dict, train, cfg, data: dict, path: Path, say):
     """The structured predictor fitted on ``train`` rows (``feeder fit-structured``'s fit), read
     from ``path`` when a fit of the same rows and settings is there, else fitted and written."""
-    from omegaconf import OmegaConf
-
     from feeder import io
     from feeder.learn.structured_shipped import SHIPPED_KEY, ShippedStructured, shipped_arrays
     from feeder.mechanics.fence import default_scene
 
     settings = json.loads(str(data["settings"]))
-    key = hashlib.sha256(
-        json.dumps(
-            [
-                OmegaConf.to_container(cfg, resolve=True),
-                [str(a) for a in np.asarray(arrays["part"])[train]],
-                [str(a) for a in np.asarray(arrays["config_id"])[train]],
-                hashlib.sha256(np.ascontiguousarray(arrays["pmf"][train]).tobytes()).hexdigest(),
-            ],
-            sort_keys=True,
-        ).encode()
-    ).hexdigest()
+    key = fit_key(arrays, train, cfg, data)
     if path.is_file():
         with np.load(path, allow_pickle=False) as z:
             if "fit_key" in z.files and str(z["fit_key"]) == key:
@@ -204,6 +257,11 @@ def structured_fit(arrays: dict, train, cfg, data: dict, path: Path, say):
         settings.get("scene") or default_scene(),
         str((settings.get("parts") or {}).get("units", "auto")),
     )
+    labelled = {(str(p), str(c)) for p, c in zip(arrays["part"][train], arrays["config_id"][train], strict=True)}
+    mine = np.array(
+        [(str(p), str(c)) in labelled for p, c in zip(out["miss_part"], out["miss_config_id"], strict=True)]
+    )
+    out.update({k: out[k][mine] for k in ("miss_part", "miss_config_id", "miss")})  # no Test row's miss kept
     io.write_npz(path, fit_key=np.array(key), **out)
     return ShippedStructured(out)
 
@@ -284,7 +342,7 @@ def analytic_seconds(stl: Path, config_id: str, study: dict, repeats: int) -> fl
     labels = study["labels"]
 
     def query():
-        outline, holes, _ = load_profile(stl, "auto")
+        outline, holes, _ = load_profile(stl, str(study.get("units", "auto")))
         smooth = label_smooth_deg(int(labels["bins"]), float(labels["sigma_bins"]))
         return push_block(
             push_geometry(outline, holes), loc1, loc2, study["scene"], bins=int(labels["bins"]), pmf_smooth_deg=smooth
@@ -311,9 +369,7 @@ def replicate_label(
 
     sim, labels = settings["sim"], settings["labels"]
     design = budget_design(sim["adaptive"], budget)
-    preset_settings = sim["presets"][sim["preset"]]
-    request = {"budget": int(budget), "seed": int(seed), "design": design, "scene": settings["scene"]}
-    request = json.dumps(dict(request, preset=preset_settings, units=settings["parts"]["units"]), sort_keys=True)
+    request = replicate_request(stl, budget, seed, settings)
     rec = None
     if path.is_file():
         with np.load(path, allow_pickle=False) as z:
@@ -403,6 +459,11 @@ def main(argv: list[str]) -> int:
                 f"{args.dataset} was made with another {section} than --settings gives: its labels and new "
                 "simulations would not be comparable (run the bench with the study's own config)"
             )
+    if (made.get("sim") or {}).get("yaw_sampling", "adaptive") != "adaptive":
+        raise FeederError(
+            f"{args.dataset}: its labels use the {made['sim']['yaw_sampling']} design; the bench simulates the "
+            "adaptive design at each budget, so its answers would not be comparable"
+        )
     if (made.get("sim") or {}).get("preset", settings["sim"]["preset"]) != settings["sim"]["preset"]:
         raise FeederError(
             f"{args.dataset} was simulated with preset {made['sim']['preset']}, --settings gives "
@@ -420,7 +481,7 @@ def main(argv: list[str]) -> int:
         raise FeederError(f"{args.dataset}: no kept Test or training configuration to score")
     simulated = pick_rows(parts, cids, test, fk["configurations"], fk["seed"])
     timed = {int(i) for i in simulated}
-    study = {"scene": settings["scene"], "labels": labels}
+    study = {"scene": settings["scene"], "labels": labels, "units": str(settings["parts"]["units"])}
     say(f"{test.size} Test configurations of {len(set(parts[test]))} parts, {simulated.size} of them simulated")
 
     answers: dict[str, dict[int, tuple]] = {}
@@ -487,8 +548,8 @@ def main(argv: list[str]) -> int:
             )
         say(f"simulated {n}/{simulated.size} {parts[i]} {cids[i]}")
     raw = pd.DataFrame(records)
+    write_csv(args.out_raw, raw)  # first: the raw rows survive a failing statistic
     table = summary(raw, fk["resamples"], fk["seed"])
-    write_csv(args.out_raw, raw)
     write_csv(args.out_csv, table)
     best = table[(table["configurations"] == "all")].sort_values("circular_w1_deg")
     say(

@@ -6,7 +6,7 @@ simulated again, every answer scored; ``test``: every kept Test configuration, p
 the mean circular W1 to the study's label with its 95 % interval and the mean CPU seconds per
 answer. Drawn: circular W1 against CPU seconds, log scale, on the ``all`` set; the mean PMF, a
 lookup, at the axis' left edge; a dotted line at the largest budget's score, how far two labels of
-one configuration lie apart (no answer can be shown closer).
+one configuration at that budget lie apart (differences of that size are not resolved).
 """
 
 from __future__ import annotations
@@ -52,7 +52,8 @@ def draw(table):
     sims = t[t["kind"] == "simulate"]
     if len(sims):
         floor = float(sims.loc[sims["budget"].astype(int).idxmax(), "circular_w1_deg"])
-        ax.axhline(floor, ls=":", color="grey", label="two labels of one configuration")
+        budget = int(sims["budget"].astype(int).max())
+        ax.axhline(floor, ls=":", color="grey", label=f"two labels of one configuration ({budget} drops)")
     ax.set_xscale("log")
     ax.set_xlabel("CPU seconds per answer (log)")
     ax.set_ylabel("circular W1 to the study's label (deg)")
