@@ -181,7 +181,7 @@ def test_fit_structured_ships_whole_label_neighbours_only():
 
     cfg = compose_config("structured", ["model.neighbour_basins=3"])
     with pytest.raises(FeederError, match="neighbour_basins: 0"):
-        fit_shipped({"part": np.array(["a"])}, cfg, "part", BINS, 1.0, {})
+        fit_shipped({"part": np.array(["a"])}, cfg, {})
 
 
 def test_the_candidates_key_names_a_missing_part_file(tmp_path):

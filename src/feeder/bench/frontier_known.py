@@ -232,36 +232,16 @@ def structured_fit(arrays: dict, train, cfg, data: dict, path: Path, say):
     """The structured predictor fitted on ``train`` rows (``feeder fit-structured``'s fit), read
     from ``path`` when a fit of the same rows and settings is there, else fitted and written."""
     from feeder import io
-    from feeder.learn.structured_shipped import SHIPPED_KEY, ShippedStructured, shipped_arrays
-    from feeder.mechanics.fence import default_scene
+    from feeder.learn.structured_shipped import ShippedStructured, fit_shipped
 
-    settings = json.loads(str(data["settings"]))
     key = fit_key(arrays, train, cfg, data)
     if path.is_file():
         with np.load(path, allow_pickle=False) as z:
             if "fit_key" in z.files and str(z["fit_key"]) == key:
                 say(f"structured predictor: the fit in {path}")
                 return ShippedStructured({k: z[k] for k in z.files if k != "fit_key"})
-    from feeder.learn.structured_protocol import fit_protocol
-
     say(f"structured predictor: fitting on {int(np.sum(train & arrays['kept']))} training configurations")
-    fitted = fit_protocol(arrays, train, cfg, SHIPPED_KEY, known=True)
-    labels = settings["labels"]
-    out = shipped_arrays(
-        fitted,
-        arrays,
-        cfg,
-        str(data["label_frame"]),
-        int(labels["bins"]),
-        float(labels["sigma_bins"]),
-        settings.get("scene") or default_scene(),
-        str((settings.get("parts") or {}).get("units", "auto")),
-    )
-    labelled = {(str(p), str(c)) for p, c in zip(arrays["part"][train], arrays["config_id"][train], strict=True)}
-    mine = np.array(
-        [(str(p), str(c)) in labelled for p, c in zip(out["miss_part"], out["miss_config_id"], strict=True)]
-    )
-    out.update({k: out[k][mine] for k in ("miss_part", "miss_config_id", "miss")})  # no Test row's miss kept
+    out = fit_shipped(arrays, cfg, data, train)
     io.write_npz(path, fit_key=np.array(key), **out)
     return ShippedStructured(out)
 

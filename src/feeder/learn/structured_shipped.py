@@ -53,17 +53,35 @@ def state_arrays(fits) -> dict[str, np.ndarray]:
     return out
 
 
-def fit_shipped(
-    arrays: dict, cfg, label_frame: str, bins: int, sigma_bins: float, scene: dict, units: str = "auto"
-) -> dict:
-    """The arrays of the shipped file: the protocol's fit on every configuration of ``arrays``
-    (:func:`feeder.learn.structured_data.structured_arrays`), in :func:`shipped_arrays`."""
+def fit_shipped(arrays: dict, cfg, data: dict, train=None) -> dict:
+    """The arrays of the shipped file: the protocol's fit on the configurations ``train`` (a boolean
+    mask; default: every one) of ``arrays`` (:func:`feeder.learn.structured_data.structured_arrays`
+    of the dataset ``data``, whose settings give the label frame, bins, scene and units), in
+    :func:`shipped_arrays`, keeping the neighbour inputs (each label's analytic miss) of ``train``
+    rows only: no other row's label is in the file."""
     from feeder.learn.structured_protocol import fit_protocol
+    from feeder.mechanics.fence import default_scene
 
     if int(cfg.model.get("neighbour_basins", 0)):
         raise FeederError("fit-structured ships whole-label neighbours only (model.neighbour_basins: 0)")
-    fitted = fit_protocol(arrays, np.ones(len(arrays["part"]), dtype=bool), cfg, SHIPPED_KEY, known=True)
-    return shipped_arrays(fitted, arrays, cfg, label_frame, bins, sigma_bins, scene, units)
+    train = np.ones(len(arrays["part"]), dtype=bool) if train is None else np.asarray(train, dtype=bool)
+    settings = json.loads(str(data["settings"]))
+    labels = settings["labels"]
+    fitted = fit_protocol(arrays, train, cfg, SHIPPED_KEY, known=True)
+    out = shipped_arrays(
+        fitted,
+        arrays,
+        cfg,
+        str(data["label_frame"]),
+        int(labels["bins"]),
+        float(labels["sigma_bins"]),
+        settings.get("scene") or default_scene(),
+        str((settings.get("parts") or {}).get("units", "auto")),
+    )
+    labelled = {(str(p), str(c)) for p, c in zip(arrays["part"][train], arrays["config_id"][train], strict=True)}
+    mine = [(str(p), str(c)) in labelled for p, c in zip(out["miss_part"], out["miss_config_id"], strict=True)]
+    mine = np.asarray(mine, dtype=bool)
+    return out | {k: out[k][mine] for k in ("miss_part", "miss_config_id", "miss")}
 
 
 def shipped_arrays(
@@ -277,7 +295,6 @@ def main(argv: list[str]) -> int:
     from feeder.labels.dataset import load_dataset
     from feeder.learn.structured_data import structured_arrays
     from feeder.learn.structured_protocol import check_count
-    from feeder.mechanics.fence import default_scene
 
     if args.out.suffix != ".npz":
         raise FeederError(f"--out {args.out}: the file to write ends in .npz")
@@ -294,20 +311,10 @@ def main(argv: list[str]) -> int:
     import torch
 
     torch.set_num_threads(int(cfg.train.threads))
-    settings = json.loads(str(data["settings"]))
     say = lambda msg: print(f"feeder fit-structured: {msg}", file=sys.stderr, flush=True)  # noqa: E731
     arrays = structured_arrays(data, cfg, args.sim_dir, args.parts_dir, args.features_dir, args.cache, say)
     say(f"training on {len(arrays['part'])} configurations of {len(set(arrays['part']))} parts")
-    labels = settings["labels"]
-    out = fit_shipped(
-        arrays,
-        cfg,
-        str(data["label_frame"]),
-        int(labels["bins"]),
-        float(labels["sigma_bins"]),
-        settings.get("scene") or default_scene(),
-        str((settings.get("parts") or {}).get("units", "auto")),
-    )
+    out = fit_shipped(arrays, cfg, data)
     io.write_npz(args.out, **out)
     choice = json.loads(str(out["meta"]))["choice"]
     say(
