@@ -667,3 +667,68 @@ def test_a_bad_basin_count_is_refused(bad):
 
     with pytest.raises(FeederError, match="model.neighbour_basins must be an integer >= 0"):
         with_neighbours(dict(_nb_arrays(), x=np.zeros((5, 3))), np.ones(5, bool), 1, 10.0, basins=bad)
+
+
+def test_window_mass_wraps_around_the_seam():
+    from feeder.learn.structured_data import window_mass
+
+    p = np.array([[0.4, 0.1, 0.0, 0.0, 0.0, 0.0, 0.2, 0.3]])  # 8 bins of 45 deg, centres 22.5, 67.5, ...
+    # around 0 deg within 30: the bins centred 22.5 and 337.5; within 70: 67.5 and 292.5 too
+    assert window_mass(p, np.array([[0.0, 360.0]]), 30.0)[0].tolist() == pytest.approx([0.7, 0.7])
+    assert window_mass(p, np.array([[0.0]]), 70.0)[0].tolist() == pytest.approx([1.0])
+    assert window_mass(p, np.array([[180.0]]), 30.0)[0].tolist() == pytest.approx([0.0])
+
+
+def test_neighbour_candidates_by_hand():
+    from feeder.learn.structured_data import neighbour_candidates
+
+    # 8 bins of 45 deg; row 0 reads row 1's label (basins: 0.6 around bin 0, centre 22.5; 0.4 around bin 4,
+    # centre 202.5); row 1 has no neighbour
+    label = np.array([0.3, 0.1, 0.05, 0.1, 0.2, 0.05, 0.0, 0.2])
+    analytic = np.array([[0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0], [0.5, 0.0, 0.0, 0.0, 0.5, 0.0, 0.0, 0.0]])
+    a = {
+        "pos": np.array([[200.0], [10.0]]),  # row 0's one analytic candidate lies 2.5 deg from the label's second mode
+        "mask": np.array([[True], [True]]),
+        "masses": np.array([[[0.9, 0.8]], [[0.5, 0.4]]]),
+        "base_mass": np.array([[0.9], [0.5]]),
+        "cf": np.array([[[7.0]], [[8.0]]]),
+        "analytic": analytic,
+    }
+    out = neighbour_candidates(a, np.stack([label, label])[:, None, :], np.array([[1], [-1]]), 2, 5.0, 30.0)
+    # the first mode (22.5) is new; the second (202.5) merges with the candidate at 200
+    assert out["pos"].shape == (2, 3) and out["mask"].tolist() == [[True, True, False], [True, False, False]]
+    assert out["pos"][0, 1] == pytest.approx(22.5)
+    assert out["masses"][0, 1].tolist() == [0.0, 0.0] and out["base_mass"][0, 1] == 0.0
+    assert out["masses"][0, 0].tolist() == [0.9, 0.8]
+    # features: the old one, the neighbour's mass within 30 deg, the row's analytic mass there, from a neighbour
+    assert out["cf"][0, 0].tolist() == pytest.approx([7.0, 0.2, 1.0, 0.0])  # 200: only bin 4 (202.5)
+    assert out["cf"][0, 1].tolist() == pytest.approx([0.0, 0.3, 0.0, 1.0])  # 22.5: only bin 0
+    assert out["cf"][1, 0].tolist() == pytest.approx([8.0, 0.0, 0.5, 0.0])  # no neighbour: no neighbour mass
+    assert not out["cf"][:, 2].any() and not out["cf"][1, 1].any()  # padding stays zero
+    assert neighbour_candidates(a, np.zeros((2, 1, 8)), np.array([[1], [-1]]), 0, 5.0, 30.0) is a
+    with pytest.raises(FeederError, match="model.neighbour_candidates must be an integer >= 0"):
+        neighbour_candidates(a, np.zeros((2, 1, 8)), np.array([[1], [-1]]), -1, 5.0, 30.0)
+
+
+def test_neighbour_candidates_leave_an_untrained_network_as_it_was():
+    """New candidates start at the floor logit (start: analytic) and carry no variant masses, so an
+    untrained network of either kind answers nearly as before (within the floor's share)."""
+    pytest.importorskip("torch")
+    from feeder.learn.structured import DIFFUSE, Fitted, NetSettings, make_nets, predict, wrapped_gaussian_bins
+    from feeder.learn.structured_data import neighbour_candidates
+
+    a = _toy_arrays()
+    n = len(a["x"])
+    label = 0.7 * wrapped_gaussian_bins(200.5, 2.0, BINS) + 0.3 * wrapped_gaussian_bins(300.5, 2.0, BINS)
+    whole = dict(a, neighbour_pmf=np.broadcast_to(label, (n, 1, BINS)).copy())
+    more = neighbour_candidates(whole, whole["neighbour_pmf"], np.zeros((n, 1), int), 2, 2.0, 5.0)
+    assert more["mask"].sum() > whole["mask"].sum()
+    for kind in ("variants", "candidates"):
+        s = NetSettings(4, 4.0, 0.5, 1.5, 6.0, kind, "analytic", neighbour_start_logit=0.0)
+        answers = []
+        for arrays in (whole, more):
+            __import__("torch").manual_seed(0)
+            net, ok = make_nets(3, arrays["cf"].shape[2], len(DIFFUSE) + 1, s, n_variants=3)
+            fitted = Fitted(net, ok, 0, 0, math.nan, math.nan, "analytic")
+            answers.append(predict(fitted, arrays, np.arange(4), a["pmf"].mean(axis=0))[0])
+        assert np.abs(answers[0] - answers[1]).sum(axis=1).max() < 0.02, kind

@@ -179,9 +179,10 @@ def test_fit_structured_ships_whole_label_neighbours_only():
     from feeder.config import compose_config
     from feeder.learn.structured_shipped import fit_shipped
 
-    cfg = compose_config("structured", ["model.neighbour_basins=3"])
-    with pytest.raises(FeederError, match="neighbour_basins: 0"):
-        fit_shipped({"part": np.array(["a"])}, cfg, {})
+    for option in ("neighbour_basins", "neighbour_candidates"):
+        cfg = compose_config("structured", [f"model.{option}=3"])
+        with pytest.raises(FeederError, match="neighbour_basins and neighbour_candidates: 0"):
+            fit_shipped({"part": np.array(["a"])}, cfg, {})
 
 
 def test_the_candidates_key_names_a_missing_part_file(tmp_path):

@@ -496,11 +496,98 @@ def neighbour_block(
     return np.column_stack([*feats, part_miss, has_part]), pmfs
 
 
-def with_neighbours(arrays: dict, pool, k: int, near_deg: float, cross: int = 0, basins: int = 0) -> dict:
+def window_mass(pmfs, centres_deg, half_deg: float) -> np.ndarray:
+    """The mass of each PMF row of ``pmfs`` (N, bins) whose bin centres lie within ±``half_deg``
+    (circular) of each of ``centres_deg`` (N, K): (N, K)."""
+    pmfs = np.atleast_2d(np.asarray(pmfs, dtype=np.float64))
+    bins = pmfs.shape[-1]
+    centres = (np.arange(bins) + 0.5) * (360.0 / bins)
+    c = np.asarray(centres_deg, dtype=np.float64)
+    d = np.abs(np.mod(centres[None, None, :] - c[..., None] + 180.0, 360.0) - 180.0)
+    return np.einsum("nkb,nb->nk", (d <= float(half_deg)).astype(np.float64), pmfs)
+
+
+def neighbour_modes(pmf, top: int) -> list[tuple[float, float]]:
+    """The ``top`` largest basins of a label (:func:`feeder.labels.metrics.resting_orientations`)
+    as (mode in degrees, mass)."""
+    from feeder.labels.metrics import resting_orientations
+
+    return resting_orientations(pmf, top=int(top))
+
+
+def neighbour_candidates(arrays: dict, pmfs, idx, top: int, merge_deg: float, window_deg: float) -> dict:
+    """``arrays`` with the modes of each row's neighbouring labels added to its candidates.
+
+    ``pmfs`` (N, J, bins) and ``idx`` (N, J) are the neighbours' labels and rows (−1: missing,
+    :func:`neighbour_block`, :func:`neighbour_rows`). Per row, each present neighbour's ``top``
+    largest basins' modes (:func:`neighbour_modes`) join the candidates unless one lies within
+    ``merge_deg`` of a candidate already there (circular); a new candidate has no variant masses
+    (``masses`` and ``base_mass`` 0, so the ``variants`` network gives it no weight). The candidate
+    features ``cf`` of every candidate, old and new, gain J + 2 columns: each neighbour's label mass
+    within ±``window_deg`` of it (0 for a missing neighbour), the row's analytic mass there, and
+    whether the candidate came from a neighbour. The candidate axis is padded to its old width
+    plus J · ``top`` for every row alike."""
+    if isinstance(top, bool) or int(top) != top or top < 0:
+        raise FeederError(f"model.neighbour_candidates must be an integer >= 0, got {top!r}")
+    if int(top) == 0:
+        return arrays
+    pmfs, idx = np.asarray(pmfs, dtype=np.float64), np.asarray(idx)
+    n, j_count, _ = pmfs.shape
+    pos, mask = np.asarray(arrays["pos"], dtype=np.float64), np.asarray(arrays["mask"], dtype=bool)
+    k_old = pos.shape[1]
+    k_new = k_old + j_count * int(top)
+    new_pos = np.zeros((n, k_new))
+    new_mask = np.zeros((n, k_new), dtype=bool)
+    from_nb = np.zeros((n, k_new))
+    new_pos[:, :k_old], new_mask[:, :k_old] = pos, mask
+    modes_of: dict[int, list] = {}
+    for r in range(n):
+        taken = list(pos[r, mask[r]])
+        slot = k_old
+        for j in range(j_count):
+            nb = int(idx[r, j])
+            if nb < 0:
+                continue
+            if nb not in modes_of:
+                modes_of[nb] = neighbour_modes(pmfs[r, j], int(top))
+            for yaw, _mass in modes_of[nb]:
+                gaps = np.abs(np.mod(np.asarray(taken) - yaw + 180.0, 360.0) - 180.0)
+                if gaps.size and gaps.min() <= float(merge_deg):
+                    continue
+                new_pos[r, slot], new_mask[r, slot], from_nb[r, slot] = yaw, True, 1.0
+                taken.append(yaw)
+                slot += 1
+    extra = [window_mass(pmfs[:, j], new_pos, window_deg) * (idx[:, j] >= 0)[:, None] for j in range(j_count)]
+    extra += [window_mass(arrays["analytic"], new_pos, window_deg), from_nb]
+    pad = lambda a: np.concatenate([a, np.zeros((n, k_new - k_old, *a.shape[2:]))], axis=1)  # noqa: E731
+    cf = np.concatenate([pad(np.asarray(arrays["cf"], dtype=np.float64)), np.stack(extra, axis=2)], axis=2)
+    return dict(
+        arrays,
+        pos=new_pos,
+        mask=new_mask,
+        masses=pad(np.asarray(arrays["masses"], dtype=np.float64)),
+        base_mass=pad(np.asarray(arrays["base_mass"], dtype=np.float64)),
+        cf=np.where(new_mask[..., None], cf, 0.0),
+    )
+
+
+def with_neighbours(
+    arrays: dict,
+    pool,
+    k: int,
+    near_deg: float,
+    cross: int = 0,
+    basins: int = 0,
+    candidates: int = 0,
+    merge_deg: float = 2.0,
+    window_deg: float = 5.0,
+) -> dict:
     """``arrays`` with the neighbour inputs of :func:`neighbour_block` appended to ``x`` and their
     PMFs as ``neighbour_pmf`` (unchanged when ``k`` and ``cross`` are 0). With ``basins`` > 0 each
     neighbour's PMF is split into its largest basins and the rest (:func:`basin_components`):
-    their inputs are appended too, and ``neighbour_offset`` holds their starting logit offsets."""
+    their inputs are appended too, and ``neighbour_offset`` holds their starting logit offsets.
+    With ``candidates`` > 0 the modes of each neighbour's largest basins join the row's candidates
+    (:func:`neighbour_candidates`, with ``merge_deg`` and ``window_deg``)."""
     if int(k) + int(cross) <= 0:
         return arrays
     if not near_deg > 0:
@@ -509,8 +596,11 @@ def with_neighbours(arrays: dict, pool, k: int, near_deg: float, cross: int = 0,
         raise FeederError(f"model.neighbour_basins must be an integer >= 0, got {basins!r}")
     feats, pmfs = neighbour_block(arrays, pool, int(k), float(near_deg), int(cross))
     out = dict(arrays, x=np.concatenate([arrays["x"], feats], axis=1), neighbour_pmf=pmfs)
-    if int(basins) > 0:
+    if int(basins) > 0 or int(candidates) > 0:
         idx, _ = neighbour_rows(arrays, pool, int(k), int(cross))
+    if int(candidates) > 0:
+        out = neighbour_candidates(out, pmfs, idx, int(candidates), float(merge_deg), float(window_deg))
+    if int(basins) > 0:
         b_feats, comps, offsets = basin_components(pmfs, arrays["analytic"], idx, int(basins))
         out.update(x=np.concatenate([out["x"], b_feats], axis=1), neighbour_pmf=comps, neighbour_offset=offsets)
     return out

@@ -101,14 +101,14 @@ def fit_protocol(arrays: dict, train: np.ndarray, cfg, key: str, known: bool = T
     # rows of its own (validation) part, a scored row every training row (as a user's known part)
     k, cross = neighbour_count(cfg), neighbour_count(cfg, "cross_neighbours")
     near = float(cfg.model.neighbour_near_deg)
-    basins = cfg.model.get("neighbour_basins", 0)
-    a_fit = with_neighbours(arrays, train & ~is_val, k, near, cross, basins)
-    a_val = with_neighbours(arrays, train & is_val & bool(known), k, near, cross, basins)
+    nb_opts = neighbour_options(cfg)
+    a_fit = with_neighbours(arrays, train & ~is_val, k, near, cross, **nb_opts)
+    a_val = with_neighbours(arrays, train & is_val & bool(known), k, near, cross, **nb_opts)
     x = a_fit["x"]
     mu, sd = x[fit_ok].mean(axis=0), x[fit_ok].std(axis=0)
     sd = np.where(sd > 0, sd, 1.0)
     scaled, scaled_val = dict(a_fit, x=(x - mu) / sd), dict(a_val, x=(a_val["x"] - mu) / sd)
-    a_eval = with_neighbours(arrays, train, k, near, cross, basins)
+    a_eval = with_neighbours(arrays, train, k, near, cross, **nb_opts)
     scaled_eval = dict(a_eval, x=(a_eval["x"] - mu) / sd)
     mean_pmf = arrays["pmf"][fit_rows].mean(axis=0)
     net, tr = _settings(cfg)
@@ -166,7 +166,8 @@ def fit_protocol(arrays: dict, train: np.ndarray, cfg, key: str, known: bool = T
         "ok_steps": float(np.mean([f.ok_steps for f in fits])),
         "neighbours": k,
         "cross_neighbours": cross,
-        "neighbour_basins": int(basins),
+        "neighbour_basins": int(nb_opts["basins"]),
+        "neighbour_candidates": int(nb_opts["candidates"]),
         "val_neighbours": bool(known and k + cross > 0),
     }
     return {
@@ -189,6 +190,18 @@ def neighbour_count(cfg, key: str = "neighbours") -> int:
     if isinstance(k, bool) or not isinstance(k, int) or k < 0:
         raise FeederError(f"model.{key} must be an integer >= 0, got {k!r}")
     return int(k)
+
+
+def neighbour_options(cfg) -> dict:
+    """The keyword arguments of :func:`feeder.learn.structured_data.with_neighbours` beyond the
+    neighbour counts: ``model.neighbour_basins``, ``model.neighbour_candidates`` (each 0 when
+    absent) and the candidates' ``merge_deg`` and ``window_deg``."""
+    return {
+        "basins": cfg.model.get("neighbour_basins", 0),
+        "candidates": cfg.model.get("neighbour_candidates", 0),
+        "merge_deg": float(cfg.candidates.merge_deg),
+        "window_deg": float(cfg.candidates.window_deg),
+    }
 
 
 def baseline_pmfs(arrays: dict, train: np.ndarray, rows, prior_grids) -> dict[str, np.ndarray]:

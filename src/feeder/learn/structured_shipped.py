@@ -62,8 +62,10 @@ def fit_shipped(arrays: dict, cfg, data: dict, train=None) -> dict:
     from feeder.learn.structured_protocol import fit_protocol
     from feeder.mechanics.fence import default_scene
 
-    if int(cfg.model.get("neighbour_basins", 0)):
-        raise FeederError("fit-structured ships whole-label neighbours only (model.neighbour_basins: 0)")
+    if int(cfg.model.get("neighbour_basins", 0)) or int(cfg.model.get("neighbour_candidates", 0)):
+        raise FeederError(
+            "fit-structured ships whole-label neighbours only (model.neighbour_basins and neighbour_candidates: 0)"
+        )
     train = np.ones(len(arrays["part"]), dtype=bool) if train is None else np.asarray(train, dtype=bool)
     settings = json.loads(str(data["settings"]))
     labels = settings["labels"]
