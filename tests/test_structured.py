@@ -732,3 +732,78 @@ def test_neighbour_candidates_leave_an_untrained_network_as_it_was():
             fitted = Fitted(net, ok, 0, 0, math.nan, math.nan, "analytic")
             answers.append(predict(fitted, arrays, np.arange(4), a["pmf"].mean(axis=0))[0])
         assert np.abs(answers[0] - answers[1]).sum(axis=1).max() < 0.02, kind
+
+
+def test_start_grid_drops_pick_evenly_spread_start_yaws():
+    from feeder.learn.structured_data import start_grid_drops
+
+    design = {"n0": 8, "period_deg": 180.0, "offset_deg": 5.0}  # start yaws 5, 27.5, 50, ..., 162.5
+    initial = np.array([5.0, 16.25, 27.5, 50.0, 72.5, 95.0, 117.5, 140.0, 162.5, 100.0])  # 16.25, 100: refined
+    assert start_grid_drops(initial, design, 4).tolist() == [0, 3, 5, 7]  # j = 0, 2, 4, 6: 5, 50, 95, 140
+    assert start_grid_drops(initial, design, 1).tolist() == [0]
+    assert start_grid_drops(np.delete(initial, 3), design, 4).tolist() == [0, 4, 6]  # 50 never ran: skipped
+    for bad in (0, 9):
+        with pytest.raises(FeederError, match="model.drops must be an integer in 1..n0"):
+            start_grid_drops(initial, design, bad)
+
+
+def test_drops_label_turns_into_the_label_frame_and_copies_over_the_symmetry():
+    from feeder.learn.structured_data import drops_label
+
+    # two drops at 10 and 100 (part frame) of a part with period 180, label frame 45: 55, 145, 235, 325
+    p = drops_label(np.array([10.2, 100.2]), 180.0, 45.0, 360, 0.0)
+    assert np.flatnonzero(p).tolist() == [55, 145, 235, 325] and p.sum() == pytest.approx(1.0)
+    assert p[55] == pytest.approx(0.25)
+    q = drops_label(np.array([359.9]), 360.0, 0.0, 360, 2.0)  # smoothed across the seam
+    assert q.sum() == pytest.approx(1.0) and q[0] == pytest.approx(q[358]) and q[0] > q[5]
+
+
+def test_with_drops_adds_a_component_inputs_and_candidates():
+    from feeder.learn.structured_data import with_drops
+
+    a = _toy_arrays(n=4)
+    bins = a["pmf"].shape[1]
+    drop = np.zeros((4, bins))
+    drop[:, 250] = 1.0  # the drops ended at 250.5, far from both candidates (40.5, 130.5)
+    drop[3] = a["analytic"][3]  # row 3: no ok drop
+    a = dict(a, drop_pmf=drop, drop_ok=np.array([1.0, 0.5, 0.25, 0.0]), drop_has=np.array([1.0, 1.0, 1.0, 0.0]))
+    b = with_drops(a, 2, 2.0, 5.0)
+    assert b["x"].shape == (4, 3 + 2) and b["x"][:, -2:].tolist() == [[1, 1], [0.5, 1], [0.25, 1], [0, 0]]
+    assert b["neighbour_pmf"].shape == (4, 1, bins) and np.array_equal(b["neighbour_pmf"][:, 0], drop)
+    assert b["mask"].sum(axis=1).tolist() == [3, 3, 3, 2]  # one new candidate where there are drops
+    assert b["pos"][0, 2] == pytest.approx(250.5)
+    assert b["cf"][0, 2, -3:].tolist() == pytest.approx([1.0, 0.0, 1.0])  # drop mass, analytic mass, new
+    c = with_drops(dict(a, neighbour_pmf=a["pmf"][:, None, :]), 0, 2.0, 5.0)  # after the neighbours, no candidates
+    assert c["neighbour_pmf"].shape == (4, 2, bins) and c["mask"].shape == a["mask"].shape
+
+
+@pytest.mark.parametrize("bad", [-1, 1.5, "two", True])
+def test_a_bad_drop_count_is_refused(bad):
+    from omegaconf import OmegaConf
+
+    from feeder.learn.structured_protocol import drop_count
+
+    for key in ("drops", "drop_candidates"):
+        with pytest.raises(FeederError, match=f"model.{key} must be an integer >= 0"):
+            drop_count(OmegaConf.create({"model": {key: bad}}), key)
+    assert drop_count(OmegaConf.create({"model": {}})) == 0
+
+
+def test_the_protocol_reads_each_configurations_drops_and_compares_with_them():
+    """With drops read (the truth itself here, so that a network that uses them must learn to), every
+    experiment compares the structured predictor with the drops' own label, and the fits record it."""
+    pytest.importorskip("torch")
+    from feeder.config import compose_config
+    from feeder.learn.prior import grids
+    from feeder.learn.structured_protocol import DROPS, comparison_table, run_protocol
+
+    cfg = compose_config("structured", [*TOY_PROTOCOL, "protocol.bootstrap.resamples=50", "model.drops=4"])
+    a = _toy_library()
+    n = len(a["part"])
+    a = dict(a, drop_pmf=np.where(a["kept"][:, None], a["pmf"], a["analytic"]), drop_ok=a["ok"], drop_has=np.ones(n))
+    long, choices = run_protocol(a, cfg, grids(compose_config("train")["prior"]))
+    assert set(long[long.predictor == DROPS].experiment) == {"unseen_groupkfold", "unseen_locked", "test", "fences"}
+    assert (long[(long.predictor == DROPS) & long.kept].cw1 < 1e-9).all()  # the drops' label is the truth here
+    table = comparison_table(long, {"resamples": 50, "level": 0.95, "seed": 0})
+    assert set(table[table.baseline == DROPS].experiment) == {"unseen_groupkfold", "unseen_locked", "test", "fences"}
+    assert set(choices.drops) == {4}

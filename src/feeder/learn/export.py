@@ -95,8 +95,9 @@ def add_model_option(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--model",
         type=Path,
-        help="`study` (the default): the study's simulated label of a part and configuration it simulated, "
-        "else the label of the part's nearest simulated angle within the gate, else the analytic push PMF "
+        help="`study` (the default): the study's simulated label of a part and configuration it simulated; "
+        "for a part it simulated, at another configuration, the structured predictor from that part's labels "
+        "(else the label of its nearest simulated angle within the gate); else the analytic push PMF "
         "(models/study, written by `feeder export-study`; needs --part as an STL); `analytic`: the untrained "
         "analytic push PMF alone, the best answer for a new part by circular W1 (docs/results.md); or a trained "
         f"model directory, e.g. {shipped_model_dir()} (the paper's Model 3, `feeder export-model`; "

@@ -604,3 +604,79 @@ def with_neighbours(
         b_feats, comps, offsets = basin_components(pmfs, arrays["analytic"], idx, int(basins))
         out.update(x=np.concatenate([out["x"], b_feats], axis=1), neighbour_pmf=comps, neighbour_offset=offsets)
     return out
+
+
+# ----------------------------------------------------------------------------------------------
+# A few simulated drops of the configuration itself (a predictor between the model and the simulator)
+# ----------------------------------------------------------------------------------------------
+DROP_FEATURES = ("drops_ok_share", "drops_have_ok")  # appended to x by with_drops
+
+
+def start_grid_drops(initial_deg, design: dict, k: int) -> np.ndarray:
+    """Indices of the drops at ``k`` start-grid yaws of an adaptive design spread evenly over its
+    period: its ``n0`` start yaws are ``offset_deg + j · period_deg / n0`` and the picks are
+    j = 0, n0/k, 2 n0/k, ... (rounded down), the drops a user's budget of k would begin with. A
+    start yaw without its drop (a design that did not run it) is skipped."""
+    n0, period, offset = int(design["n0"]), float(design["period_deg"]), float(design["offset_deg"])
+    if int(k) < 1 or int(k) > n0:
+        raise FeederError(f"model.drops must be an integer in 1..n0 ({n0}), got {k!r}")
+    initial = np.asarray(initial_deg, dtype=np.float64)
+    out = []
+    for j in np.unique(np.linspace(0, n0, int(k), endpoint=False).astype(int)):
+        gap = np.abs(np.mod(initial - (offset + j * period / n0) + 180.0, 360.0) - 180.0)
+        if gap.size and gap.min() < 1e-6:
+            out.append(int(np.argmin(gap)))
+    return np.asarray(out, dtype=np.int64)
+
+
+def drops_label(final_deg, period_deg: float, frame_deg: float, bins: int, sigma_bins: float) -> np.ndarray:
+    """The label of a few drops' final yaws (part frame; equal weights), in the label frame
+    ``frame_deg`` and copied over the ``360 / period_deg`` symmetric turns, smoothed by
+    ``sigma_bins`` as the labels are."""
+    from feeder.circular import FULL_TURN_DEG, wrapped_gaussian_smooth
+    from feeder.mechanics.pmf import bin_masses
+
+    copies = np.arange(int(round(FULL_TURN_DEG / float(period_deg)))) * float(period_deg)
+    yaws = np.mod((np.asarray(final_deg, np.float64) + frame_deg)[:, None] + copies[None, :], FULL_TURN_DEG).ravel()
+    hist = bin_masses(yaws, np.full(yaws.size, 1.0 / yaws.size), int(bins))
+    return wrapped_gaussian_smooth(hist, float(sigma_bins)) if sigma_bins > 0 else hist
+
+
+def drop_arrays(arrays: dict, sim_dir, k: int, bins: int, sigma_bins: float) -> dict:
+    """``arrays`` with, per row, the label of ``k`` start-grid drops of its simulation file
+    (:func:`start_grid_drops`, :func:`drops_label`) as ``drop_pmf`` (the row's analytic PMF where
+    none of them is ok), their ok share ``drop_ok`` and whether any is ok ``drop_has``."""
+    from feeder.sim.record import load_sim
+
+    n = len(arrays["part"])
+    pmf, ok, has = np.array(arrays["analytic"], dtype=np.float64), np.zeros(n), np.zeros(n)
+    for i, (part, cid) in enumerate(zip(arrays["part"], arrays["config_id"], strict=True)):
+        rec = load_sim(Path(sim_dir) / str(part) / f"{cid}.npz", min_ok_drops=0)
+        design = rec.meta["design"]
+        pick = start_grid_drops(rec.initial, design, int(k))
+        good = pick[rec.ok[pick]]
+        ok[i] = good.size / max(pick.size, 1)
+        if good.size:
+            has[i] = 1.0
+            pmf[i] = drops_label(rec.yaws[good], design["period_deg"], float(arrays["frame_deg"][i]), bins, sigma_bins)
+    return dict(arrays, drop_pmf=pmf, drop_ok=ok, drop_has=has)
+
+
+def with_drops(arrays: dict, top: int, merge_deg: float, window_deg: float) -> dict:
+    """``arrays`` (with :func:`drop_arrays`) whose rows read their own few drops: the drops'
+    label as one more diffuse component (after the neighbours', starting as they do), its ok share
+    and presence as inputs (:data:`DROP_FEATURES`), and the modes of its ``top`` largest basins as
+    candidates with the drops' mass near every candidate as a feature (:func:`neighbour_candidates`)."""
+    drop = np.asarray(arrays["drop_pmf"], dtype=np.float64)[:, None, :]
+    n = drop.shape[0]
+    extra = arrays.get("neighbour_pmf")
+    comps = drop if extra is None else np.concatenate([np.asarray(extra, dtype=np.float64), drop], axis=1)
+    out = dict(
+        arrays,
+        x=np.concatenate([arrays["x"], np.column_stack([arrays["drop_ok"], arrays["drop_has"]])], axis=1),
+        neighbour_pmf=comps,
+    )
+    if "neighbour_offset" in arrays:
+        out["neighbour_offset"] = np.concatenate([arrays["neighbour_offset"], np.zeros((n, 1))], axis=1)
+    present = np.where(np.asarray(arrays["drop_has"]) > 0, np.arange(n), -1)[:, None]  # each row its own drops
+    return neighbour_candidates(out, drop, present, int(top), float(merge_deg), float(window_deg))

@@ -28,6 +28,7 @@ later statistic needs no rerun), ``structured_protocol.csv`` / ``.md`` (the comp
 from __future__ import annotations
 
 import argparse
+import json
 import logging
 import time
 from pathlib import Path
@@ -46,6 +47,7 @@ PRIOR = "analytic_prior"
 MEAN = "mean_pmf"
 M3 = "m3"
 GATED = "neighbour_gated"  # the part's nearest labelled angle within a gate, else the analytic PMF
+DROPS = "drops"  # the label of the configuration's own few start-grid drops (model.drops > 0)
 
 
 # ----------------------------------------------------------------------------------------------
@@ -87,7 +89,7 @@ def fit_protocol(arrays: dict, train: np.ndarray, cfg, key: str, known: bool = T
     its part's other validation rows as neighbours; otherwise (unseen parts) validation rows see
     none, as the scored parts will not, and the choice and early stopping mirror that."""
     from feeder.learn.structured import fit
-    from feeder.learn.structured_data import with_neighbours
+    from feeder.learn.structured_data import with_drops, with_neighbours
 
     base = int(cfg.seed)
     val_parts = pick_parts(arrays["part"][train], float(cfg.protocol.val_part_fraction), derived_seed(base, key), "val")
@@ -102,13 +104,20 @@ def fit_protocol(arrays: dict, train: np.ndarray, cfg, key: str, known: bool = T
     k, cross = neighbour_count(cfg), neighbour_count(cfg, "cross_neighbours")
     near = float(cfg.model.neighbour_near_deg)
     nb_opts = neighbour_options(cfg)
-    a_fit = with_neighbours(arrays, train & ~is_val, k, near, cross, **nb_opts)
-    a_val = with_neighbours(arrays, train & is_val & bool(known), k, near, cross, **nb_opts)
+
+    def inputs(pool):  # the part's neighbours in pool, then the row's own drops (when read)
+        a = with_neighbours(arrays, pool, k, near, cross, **nb_opts)
+        if "drop_pmf" not in arrays:
+            return a
+        return with_drops(a, drop_count(cfg, "drop_candidates"), nb_opts["merge_deg"], nb_opts["window_deg"])
+
+    a_fit = inputs(train & ~is_val)
+    a_val = inputs(train & is_val & bool(known))
     x = a_fit["x"]
     mu, sd = x[fit_ok].mean(axis=0), x[fit_ok].std(axis=0)
     sd = np.where(sd > 0, sd, 1.0)
     scaled, scaled_val = dict(a_fit, x=(x - mu) / sd), dict(a_val, x=(a_val["x"] - mu) / sd)
-    a_eval = with_neighbours(arrays, train, k, near, cross, **nb_opts)
+    a_eval = inputs(train)
     scaled_eval = dict(a_eval, x=(a_eval["x"] - mu) / sd)
     mean_pmf = arrays["pmf"][fit_rows].mean(axis=0)
     net, tr = _settings(cfg)
@@ -168,6 +177,7 @@ def fit_protocol(arrays: dict, train: np.ndarray, cfg, key: str, known: bool = T
         "cross_neighbours": cross,
         "neighbour_basins": int(nb_opts["basins"]),
         "neighbour_candidates": int(nb_opts["candidates"]),
+        "drops": drop_count(cfg),
         "val_neighbours": bool(known and k + cross > 0),
     }
     return {
@@ -190,6 +200,13 @@ def neighbour_count(cfg, key: str = "neighbours") -> int:
     if isinstance(k, bool) or not isinstance(k, int) or k < 0:
         raise FeederError(f"model.{key} must be an integer >= 0, got {k!r}")
     return int(k)
+
+
+def drop_count(cfg, key: str = "drops") -> int:
+    """``model.drops`` (the configuration's own start-grid drops read; 0: none) or
+    ``model.drop_candidates`` (the largest basins of their label made candidates), 0 when absent;
+    a one-line FeederError unless an integer >= 0."""
+    return neighbour_count(cfg, key) if key in cfg.model else 0
 
 
 def neighbour_options(cfg) -> dict:
@@ -324,9 +341,9 @@ def run_job(job: tuple, arrays: dict, cfg, prior_grids, m3_pmf: dict | None, loc
     rows = []
     for experiment, mask in scored.items():
         idx = np.flatnonzero(mask)
-        extra = None
+        extra = {DROPS: arrays["drop_pmf"][idx]} if "drop_pmf" in arrays else {}
         if kind == "main":
-            extra = {GATED: gated_neighbour(arrays, train, idx, list(cfg.neighbour.gates_deg))}
+            extra[GATED] = gated_neighbour(arrays, train, idx, list(cfg.neighbour.gates_deg))
             if m3_pmf is not None and index == 0:
                 nan_row = np.full(arrays["pmf"].shape[1], np.nan)
                 keys = zip(arrays["part"][idx], arrays["config_id"][idx], strict=True)
@@ -425,7 +442,7 @@ def comparison_table(long: pd.DataFrame, bootstrap: dict, m3_parts: pd.Series | 
             model = unit_scores(long, experiment, STRUCTURED, metric)
             seeds = long[(long.experiment == experiment) & (long.predictor == STRUCTURED)]
             present = set(long[long.experiment == experiment].predictor)
-            baselines = [ANALYTIC, PRIOR, MEAN] + [b for b in (GATED, M3) if b in present]
+            baselines = [ANALYTIC, PRIOR, MEAN] + [b for b in (GATED, M3, DROPS) if b in present]
             if metric == "ok_abs_err":
                 baselines = [ANALYTIC, MEAN]
             series = {b: unit_scores(long, experiment, b, metric) for b in baselines}
@@ -504,11 +521,12 @@ def main(argv: list[str]) -> int:
     from feeder.config import compose_config
     from feeder.labels.dataset import load_dataset
     from feeder.learn.prior import grids
-    from feeder.learn.structured_data import structured_arrays
+    from feeder.learn.structured_data import drop_arrays, structured_arrays
 
     args = _parser().parse_args(argv)
     cfg = compose_config("structured", args.overrides)
     check_workers(cfg.train.workers)  # before the data and the candidates, not after
+    drop_count(cfg), drop_count(cfg, "drop_candidates")
     prior_grids = grids(compose_config("train")["prior"])
     import torch
 
@@ -519,6 +537,9 @@ def main(argv: list[str]) -> int:
     cache = args.cache or args.dataset.with_name("structured_candidates.npz")
     say = lambda m: print(m, flush=True)  # noqa: E731
     arrays = structured_arrays(data, cfg, args.sim_dir, args.parts_dir, args.features_dir, cache, say)
+    if drop_count(cfg):  # each configuration's own first drops, read from its simulation file
+        labels = json.loads(str(data["settings"]))["labels"]
+        arrays = drop_arrays(arrays, args.sim_dir, drop_count(cfg), int(labels["bins"]), float(labels["sigma_bins"]))
     m3 = m3_predictions(data, args.m3_model) if args.m3_model else None
     long, choices = run_protocol(arrays, cfg, prior_grids, m3, progress=say, workers=cfg.train.workers)
     m3_parts = m3_part_scores(args.m3_groupkfold) if args.m3_groupkfold else None

@@ -66,6 +66,8 @@ def fit_shipped(arrays: dict, cfg, data: dict, train=None) -> dict:
         raise FeederError(
             "fit-structured ships whole-label neighbours only (model.neighbour_basins and neighbour_candidates: 0)"
         )
+    if int(cfg.model.get("drops", 0)):
+        raise FeederError("fit-structured ships a predictor that simulates nothing (model.drops: 0)")
     train = np.ones(len(arrays["part"]), dtype=bool) if train is None else np.asarray(train, dtype=bool)
     settings = json.loads(str(data["settings"]))
     labels = settings["labels"]
