@@ -579,15 +579,16 @@ def with_neighbours(
     cross: int = 0,
     basins: int = 0,
     candidates: int = 0,
-    merge_deg: float = 2.0,
-    window_deg: float = 5.0,
+    merge_deg: float | None = None,
+    window_deg: float | None = None,
 ) -> dict:
     """``arrays`` with the neighbour inputs of :func:`neighbour_block` appended to ``x`` and their
     PMFs as ``neighbour_pmf`` (unchanged when ``k`` and ``cross`` are 0). With ``basins`` > 0 each
     neighbour's PMF is split into its largest basins and the rest (:func:`basin_components`):
     their inputs are appended too, and ``neighbour_offset`` holds their starting logit offsets.
     With ``candidates`` > 0 the modes of each neighbour's largest basins join the row's candidates
-    (:func:`neighbour_candidates`, with ``merge_deg`` and ``window_deg``)."""
+    (:func:`neighbour_candidates`, with ``merge_deg`` and ``window_deg``: the settings of
+    ``candidates`` in ``config/hydra/structured.yaml``, needed then)."""
     if int(k) + int(cross) <= 0:
         return arrays
     if not near_deg > 0:
@@ -599,6 +600,8 @@ def with_neighbours(
     if int(basins) > 0 or int(candidates) > 0:
         idx, _ = neighbour_rows(arrays, pool, int(k), int(cross))
     if int(candidates) > 0:
+        if merge_deg is None or window_deg is None:
+            raise FeederError("neighbour candidates need candidates.merge_deg and candidates.window_deg")
         out = neighbour_candidates(out, pmfs, idx, int(candidates), float(merge_deg), float(window_deg))
     if int(basins) > 0:
         b_feats, comps, offsets = basin_components(pmfs, arrays["analytic"], idx, int(basins))
