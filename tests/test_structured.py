@@ -741,19 +741,24 @@ def test_start_grid_drops_pick_evenly_spread_start_yaws():
     initial = np.array([5.0, 16.25, 27.5, 50.0, 72.5, 95.0, 117.5, 140.0, 162.5, 100.0])  # 16.25, 100: refined
     assert start_grid_drops(initial, design, 4).tolist() == [0, 3, 5, 7]  # j = 0, 2, 4, 6: 5, 50, 95, 140
     assert start_grid_drops(initial, design, 1).tolist() == [0]
-    assert start_grid_drops(np.delete(initial, 3), design, 4).tolist() == [0, 4, 6]  # 50 never ran: skipped
+    with pytest.raises(FeederError, match="start-grid yaw 50.000000 deg has no drop"):
+        start_grid_drops(np.delete(initial, 3), design, 4)
     for bad in (0, 9):
         with pytest.raises(FeederError, match="model.drops must be an integer in 1..n0"):
             start_grid_drops(initial, design, bad)
+    for bad_design, bad_initial in (({}, initial), (None, initial), (design, None)):
+        with pytest.raises(FeederError, match="the adaptive design's start grid and initial yaws"):
+            start_grid_drops(bad_initial, bad_design, 4)
 
 
 def test_drops_label_turns_into_the_label_frame_and_copies_over_the_symmetry():
     from feeder.learn.structured_data import drops_label
 
-    # two drops at 10 and 100 (part frame) of a part with period 180, label frame 45: 55, 145, 235, 325
-    p = drops_label(np.array([10.2, 100.2]), 180.0, 45.0, 360, 0.0)
-    assert np.flatnonzero(p).tolist() == [55, 145, 235, 325] and p.sum() == pytest.approx(1.0)
-    assert p[55] == pytest.approx(0.25)
+    # two drops at 10 and 100 (part frame) of a part with period 180, label frame 30 (label = part + 30):
+    # 40, 130, 220, 310 (a frame of -30 would give 340, 70, 160, 250)
+    p = drops_label(np.array([10.2, 100.2]), 180.0, 30.0, 360, 0.0)
+    assert np.flatnonzero(p).tolist() == [40, 130, 220, 310] and p.sum() == pytest.approx(1.0)
+    assert p[40] == pytest.approx(0.25)
     q = drops_label(np.array([359.9]), 360.0, 0.0, 360, 2.0)  # smoothed across the seam
     assert q.sum() == pytest.approx(1.0) and q[0] == pytest.approx(q[358]) and q[0] > q[5]
 
@@ -764,17 +769,57 @@ def test_with_drops_adds_a_component_inputs_and_candidates():
     a = _toy_arrays(n=4)
     bins = a["pmf"].shape[1]
     drop = np.zeros((4, bins))
-    drop[:, 250] = 1.0  # the drops ended at 250.5, far from both candidates (40.5, 130.5)
+    drop[[0, 1, 2], [250, 200, 131]] = 1.0  # rows' drops at 250.5, 200.5 (far from 40.5, 130.5) and 131.5 (merged)
     drop[3] = a["analytic"][3]  # row 3: no ok drop
     a = dict(a, drop_pmf=drop, drop_ok=np.array([1.0, 0.5, 0.25, 0.0]), drop_has=np.array([1.0, 1.0, 1.0, 0.0]))
     b = with_drops(a, 2, 2.0, 5.0)
     assert b["x"].shape == (4, 3 + 2) and b["x"][:, -2:].tolist() == [[1, 1], [0.5, 1], [0.25, 1], [0, 0]]
     assert b["neighbour_pmf"].shape == (4, 1, bins) and np.array_equal(b["neighbour_pmf"][:, 0], drop)
-    assert b["mask"].sum(axis=1).tolist() == [3, 3, 3, 2]  # one new candidate where there are drops
-    assert b["pos"][0, 2] == pytest.approx(250.5)
+    assert b["mask"].sum(axis=1).tolist() == [3, 3, 2, 2]  # a new candidate per row's own drops, unless merged
+    assert b["pos"][:2, 2].tolist() == pytest.approx([250.5, 200.5])
     assert b["cf"][0, 2, -3:].tolist() == pytest.approx([1.0, 0.0, 1.0])  # drop mass, analytic mass, new
-    c = with_drops(dict(a, neighbour_pmf=a["pmf"][:, None, :]), 0, 2.0, 5.0)  # after the neighbours, no candidates
-    assert c["neighbour_pmf"].shape == (4, 2, bins) and c["mask"].shape == a["mask"].shape
+    assert b["cf"][2, 1, -3:].tolist() == pytest.approx([1.0, b["cf"][2, 1, -2], 0.0])  # 131.5 lies by 130.5
+    assert b["cf"][2, 1, -2] > 0.4
+    c = with_drops(dict(a, neighbour_pmf=a["pmf"][:, None, :], neighbour_offset=np.ones((4, 1))), 0, 2.0, 5.0)
+    assert c["neighbour_pmf"].shape == (4, 2, bins) and c["mask"].shape == a["mask"].shape  # no candidates
+    assert c["neighbour_offset"].tolist() == [[1.0, 0.0]] * 4  # the drops' component starts at no offset
+
+
+def test_drop_arrays_read_the_start_grid_of_each_simulation_file(tmp_path):
+    import json
+
+    from feeder.learn.structured_data import drop_arrays
+
+    design = {"n0": 4, "period_deg": 360.0, "offset_deg": 10.0}  # start yaws 10, 100, 190, 280
+    files = {
+        ("p", "straight30_none"): (
+            [10.0, 55.0, 100.0, 190.0, 280.0],
+            [20.5, 0, 110.5, 200.5, 290.5],
+            "ok jammed ok ok ok",
+        ),
+        ("p", "straight40_none"): ([10.0, 100.0, 190.0, 280.0], [0, 0, 0, 0], "jammed jammed jammed fell_off"),
+    }
+    for (part, cid), (initial, final, status) in files.items():
+        (tmp_path / part).mkdir(exist_ok=True)
+        np.savez(
+            tmp_path / part / f"{cid}.npz",
+            initial_yaw_deg=np.array(initial),
+            final_yaw_deg=np.array(final, dtype=float),
+            status=np.array(status.split()),
+            meta=np.array(json.dumps({"design": design})),
+        )
+    arrays = {
+        "part": np.array(["p", "p"]),
+        "config_id": np.array(["straight30_none", "straight40_none"]),
+        "frame_deg": np.array([0.0, 0.0]),
+        "analytic": np.full((2, 360), 1 / 360),
+    }
+    out = drop_arrays(arrays, tmp_path, 2, 360, 0.0)  # yaws 10 and 190: the first's drops ended at 20.5, 200.5
+    assert np.flatnonzero(out["drop_pmf"][0]).tolist() == [20, 200]
+    assert out["drop_ok"].tolist() == [1.0, 0.0] and out["drop_has"].tolist() == [1.0, 0.0]
+    assert np.array_equal(out["drop_pmf"][1], arrays["analytic"][1])  # no ok drop: the analytic PMF
+    with pytest.raises(FeederError, match="straight30_none.npz: model.drops must be an integer in 1..n0"):
+        drop_arrays(arrays, tmp_path, 5, 360, 0.0)
 
 
 @pytest.mark.parametrize("bad", [-1, 1.5, "two", True])
@@ -783,10 +828,18 @@ def test_a_bad_drop_count_is_refused(bad):
 
     from feeder.learn.structured_protocol import drop_count
 
-    for key in ("drops", "drop_candidates"):
+    for key in ("drops", "drop_candidates", "neighbour_basins", "neighbour_candidates"):
         with pytest.raises(FeederError, match=f"model.{key} must be an integer >= 0"):
             drop_count(OmegaConf.create({"model": {key: bad}}), key)
     assert drop_count(OmegaConf.create({"model": {}})) == 0
+
+
+@pytest.mark.parametrize("bad", [-1, 1.5, True])
+def test_a_bad_neighbour_candidate_count_is_refused_before_any_work(bad, tmp_path):
+    from feeder.learn.structured_protocol import main
+
+    with pytest.raises(FeederError, match="model.neighbour_candidates must be an integer >= 0"):
+        main(["--dataset", str(tmp_path / "missing.npz"), f"model.neighbour_candidates={bad}"])
 
 
 def test_the_protocol_reads_each_configurations_drops_and_compares_with_them():

@@ -526,7 +526,9 @@ def neighbour_candidates(arrays: dict, pmfs, idx, top: int, merge_deg: float, wi
     features ``cf`` of every candidate, old and new, gain J + 2 columns: each neighbour's label mass
     within ±``window_deg`` of it (0 for a missing neighbour), the row's analytic mass there, and
     whether the candidate came from a neighbour. The candidate axis is padded to its old width
-    plus J · ``top`` for every row alike."""
+    plus J · ``top`` for every row alike. A neighbour's modes are computed once per row index in
+    ``idx``: every row that reads row j must be given row j's label (as :func:`neighbour_block`
+    does; the drops pass each row's own index)."""
     if isinstance(top, bool) or int(top) != top or top < 0:
         raise FeederError(f"model.neighbour_candidates must be an integer >= 0, got {top!r}")
     if int(top) == 0:
@@ -613,22 +615,30 @@ def with_neighbours(
 # A few simulated drops of the configuration itself (a predictor between the model and the simulator)
 # ----------------------------------------------------------------------------------------------
 DROP_FEATURES = ("drops_ok_share", "drops_have_ok")  # appended to x by with_drops
+START_YAW_TOL_DEG = 1e-6  # a drop's initial yaw within this of a start-grid yaw is that yaw's drop (float noise)
 
 
 def start_grid_drops(initial_deg, design: dict, k: int) -> np.ndarray:
     """Indices of the drops at ``k`` start-grid yaws of an adaptive design spread evenly over its
     period: its ``n0`` start yaws are ``offset_deg + j · period_deg / n0`` and the picks are
     j = 0, n0/k, 2 n0/k, ... (rounded down), the drops a user's budget of k would begin with. A
-    start yaw without its drop (a design that did not run it) is skipped."""
-    n0, period, offset = int(design["n0"]), float(design["period_deg"]), float(design["offset_deg"])
+    one-line FeederError when ``design`` is not an adaptive design's or a start yaw has no drop."""
+    try:
+        n0, period, offset = int(design["n0"]), float(design["period_deg"]), float(design["offset_deg"])
+    except (KeyError, TypeError, ValueError):
+        n0 = None
+    if n0 is None or initial_deg is None:
+        raise FeederError("model.drops reads the adaptive design's start grid and initial yaws: the file has none")
     if int(k) < 1 or int(k) > n0:
         raise FeederError(f"model.drops must be an integer in 1..n0 ({n0}), got {k!r}")
     initial = np.asarray(initial_deg, dtype=np.float64)
     out = []
     for j in np.unique(np.linspace(0, n0, int(k), endpoint=False).astype(int)):
-        gap = np.abs(np.mod(initial - (offset + j * period / n0) + 180.0, 360.0) - 180.0)
-        if gap.size and gap.min() < 1e-6:
-            out.append(int(np.argmin(gap)))
+        target = offset + j * period / n0
+        gap = np.abs(np.mod(initial - target + 180.0, 360.0) - 180.0)
+        if not gap.size or gap.min() >= START_YAW_TOL_DEG:
+            raise FeederError(f"the start-grid yaw {target:.6f} deg has no drop")
+        out.append(int(np.argmin(gap)))
     return np.asarray(out, dtype=np.int64)
 
 
@@ -654,11 +664,15 @@ def drop_arrays(arrays: dict, sim_dir, k: int, bins: int, sigma_bins: float) -> 
     n = len(arrays["part"])
     pmf, ok, has = np.array(arrays["analytic"], dtype=np.float64), np.zeros(n), np.zeros(n)
     for i, (part, cid) in enumerate(zip(arrays["part"], arrays["config_id"], strict=True)):
-        rec = load_sim(Path(sim_dir) / str(part) / f"{cid}.npz", min_ok_drops=0)
+        path = Path(sim_dir) / str(part) / f"{cid}.npz"
+        rec = load_sim(path, min_ok_drops=0)
+        try:
+            pick = start_grid_drops(rec.initial, rec.meta.get("design"), int(k))
+        except FeederError as err:
+            raise FeederError(f"{path}: {err}") from None
         design = rec.meta["design"]
-        pick = start_grid_drops(rec.initial, design, int(k))
         good = pick[rec.ok[pick]]
-        ok[i] = good.size / max(pick.size, 1)
+        ok[i] = good.size / pick.size
         if good.size:
             has[i] = 1.0
             pmf[i] = drops_label(rec.yaws[good], design["period_deg"], float(arrays["frame_deg"][i]), bins, sigma_bins)

@@ -203,9 +203,10 @@ def neighbour_count(cfg, key: str = "neighbours") -> int:
 
 
 def drop_count(cfg, key: str = "drops") -> int:
-    """``model.drops`` (the configuration's own start-grid drops read; 0: none) or
-    ``model.drop_candidates`` (the largest basins of their label made candidates), 0 when absent;
-    a one-line FeederError unless an integer >= 0."""
+    """An optional count of ``model`` (0 when absent; a one-line FeederError unless an integer
+    >= 0): ``drops`` (the configuration's own start-grid drops read; 0: none), ``drop_candidates``
+    (the largest basins of their label made candidates), ``neighbour_basins``,
+    ``neighbour_candidates``."""
     return neighbour_count(cfg, key) if key in cfg.model else 0
 
 
@@ -214,8 +215,8 @@ def neighbour_options(cfg) -> dict:
     neighbour counts: ``model.neighbour_basins``, ``model.neighbour_candidates`` (each 0 when
     absent) and the candidates' ``merge_deg`` and ``window_deg``."""
     return {
-        "basins": cfg.model.get("neighbour_basins", 0),
-        "candidates": cfg.model.get("neighbour_candidates", 0),
+        "basins": drop_count(cfg, "neighbour_basins"),
+        "candidates": drop_count(cfg, "neighbour_candidates"),
         "merge_deg": float(cfg.candidates.merge_deg),
         "window_deg": float(cfg.candidates.window_deg),
     }
@@ -526,7 +527,7 @@ def main(argv: list[str]) -> int:
     args = _parser().parse_args(argv)
     cfg = compose_config("structured", args.overrides)
     check_workers(cfg.train.workers)  # before the data and the candidates, not after
-    drop_count(cfg), drop_count(cfg, "drop_candidates")
+    neighbour_options(cfg), drop_count(cfg), drop_count(cfg, "drop_candidates")  # bad counts: a one-line error
     prior_grids = grids(compose_config("train")["prior"])
     import torch
 

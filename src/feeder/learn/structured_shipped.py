@@ -59,14 +59,14 @@ def fit_shipped(arrays: dict, cfg, data: dict, train=None) -> dict:
     of the dataset ``data``, whose settings give the label frame, bins, scene and units), in
     :func:`shipped_arrays`, keeping the neighbour inputs (each label's analytic miss) of ``train``
     rows only: no other row's label is in the file."""
-    from feeder.learn.structured_protocol import fit_protocol
+    from feeder.learn.structured_protocol import drop_count, fit_protocol
     from feeder.mechanics.fence import default_scene
 
-    if int(cfg.model.get("neighbour_basins", 0)) or int(cfg.model.get("neighbour_candidates", 0)):
+    if drop_count(cfg, "neighbour_basins") or drop_count(cfg, "neighbour_candidates"):
         raise FeederError(
             "fit-structured ships whole-label neighbours only (model.neighbour_basins and neighbour_candidates: 0)"
         )
-    if int(cfg.model.get("drops", 0)):
+    if drop_count(cfg):
         raise FeederError("fit-structured ships a predictor that simulates nothing (model.drops: 0)")
     train = np.ones(len(arrays["part"]), dtype=bool) if train is None else np.asarray(train, dtype=bool)
     settings = json.loads(str(data["settings"]))
