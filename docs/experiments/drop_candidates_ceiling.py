@@ -31,26 +31,12 @@ import pandas as pd
 from structured_ceiling import oracle_pmf
 
 from feeder import io
-from feeder.circular import wrapped_gaussian_smooth
 from feeder.labels.dataset import load_dataset
 from feeder.labels.metrics import circular_w1
-from feeder.mechanics.pmf import bin_masses
+from feeder.learn.structured_data import drops_label, start_grid_drops
 
 KS = (4, 8)  # drops per configuration
 OK = "ok"  # the status of a drop that left the fences
-
-
-def grid_subset(initial_deg: np.ndarray, design: dict, k: int) -> np.ndarray:
-    """Indices of the drops at ``k`` start-grid yaws spread evenly over the design's period (its
-    ``n0`` start yaws are ``offset_deg + j period_deg / n0``): j = 0, n0/k, 2 n0/k, ..."""
-    n0, period, offset = int(design["n0"]), float(design["period_deg"]), float(design["offset_deg"])
-    out = []
-    for j in np.linspace(0, n0, int(k), endpoint=False).astype(int):
-        target = offset + j * period / n0
-        gap = np.abs(np.mod(initial_deg - target + 180.0, 360.0) - 180.0)
-        if gap.min() < 1e-6:
-            out.append(int(np.argmin(gap)))
-    return np.asarray(out, dtype=np.int64)
 
 
 def main(argv: list[str]) -> int:
@@ -74,7 +60,7 @@ def main(argv: list[str]) -> int:
         label_cdf = np.cumsum(pmf[i])
         cand = pos[i, : kc[i]]
         for k in KS:
-            pick = grid_subset(initial, design, k)
+            pick = start_grid_drops(initial, design, k)
             good = pick[status[pick] == OK]
             yaws = np.mod((final[good] + frames[i])[:, None] + copies[None, :], 360.0).ravel()
             sets = {"drops": yaws, "candidates+drops": np.concatenate([cand, yaws])}
@@ -82,7 +68,7 @@ def main(argv: list[str]) -> int:
                 q, share = oracle_pmf(pmf[i], analytic[i], positions)
                 rows.append(_row(parts[i], cids[i], data["split"][i], k, name, good.size, share, label_cdf, q))
             if good.size:
-                emp = wrapped_gaussian_smooth(bin_masses(yaws, np.full(yaws.size, 1.0 / yaws.size), bins), sigma_bins)
+                emp = drops_label(final[good], period, frames[i], bins, sigma_bins)
             else:
                 emp = analytic[i]
             rows.append(_row(parts[i], cids[i], data["split"][i], k, "empirical", good.size, np.nan, label_cdf, emp))
