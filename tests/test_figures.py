@@ -409,7 +409,22 @@ def _physics(path):
     pd.DataFrame(rows).to_csv(path, index=False)
 
 
+def _label_errors(path):
+    rng = np.random.default_rng(0)
+    n = 40
+    pd.DataFrame(
+        {
+            "loc1": rng.choice(["straight", "curved"], n),
+            "loc2": rng.choice(["none", "straight", "curved"], n),
+            "kept": [True] * (n - 2) + [False] * 2,
+            "est_circular_w1_deg": rng.uniform(2.0, 30.0, n),
+            "est_sup_cdf": rng.uniform(0.03, 0.4, n),
+        }
+    ).to_csv(path, index=False)
+
+
 CASES = {
+    "label_error_estimate": ("label_errors.csv", _label_errors, []),
     "step_cost": ("step.csv", _step, []),
     "frontier": ("frontier.csv", _frontier, []),
     "frontier_known": ("frontier_known.csv", _frontier_known, []),

@@ -76,6 +76,10 @@ COMMANDS: dict[str, tuple[str, str]] = {
     ),
     "scene-table": ("feeder.sim.scene", "Table 1: every physical parameter of the simulated scene"),
     "labels": ("feeder.labels.pmf", "PMF/CDF labels from simulation outputs"),
+    "audit": (
+        "feeder.labels.audit",
+        "each grid or adaptive label's error estimate: a few audit drops simulated beside it (run), the table (table)",
+    ),
     "datasets": ("feeder.labels.dataset", "configuration list, splits and the merged dataset"),
     "train": ("feeder.learn.train", "train one regression model (Hydra config)"),
     "evaluate": ("feeder.learn.evaluate", "evaluate trained models into tables"),

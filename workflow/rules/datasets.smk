@@ -18,6 +18,15 @@ DATASETS_TARGETS = [
     f"{RESULTS}/figures/fig9_example_pmfs.png",
     f"{RESULTS}/figures/convergence_dkw.png",
 ]
+# every grid/adaptive label's error estimate (sim.label_audit): audit drops per part, then the table
+AUDIT = config["sim"]["label_audit"] and config["sim"]["yaw_sampling"] in ("grid", "adaptive")
+AUDIT_PARTS = sorted(set(CONFIGS["part"]))
+if AUDIT:
+    DATASETS_TARGETS += [
+        f"{RESULTS}/tables/label_error_estimate.csv",
+        f"{RESULTS}/tables/label_error_estimate_summary.csv",
+        f"{RESULTS}/figures/label_error_estimate.png",
+    ]
 
 
 rule datasets_configurations:
@@ -124,3 +133,58 @@ rule datasets_convergence:
         "feeder datasets convergence --dataset {input.dataset} --settings '{params.settings}'"
         " --dkw-csv {output.dkw_csv} --js-csv {output.js_csv} --fig4-data {output.fig4}"
         " --fig5-data {output.fig5} --fig9-data {output.fig9} --dkw-data {output.dkw} > {log} 2>&1"
+
+
+rule audit:
+    """One part's audit drops, simulated beside its grid or adaptive labels (feeder audit run)."""
+    input:
+        code("audit"),
+        part=lambda wildcards: f"{config['parts']['dir']}/{wildcards.part}.stl",
+        sims=lambda wildcards: [
+            sim_path(p, c) for p, c in zip(CONFIGS["part"], CONFIGS["config_id"]) if p == wildcards.part
+        ],
+    output:
+        f"{RESULTS}/audit/{{part}}.csv",
+    log:
+        f"{LOGS}/audit/{{part}}.log",
+    benchmark:
+        f"{BENCHMARKS}/audit/{{part}}.tsv"
+    conda:
+        "../envs/feeder.yaml"
+    params:
+        audits=config["sim"]["adaptive_target"]["audits"],
+        units=config["parts"]["units"],
+    shell:
+        "feeder audit run --part {input.part} --sims {input.sims} --audits {params.audits} --units {params.units}"
+        " --out {output} > {log} 2>&1"
+
+
+rule label_errors:
+    """Every label's error estimate from its simulation file and audit drops (feeder audit table)."""
+    input:
+        code("audit"),
+        configurations=f"{RESULTS}/datasets/configurations.csv",
+        sims=[sim_path(p, c) for p, c in zip(CONFIGS["part"], CONFIGS["config_id"])],
+        audits=expand(f"{RESULTS}/audit/{{part}}.csv", part=AUDIT_PARTS),
+    output:
+        csv=report(
+            f"{RESULTS}/tables/label_error_estimate.csv", caption="../report/label_error_estimate.rst", category="Datasets"
+        ),
+        summary=report(
+            f"{RESULTS}/tables/label_error_estimate_summary.csv",
+            caption="../report/label_error_estimate_summary.rst",
+            category="Datasets",
+        ),
+    log:
+        f"{LOGS}/audit/table.log",
+    benchmark:
+        f"{BENCHMARKS}/audit/table.tsv"
+    conda:
+        "../envs/feeder.yaml"
+    params:
+        settings=settings_json("labels", "sim.min_ok_mass", "sim.adaptive_target"),
+        sim_dir=f"{RESULTS}/sim",
+    shell:
+        "feeder audit table --configurations {input.configurations} --sim-dir {params.sim_dir}"
+        " --audits {input.audits} --settings '{params.settings}'"
+        " --out-csv {output.csv} --out-summary {output.summary} > {log} 2>&1"

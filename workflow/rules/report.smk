@@ -73,6 +73,7 @@ FIGURE_TABLE = {
     "fig5_js_hist": (f"{RESULTS}/figdata/fig5_js_hist.npz", "fig5_js_hist", "Datasets", {}),
     "fig9_example_pmfs": (f"{RESULTS}/figdata/fig9_example_pmfs.npz", "fig9_example_pmfs", "Datasets", {}),
     "convergence_dkw": (f"{RESULTS}/figdata/convergence_dkw.npz", "convergence_dkw", "Datasets", {}),
+    "label_error_estimate": (f"{TABLES}/label_error_estimate.csv", "label_error_estimate_figure", "Datasets", {}),
     "fig12_test_predictions": (f"{RESULTS}/figdata/fig12_test_predictions.npz", "fig12_test_predictions", "Models", {}),
     "fig13_parts_predictions": (
         f"{RESULTS}/figdata/fig13_parts_predictions.npz",
