@@ -138,11 +138,9 @@ def test_a_configuration_without_a_label_is_not_audited_and_is_listed_as_such(tm
     rec = load_sim(sim / "p" / "straight60_none.npz", min_ok_drops=0)
     assert A.audit_rows(rec, 8, all_jam) == []  # nothing simulated
     ok = load_sim(sim / "p" / "straight30_none.npz")
-    frames = {"p": pd.DataFrame(A.audit_rows(ok, 8, two_basins))}
-    cfgs = pd.DataFrame(
-        {"part": ["p", "p"], "config_id": ["straight30_none", "straight60_none"], "dataset": ["main", "main"]}
-    )
-    rows = pd.DataFrame(A.label_error_rows(cfgs, sim, frames, SETTINGS))
+    drops = pd.DataFrame(A.audit_rows(ok, 8, two_basins))
+    entries = [("main", sim / "p" / "straight30_none.npz"), ("main", sim / "p" / "straight60_none.npz")]
+    rows = pd.DataFrame(A.label_error_rows(entries, drops, SETTINGS))
     assert rows["kept"].tolist() == [True, False]
     assert rows.loc[1, "audits"] == 0 and np.isnan(rows.loc[1, "est_circular_w1_deg"])
     assert rows.loc[0, "loc1"] == "straight" and rows.loc[0, "loc2"] == "none"
@@ -151,8 +149,57 @@ def test_a_configuration_without_a_label_is_not_audited_and_is_listed_as_such(tm
     assert everything["configurations"] == 1  # the kept labels only
     assert everything["est_w1_median"] == pytest.approx(rows.loc[0, "est_circular_w1_deg"])
     assert everything["audit_cpu_over_sim"] == pytest.approx(rows["audit_cpu_s"].sum() / 4.0)
-    with pytest.raises(BadData, match="no audit file"):
-        A.label_error_rows(cfgs, sim, {}, SETTINGS)
+    assert rows["sim_cpu_s"].tolist() == [2.0, 2.0]
+    with pytest.raises(BadData, match="p straight30_none: no audit drops"):
+        A.label_error_rows(entries, drops.iloc[:0], SETTINGS)
+
+
+def test_the_table_command_takes_the_studys_list_or_files_of_ones_own(tmp_path, capsys):
+    sim = tmp_path / "sim"
+    write_record(sim / "p" / "straight30_none.npz", "p", "straight30_none", two_basins)
+    rec = load_sim(sim / "p" / "straight30_none.npz")
+    audit = tmp_path / "mine.csv"  # any name: drops are matched by their part and configuration columns
+    pd.DataFrame(A.audit_rows(rec, 8, two_basins)).to_csv(audit, index=False)
+    cfgs = tmp_path / "configurations.csv"
+    pd.DataFrame({"part": ["p"], "config_id": ["straight30_none"], "dataset": ["main"]}).to_csv(cfgs, index=False)
+    settings = json.dumps(SETTINGS)
+    out = {}
+    for name, source in (
+        ("study", ["--configurations", str(cfgs), "--sim-dir", str(sim)]),
+        ("own", ["--sims", str(sim / "p" / "straight30_none.npz")]),
+    ):
+        csv, summ = tmp_path / f"{name}.csv", tmp_path / f"{name}_summary.csv"
+        argv = [
+            "audit",
+            "table",
+            *source,
+            "--audits",
+            str(audit),
+            "--settings",
+            settings,
+            "--out-csv",
+            str(csv),
+            "--out-summary",
+            str(summ),
+        ]
+        assert main(argv) == 0
+        out[name] = pd.read_csv(csv)
+    assert out["study"].drop(columns="dataset").equals(out["own"].drop(columns="dataset"))
+    bad = tmp_path / "bad.csv"
+    argv = [
+        "audit",
+        "table",
+        "--audits",
+        str(audit),
+        "--settings",
+        settings,
+        "--out-csv",
+        str(bad),
+        "--out-summary",
+        str(bad),
+    ]
+    assert main(argv) == 2
+    assert "either --configurations (with --sim-dir) or --sims" in capsys.readouterr().err and not bad.exists()
 
 
 @pytest.mark.parametrize("audits", [1, 0, -3, True, 2.5])

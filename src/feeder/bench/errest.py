@@ -7,8 +7,9 @@ final yaw and status) and ``sim.design_bench.repeats`` seeded offsets, each desi
 ``sim.errest_bench.designs`` is emulated through the reference map (every simulation
 replaced by the map at that initial yaw, as ``feeder bench-designs`` does; nothing is simulated):
 
-* ``adaptive``: today's adaptive design at the budget ``sim.drops``, then one round of
-  ``sim.adaptive_target.audits`` audit drops that only estimate (the label is the budget's);
+* ``adaptive``: the study's adaptive design at the budget ``sim.drops``, then one round of
+  ``sim.adaptive_target.audits`` audit drops that only estimate (the label is the budget's), drawn
+  as the study's own audit draws them (``feeder audit``, :mod:`feeder.labels.audit`);
 * ``targeted``: the design whose budget follows the scene (:func:`feeder.sim.errest.targeted`,
   ``sim.adaptive_target``), at its targets times each of ``sim.errest_bench.target_scales``.
 
@@ -67,6 +68,7 @@ def entry_rows(reference: Path, settings: dict, cfg: dict) -> list[dict]:
     """Rows of one configuration's reference file (module docstring)."""
     from feeder.bench.designs import _load, distances, reference_design
     from feeder.bench.reference import seed_of
+    from feeder.labels.audit import AUDIT_STREAM
     from feeder.sim import errest as E
     from feeder.sim.pushforward import map_yaws, pushforward_pmf
     from feeder.sim.simulate import run_design
@@ -114,7 +116,7 @@ def entry_rows(reference: Path, settings: dict, cfg: dict) -> list[dict]:
         seed = seed_of(key, "adaptive", budget, r)  # the offsets of feeder bench-designs' emulated rows
         if "adaptive" in cfg["designs"]:
             d = run_design(evaluate, seed, budget, adaptive, order)
-            rng = np.random.default_rng([seed, int(t["audits"])])
+            rng = np.random.default_rng([seed, int(t["audits"]), AUDIT_STREAM])  # the study's audit (feeder audit)
             beta = E.audit_yaws(rng, int(t["audits"]), d.offset_deg, d.period_deg)
             final, status = evaluate(beta)
             est = E.estimate_or_worst(d, beta, final, status, bins, sigma, float(t["confidence"]))

@@ -175,27 +175,31 @@ def fence_type(spec: str) -> str:
     return str(spec).split(":")[0]
 
 
-def label_error_rows(configurations, sim_dir, audit_frames: dict, settings: dict) -> list[dict]:
-    """One row per configuration of ``configurations`` (part, config_id, dataset): its label's
-    simulations, ok mass, the share of the period its design left unresolved and the audit's estimate. ``audit_frames``:
-    part -> that part's audit drops. ``settings``: ``labels`` (bins, sigma_bins), ``sim.min_ok_mass``
-    and ``sim.adaptive_target.confidence``."""
+def label_error_rows(entries, audit_drops, settings: dict) -> list[dict]:
+    """One row per simulation file of ``entries`` (``(dataset, path)`` pairs; ``dataset`` may be
+    empty): its label's simulations, ok mass, the share of the period its design left unresolved
+    and the audit's estimate. ``audit_drops``: every audit drop (:data:`DROP_COLUMNS`), of any parts.
+    ``settings``: ``labels`` (bins, sigma_bins), ``sim.min_ok_mass`` and
+    ``sim.adaptive_target.confidence``."""
     from feeder.labels.pmf import record_design, sim_label
     from feeder.sim.record import load_sim
 
     labels, sim = settings["labels"], settings["sim"]
     bins, sigma = int(labels["bins"]), float(labels["sigma_bins"])
     confidence, min_ok = float(sim["adaptive_target"]["confidence"]), float(sim["min_ok_mass"])
+    by_configuration = {key: g for key, g in audit_drops.groupby(["part", "config_id"], sort=False)}
     rows = []
-    for cfg in configurations.itertuples(index=False):
-        rec = load_sim(Path(sim_dir) / cfg.part / f"{cfg.config_id}.npz", min_ok_drops=0)
+    for dataset, path in entries:
+        rec = load_sim(path, min_ok_drops=0)
+        part, config = str(rec.meta.get("part")), str(rec.meta.get("config_id"))
         row = {
-            "part": cfg.part,
-            "config_id": cfg.config_id,
-            "dataset": getattr(cfg, "dataset", ""),
+            "part": part,
+            "config_id": config,
+            "dataset": dataset,
             "loc1": fence_type(rec.meta.get("loc1", "")),
             "loc2": fence_type(rec.meta.get("loc2", "")),
             "simulations": int(rec.yaws.size),
+            "sim_cpu_s": sim_cpu_s(path),
         }
         if not has_label(rec):
             rows.append(
@@ -214,10 +218,7 @@ def label_error_rows(configurations, sim_dir, audit_frames: dict, settings: dict
             )
             continue
         label = sim_label(rec, bins, sigma)
-        frame = audit_frames.get(cfg.part)
-        if frame is None:
-            raise BadData(f"{cfg.part}: no audit file")
-        drops = frame[frame["config_id"] == cfg.config_id]
+        drops = by_configuration.get((part, config), audit_drops.iloc[:0])
         est = estimate_from_audit(rec, drops, bins, sigma, confidence)
         rows.append(
             {
@@ -311,8 +312,11 @@ def _parser() -> argparse.ArgumentParser:
             "table", help="each label's error estimate from its simulation file and audit drops (no simulation)"
         )
     )
-    table.add_argument("--configurations", required=True, help="results/datasets/configurations.csv")
-    table.add_argument("--sim-dir", required=True, help="results/sim")
+    table.add_argument(
+        "--configurations", default=None, help="the study's results/datasets/configurations.csv (with --sim-dir)"
+    )
+    table.add_argument("--sim-dir", default=None, help="the study's results/sim")
+    table.add_argument("--sims", nargs="+", default=None, help="or: simulation files of your own (feeder simulate)")
     table.add_argument("--audits", required=True, nargs="+", help="the audit files (results/audit/<part>.csv)")
     table.add_argument("--out-csv", required=True, help="one row per configuration")
     table.add_argument("--out-summary", required=True, help="by fence types and over all")
@@ -354,16 +358,25 @@ def _table(args) -> int:
     from feeder.io import write_csv
 
     settings = study_settings(args, "labels", "sim")
-    configurations = pd.read_csv(args.configurations, dtype={"part": str, "config_id": str})
-    for column in ("part", "config_id"):
-        if column not in configurations.columns:
-            raise BadData(f"{args.configurations} lacks column {column!r}")
-    frames = {Path(f).stem: read_drops(f) for f in args.audits}
-    frame = pd.DataFrame(label_error_rows(configurations, args.sim_dir, frames, settings))
-    sim_cpu = sum(
-        sim_cpu_s(Path(args.sim_dir) / p / f"{c}.npz")
-        for p, c in zip(configurations["part"], configurations["config_id"])
-    )
+    if (args.configurations is None) == (args.sims is None):
+        raise FeederError("give either --configurations (with --sim-dir) or --sims")
+    if args.configurations is not None:
+        if args.sim_dir is None:
+            raise FeederError("--configurations needs --sim-dir (the folder holding <part>/<config>.npz)")
+        configurations = pd.read_csv(args.configurations, dtype={"part": str, "config_id": str})
+        for column in ("part", "config_id"):
+            if column not in configurations.columns:
+                raise BadData(f"{args.configurations} lacks column {column!r}")
+        datasets = configurations["dataset"] if "dataset" in configurations.columns else [""] * len(configurations)
+        entries = [
+            (str(d), Path(args.sim_dir) / p / f"{c}.npz")
+            for d, p, c in zip(datasets, configurations["part"], configurations["config_id"])
+        ]
+    else:
+        entries = [("", Path(f)) for f in args.sims]
+    drops = pd.concat([read_drops(f) for f in args.audits], ignore_index=True)
+    frame = pd.DataFrame(label_error_rows(entries, drops, settings))
+    sim_cpu = float(frame["sim_cpu_s"].sum())
     write_csv(args.out_csv, frame)
     write_csv(args.out_summary, summary(frame, sim_cpu))
     kept = frame[frame["kept"]]
