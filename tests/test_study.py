@@ -293,6 +293,37 @@ def test_export_writes_a_library_that_loads_back(tmp_path):
     assert (tmp_path / "plain" / "notes.txt").read_text() == "mine"
 
 
+def test_each_label_carries_its_audit_estimate_into_the_answer(tmp_path, part_stl):
+    parts_dir, sim_dir = _study_inputs(tmp_path)
+    ids = ["straight30_none", "straight40_none", "straight80_none", "curved40_none"]
+    table = pd.DataFrame(
+        {"part": ["p"] * 4, "config_id": ids, "est_circular_w1_deg": [2.5, 3.0, 40.0, np.nan]}
+        | {"est_sup_cdf": [0.03, 0.04, 0.5, np.nan]}
+    )
+    table.iloc[::-1].to_csv(tmp_path / "errors.csv", index=False)  # matched by id, not by order
+    out = tmp_path / "study"
+    args = (pd.read_csv(tmp_path / "configurations.csv"), sim_dir, parts_dir, tmp_path / "dataset.npz")
+    card = S.export_study(*args, tmp_path / "neighbour.csv", [0, 20], out, label_errors=tmp_path / "errors.csv")
+    assert card["label_errors"] == {"audited": 3, "est_circular_w1_deg_median": 3.0}  # the kept labels
+    lib = S.load_library(out)
+    np.testing.assert_array_equal(lib.est_circular_w1_deg, [2.5, 3.0, 40.0, np.nan])
+    assert "median circular W1 3.0 deg" in (out / "MODEL_CARD.md").read_text()
+    model = S.StudyModel(360, 1.0, SCENE, lib)
+    model.library.part_digests = np.array([S.file_digest(part_stl)])
+    model.bind(part_stl, ["straight40_none", "curved40_none"])
+    assert model.describe(0).endswith(
+        "within circular W1 3.0 deg and sup|dCDF| 0.040 of the simulator's exact label (upper estimates, feeder audit)"
+    )
+    assert model.describe(1) == "the study's simulated label of curved40_none"  # no label, no estimate
+    # an export without the table: the answer says nothing of an estimate
+    S.export_study(*args, tmp_path / "neighbour.csv", [0, 20], tmp_path / "plain")
+    plain = S.load_library(tmp_path / "plain")
+    assert plain.est_circular_w1_deg is None and "label_errors" not in plain.card
+    table.iloc[1:].to_csv(tmp_path / "short.csv", index=False)
+    with pytest.raises(FeederError, match="no row for p straight30_none"):
+        S.export_study(*args, tmp_path / "neighbour.csv", [0, 20], tmp_path / "x", label_errors=tmp_path / "short.csv")
+
+
 def test_a_missing_or_foreign_library_is_a_one_line_error(tmp_path):
     with pytest.raises(FeederError, match="make run"):
         S.load_library(tmp_path / "nowhere")

@@ -269,6 +269,7 @@ rule export_study:
         neighbour=f"{RESULTS}/tables/neighbour.csv",
         structured=f"{RESULTS}/models/structured/structured.npz",
         structured_table=lambda wildcards: [STRUCTURED_TABLE] if os.path.isfile(STRUCTURED_TABLE) else [],
+        label_errors=[f"{RESULTS}/tables/label_error_estimate.csv"] if AUDIT else [],
     output:
         directory(f"{EXPORT_DIR}/study"),
     log:
@@ -284,10 +285,11 @@ rule export_study:
         evidence=lambda wildcards, input: (
             f"--structured-table {input.structured_table}" if input.structured_table else ""
         ),
+        label_errors=lambda wildcards, input: f"--label-errors {input.label_errors}" if input.label_errors else "",
     shell:
         "feeder export-study --configurations {input.configurations} --sim-dir $(dirname $(dirname {input.sims[0]}))"
         " --parts-dir $(dirname {input.parts[0]}) --dataset {input.dataset} --neighbour-table {input.neighbour}"
-        " --structured {input.structured} {params.evidence} --out {output} > {log} 2>&1"
+        " --structured {input.structured} {params.evidence} {params.label_errors} --out {output} > {log} 2>&1"
 
 
 rule prediction_figure_data:

@@ -119,6 +119,10 @@ class Library:
     part_digests: np.ndarray  # (p,) ... and the SHA-256 of its STL
     card: dict
     structured: object = None  # the shipped structured predictor (structured.npz), when exported with one
+    # each row's audit estimate of its label's error (feeder audit; NaN: no label or not audited),
+    # when exported with the study's label error table
+    est_circular_w1_deg: np.ndarray | None = None
+    est_sup_cdf: np.ndarray | None = None
 
     def record(self, i: int):
         """Row ``i`` as the :class:`feeder.sim.record.SimRecord` its simulation file held."""
@@ -179,6 +183,25 @@ def build_library(configurations: pd.DataFrame, sim_dir, parts_dir, dataset: dic
         "meta": np.array(metas),
         "part_ids": np.array(part_ids),
         "part_digests": np.array(digests),
+    }
+
+
+def label_error_arrays(arrays: dict, table: pd.DataFrame) -> dict:
+    """Each library row's audit estimates from the study's label error table
+    (``results/tables/label_error_estimate.csv``, ``feeder audit table``): ``est_circular_w1_deg``
+    and ``est_sup_cdf`` (NaN where the row has no label). A library row missing from the table is a
+    one-line error: the table is of another run."""
+    missing = {"part", "config_id", "est_circular_w1_deg", "est_sup_cdf"} - set(table.columns)
+    if missing:
+        raise FeederError(f"export-study: the label error table lacks column {sorted(missing)[0]!r}")
+    index = {(str(p), str(c)): i for i, (p, c) in enumerate(zip(table["part"], table["config_id"]))}
+    rows = [index.get((str(p), str(c))) for p, c in zip(arrays["part"], arrays["config_id"])]
+    absent = [f"{p} {c}" for p, c, r in zip(arrays["part"], arrays["config_id"], rows) if r is None]
+    if absent:
+        raise FeederError(f"export-study: the label error table has no row for {absent[0]} (of another run?)")
+    return {
+        key: table[key].to_numpy(dtype=np.float64)[np.array(rows, dtype=np.int64)]
+        for key in ("est_circular_w1_deg", "est_sup_cdf")
     }
 
 
@@ -259,10 +282,12 @@ def export_study(
     out,
     structured=None,
     structured_table=None,
+    label_errors=None,
 ) -> dict:
     """Write ``out`` (``labels.npz``, ``card.json``, ``MODEL_CARD.md`` and, given ``structured``, the
     shipped structured predictor of :mod:`feeder.learn.structured_shipped` with the evidence of
-    ``structured_table``) atomically; returns the card."""
+    ``structured_table``; given ``label_errors``, each label's audit estimate) atomically; returns
+    the card."""
     with np.load(dataset_path, allow_pickle=False) as z:
         dataset = {k: z[k] for k in ("part", "config_id", "pmf", "pmf_analytic", "settings")}
     settings = json.loads(str(dataset["settings"]))
@@ -281,6 +306,14 @@ def export_study(
         "sim": settings.get("sim", {}),
         "test_evidence": neighbour_evidence(pd.read_csv(neighbour_table)),
     }
+    if label_errors is not None:
+        arrays |= label_error_arrays(arrays, pd.read_csv(label_errors, dtype={"part": str, "config_id": str}))
+        w1 = arrays["est_circular_w1_deg"][arrays["kept"]]
+        w1 = w1[np.isfinite(w1)]
+        card["label_errors"] = {
+            "audited": int(w1.size),
+            "est_circular_w1_deg_median": float(np.median(w1)) if w1.size else None,
+        }
     shipped = None
     if structured is not None:
         from feeder.learn.structured_shipped import ShippedStructured
@@ -330,6 +363,7 @@ def card_markdown(card: dict) -> str:
         f"({card['labelled']} labelled, the rest excluded as jammed), as raw drops (`labels.npz`).",
         "",
         "- A configuration the study simulated: its label (the simulator's answer).",
+        *_card_label_errors(card),
         *_card_new_angle(card),
         "- A new part, or another scene: the analytic push PMF.",
         "",
@@ -345,6 +379,18 @@ def card_markdown(card: dict) -> str:
     for s in card["gate_scores"]:
         lines.append(f"| {s['gate_deg']:g} | {s['neighbour_share']:.0%} | {s['circular_w1_deg']:.2f} |")
     return "\n".join(lines) + "\n"
+
+
+def _card_label_errors(card: dict) -> list[str]:
+    """The card's line on the labels' audit estimates, when exported with them."""
+    errors = card.get("label_errors")
+    if not errors or not errors["audited"]:
+        return []
+    return [
+        f"  Each label carries its audit's upper estimate of its own error (`feeder audit`, "
+        f"`results/tables/label_error_estimate.csv`; {errors['audited']} kept labels, median circular W1 "
+        f"{errors['est_circular_w1_deg_median']:.1f} deg), which `feeder predict` prints with it."
+    ]
 
 
 def _card_new_angle(card: dict) -> list[str]:
@@ -480,7 +526,7 @@ class StudyModel(AnalyticModel):
         """How row ``row`` was answered, for a person."""
         source, i, dist = self._answers()[row]
         if source == SIMULATED:
-            return f"the study's simulated label of {self.library.config_id[i]}"
+            return f"the study's simulated label of {self.library.config_id[i]}{self._label_error(i)}"
         if source == STRUCTURED:
             near = (
                 f"; nearest simulated angle of its fence types {self.library.config_id[i]}, {dist:g} deg away"
@@ -496,6 +542,16 @@ class StudyModel(AnalyticModel):
         if np.isfinite(dist):
             return f"the analytic push PMF (the nearest simulated angle is {dist:g} deg away, gate {self.gate_deg:g})"
         return "the analytic push PMF"
+
+    def _label_error(self, i: int) -> str:
+        """``; ...`` with library row ``i``'s audit estimate, or '' without one."""
+        w1, sup = self.library.est_circular_w1_deg, self.library.est_sup_cdf
+        if w1 is None or sup is None or not (np.isfinite(w1[i]) and np.isfinite(sup[i])):
+            return ""
+        return (
+            f"; its audit puts it within circular W1 {w1[i]:.1f} deg and sup|dCDF| {sup[i]:.3f} of the simulator's "
+            "exact label (upper estimates, feeder audit)"
+        )
 
     def sources(self) -> list[str]:
         return [a[0] for a in self._answers()]
@@ -616,6 +672,11 @@ def main(argv: list[str]) -> int:
         "--structured-table", type=Path, help="results/tables/structured_protocol.csv: its evidence, quoted by the card"
     )
     parser.add_argument(
+        "--label-errors",
+        type=Path,
+        help="results/tables/label_error_estimate.csv: each label's error estimate, printed with it",
+    )
+    parser.add_argument(
         "overrides", nargs="*", help="Hydra overrides of config/hydra/structured.yaml (the gates: neighbour.gates_deg)"
     )
     args = parser.parse_args(argv)
@@ -624,7 +685,14 @@ def main(argv: list[str]) -> int:
     gates = check_gates(compose_config("structured", args.overrides)["neighbour"]["gates_deg"])
     if args.structured_table is not None and args.structured is None:
         raise FeederError("--structured-table is the evidence of --structured: give both")
-    for path in (args.configurations, args.dataset, args.neighbour_table, args.structured, args.structured_table):
+    for path in (
+        args.configurations,
+        args.dataset,
+        args.neighbour_table,
+        args.structured,
+        args.structured_table,
+        args.label_errors,
+    ):
         if path is not None and not path.is_file():
             raise FeederError(f"{path} is missing")
     configurations = pd.read_csv(args.configurations)
@@ -641,6 +709,7 @@ def main(argv: list[str]) -> int:
         args.out,
         args.structured,
         args.structured_table,
+        args.label_errors,
     )
     print(
         f"feeder export-study: {card['configurations']} configurations of {card['parts']} parts, "
