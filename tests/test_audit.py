@@ -88,10 +88,32 @@ def test_audit_yaws_are_stratified_over_the_period_seeded_by_the_configuration(t
     np.testing.assert_array_equal(beta, A.audit_plan(rec, 8))  # seeded: the same every time
     write_record(tmp_path / "b.npz", "p", "straight35_none", two_basins, order=2)
     assert not np.allclose(A.audit_plan(load_sim(tmp_path / "b.npz"), 8), beta)  # another configuration, other yaws
-    expected = E.audit_yaws(
-        np.random.default_rng([drop_seed("p", "straight30_none", 0), 8, A.AUDIT_STREAM]), 8, d["offset_deg"], 180.0
-    )
+    expected = E.audit_yaws(np.random.default_rng([drop_seed("p", "straight30_none", 0), 8]), 8, d["offset_deg"], 180.0)
     np.testing.assert_array_equal(beta, expected)
+
+
+def test_the_audit_is_the_targeted_designs_next_round_and_a_targeted_label_gets_another(tmp_path):
+    """Run on from a budget label with the targeted design (min_budget = the budget), its first audit
+    round is the study's audit; a targeted label (meta stop: target) is audited elsewhere."""
+    design = write_record(tmp_path / "a.npz", "p", "straight30_curved40", two_basins, budget=24)
+    rec = load_sim(tmp_path / "a.npz")
+    seed = drop_seed("p", "straight30_curved40", 0)
+    target = dict(E.DEFAULT_TARGET, min_budget=24, target_w1_deg=1e-6, target_sup_cdf=1e-6, cap=24 + 8)
+    seen = []
+
+    def recording(yaws):
+        seen.append(np.array(yaws))
+        return two_basins(yaws)
+
+    run_on, _, _ = E.targeted(recording, seed, {**ADAPTIVE, "target": target}, 1, LABEL_BINS, LABEL_SIGMA_BINS)
+    before = np.sort(np.mod(np.concatenate(seen[:-1]), 360.0))
+    np.testing.assert_array_equal(before, np.sort(np.mod(design.yaws, 360.0)))  # the label's own simulations
+    assert run_on.evaluations == design.evaluations + 8
+    np.testing.assert_allclose(seen[-1], np.mod(A.audit_plan(rec, 8), 360.0))  # the round after the budget
+    meta = dict(rec.meta)
+    meta["design"] = dict(meta["design"], stop="target")
+    rec.meta = meta
+    assert not np.allclose(A.audit_plan(rec, 8), seen[-1])
 
 
 def test_the_estimate_from_a_file_and_its_audit_drops_is_the_estimators_own(tmp_path):

@@ -68,7 +68,6 @@ def entry_rows(reference: Path, settings: dict, cfg: dict) -> list[dict]:
     """Rows of one configuration's reference file (module docstring)."""
     from feeder.bench.designs import _load, distances, reference_design
     from feeder.bench.reference import seed_of
-    from feeder.labels.audit import AUDIT_STREAM
     from feeder.sim import errest as E
     from feeder.sim.pushforward import map_yaws, pushforward_pmf
     from feeder.sim.simulate import run_design
@@ -116,7 +115,7 @@ def entry_rows(reference: Path, settings: dict, cfg: dict) -> list[dict]:
         seed = seed_of(key, "adaptive", budget, r)  # the offsets of feeder bench-designs' emulated rows
         if "adaptive" in cfg["designs"]:
             d = run_design(evaluate, seed, budget, adaptive, order)
-            rng = np.random.default_rng([seed, int(t["audits"]), AUDIT_STREAM])  # the study's audit (feeder audit)
+            rng = np.random.default_rng([seed, int(t["audits"])])  # as the study's audit draws (feeder audit)
             beta = E.audit_yaws(rng, int(t["audits"]), d.offset_deg, d.period_deg)
             final, status = evaluate(beta)
             est = E.estimate_or_worst(d, beta, final, status, bins, sigma, float(t["confidence"]))

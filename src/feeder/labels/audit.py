@@ -15,8 +15,8 @@ This module runs that audit round after the study's simulations, from their file
 stay exactly as they are (the audits only estimate; they do not join the label):
 
 * :func:`audit_plan`: the audit yaws of one simulation file, drawn from the configuration's own
-  seed (the design's) on a stream of their own (independent of the design's offset and of a
-  targeted design's own audit rounds);
+  seed (the design's) on the stream of the targeted design's audit rounds, so the audit is exactly
+  the round that design would draw next (:data:`TARGETED_STREAM`);
 * ``feeder audit``: simulates one part's audit drops, configuration by configuration, under the
   scene and preset each simulation file records, and writes them raw (one row per drop);
 * :func:`estimate_from_audit` and ``feeder label-errors``: each label's error estimate from its
@@ -41,14 +41,17 @@ DROP_COLUMNS = ("part", "config_id", "seed", "audits", "audit", "initial_yaw_deg
 # file belongs to another simulation file or another audit setting
 YAW_MATCH_DEG = 1e-9
 SUMMARY_QUANTILE = 0.9  # the summary's upper quantile of the estimates
-# the audit's own random stream, [design seed, audits, AUDIT_STREAM]: the targeted design's rounds draw
-# from [design seed, audits], so a targeted label is audited at yaws its own rounds did not use
-AUDIT_STREAM = 1
+# A budget (or grid) label is audited on the stream of the targeted design's audit rounds, [design seed,
+# audits]: the study's audit is then exactly the first round of that design run on from the label's own
+# simulations (feeder.sim.errest.targeted with min_budget = the budget), so a later pass that refines only
+# the labels whose estimate misses a target continues from these files. A targeted label's own rounds
+# already drew from that stream and joined the label; it is audited on [design seed, audits, TARGETED_STREAM].
+TARGETED_STREAM = 1
 
 
 def audit_seed(rec) -> int:
     """The seed of a simulation record's design (:func:`feeder.sim.drops.drop_seed` of its part,
-    configuration and base seed); the audits draw from ``[seed, audits, AUDIT_STREAM]``."""
+    configuration and base seed); the audits draw from :func:`audit_stream`."""
     from feeder.sim.drops import drop_seed
 
     meta = rec.meta
@@ -56,6 +59,12 @@ def audit_seed(rec) -> int:
         return drop_seed(str(meta["part"]), str(meta["config_id"]), int(meta["seed"]))
     except KeyError as err:
         raise BadData(f"a simulation record without {err} in its meta cannot be audited") from None
+
+
+def audit_stream(rec, audits: int) -> list[int]:
+    """The audits' random stream of a record (see :data:`TARGETED_STREAM`)."""
+    stop = (rec.meta.get("design") or {}).get("stop", "budget")
+    return [audit_seed(rec), int(audits)] + ([TARGETED_STREAM] if stop == "target" else [])
 
 
 def check_audits(audits) -> int:
@@ -78,7 +87,7 @@ def audit_plan(rec, audits: int) -> np.ndarray:
             "only grid and adaptive labels are audited"
         )
     design = record_design(rec)
-    rng = np.random.default_rng([audit_seed(rec), k, AUDIT_STREAM])
+    rng = np.random.default_rng(audit_stream(rec, k))
     return audit_yaws(rng, k, design.offset_deg, design.period_deg)
 
 
