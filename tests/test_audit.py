@@ -166,11 +166,11 @@ def test_a_configuration_without_a_label_is_not_audited_and_is_listed_as_such(tm
     assert rows["kept"].tolist() == [True, False]
     assert rows.loc[1, "audits"] == 0 and np.isnan(rows.loc[1, "est_circular_w1_deg"])
     assert rows.loc[0, "loc1"] == "straight" and rows.loc[0, "loc2"] == "none"
-    table = A.summary(rows, sim_cpu_s=4.0)
+    table = A.summary(rows)
     everything = table[table["fences"] == "all"].iloc[0]
     assert everything["configurations"] == 1  # the kept labels only
     assert everything["est_w1_median"] == pytest.approx(rows.loc[0, "est_circular_w1_deg"])
-    assert everything["audit_cpu_over_sim"] == pytest.approx(rows["audit_cpu_s"].sum() / 4.0)
+    assert everything["audit_cpu_over_sim"] == pytest.approx(rows["audit_cpu_s"].sum() / 4.0)  # both files' CPU
     assert rows["sim_cpu_s"].tolist() == [2.0, 2.0]
     with pytest.raises(BadData, match="p straight30_none: no audit drops"):
         A.label_error_rows(entries, drops.iloc[:0], SETTINGS)

@@ -10,7 +10,7 @@ configurations, one for the two-fence ones, one for all.
 from __future__ import annotations
 
 import numpy as np
-from matplotlib.ticker import FuncFormatter, NullFormatter
+from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
 
 from feeder.figures import style
 
@@ -48,6 +48,7 @@ def draw(table):
             x, y = ecdf(kept[column].to_numpy()[mask])
             ax.step(x, y, where="post", color=colour, label=f"{name} ({mask.sum()} labels; median {np.median(x):.3g})")
         ax.set_xscale("log")
+        ax.xaxis.set_major_locator(LogLocator(subs=(1.0, 2.0, 5.0)))
         ax.xaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
         ax.xaxis.set_minor_formatter(NullFormatter())
         ax.set_xlabel(xlabel)
