@@ -137,6 +137,9 @@ def test_the_estimate_from_a_file_and_its_audit_drops_is_the_estimators_own(tmp_
     p_label = pushforward_pmf(design, LABEL_BINS, LABEL_SIGMA_BINS)[0]
     sup = np.max(np.abs(np.cumsum(p_exact) - np.cumsum(p_label)))
     assert got.sup_cdf >= sup
+    from feeder.labels import metrics as L
+
+    assert got.circular_w1_deg >= L.circular_w1(L.cdf(p_exact), L.cdf(p_label))
 
 
 def test_stale_or_foreign_audit_drops_are_refused(tmp_path):
@@ -222,6 +225,95 @@ def test_the_table_command_takes_the_studys_list_or_files_of_ones_own(tmp_path, 
     ]
     assert main(argv) == 2
     assert "either --configurations (with --sim-dir) or --sims" in capsys.readouterr().err and not bad.exists()
+
+
+def test_rows_are_joined_by_part_and_configuration_together(tmp_path):
+    """Two parts with the same configuration id: each label gets its own part's audit."""
+    sim = tmp_path / "sim"
+    write_record(sim / "p" / "straight30_none.npz", "p", "straight30_none", two_basins)
+    write_record(sim / "q" / "straight30_none.npz", "q", "straight30_none", all_jam)
+    write_record(
+        sim / "q" / "curved40_none.npz",
+        "q",
+        "curved40_none",
+        lambda y: (np.full(np.shape(y), 77.0), np.full(np.shape(y), "ok")),
+    )
+    recs = {
+        k: load_sim(sim / k[0] / f"{k[1]}.npz", min_ok_drops=0)
+        for k in (("p", "straight30_none"), ("q", "curved40_none"))
+    }
+    drops = pd.concat(
+        [
+            pd.DataFrame(
+                A.audit_rows(
+                    recs[("q", "curved40_none")], 8, lambda y: (np.full(np.shape(y), 77.0), np.full(np.shape(y), "ok"))
+                )
+            ),
+            pd.DataFrame(A.audit_rows(recs[("p", "straight30_none")], 8, two_basins)),
+        ]
+    )
+    entries = [
+        ("", sim / "q" / "straight30_none.npz"),
+        ("", sim / "p" / "straight30_none.npz"),
+        ("", sim / "q" / "curved40_none.npz"),
+    ]
+    rows = pd.DataFrame(A.label_error_rows(entries, drops, SETTINGS))
+    assert rows["part"].tolist() == ["q", "p", "q"] and rows["audits"].tolist() == [0, 8, 8]
+    want = A.estimate_from_audit(
+        recs[("p", "straight30_none")], drops[drops.part == "p"], LABEL_BINS, LABEL_SIGMA_BINS, 0.9
+    )
+    assert rows.loc[1, "est_circular_w1_deg"] == want.circular_w1_deg
+    assert rows.loc[2, "misses"] == 0  # the constant map: every audit agrees
+
+
+@pytest.mark.parametrize(
+    "edit, message",
+    [
+        (lambda f: f.assign(final_yaw_deg=np.nan), "an ok drop has no finite final yaw"),
+        (lambda f: f.assign(status=""), "unknown status ''"),
+        (lambda f: f.assign(status="exploded"), "unknown status 'exploded'"),
+        (lambda f: f.assign(audits="eight"), "column 'audits' holds a value that is not a number"),
+        (lambda f: f.assign(initial_yaw_deg="x"), "column 'initial_yaw_deg' holds a value that is not a number"),
+        (lambda f: f.drop(columns="cpu_s"), "lacks column 'cpu_s'"),
+    ],
+)
+def test_a_broken_audit_file_is_a_one_line_error(tmp_path, edit, message):
+    write_record(tmp_path / "a.npz", "p", "straight30_none", two_basins)
+    drops = pd.DataFrame(A.audit_rows(load_sim(tmp_path / "a.npz"), 8, two_basins))
+    edit(drops).to_csv(tmp_path / "audit.csv", index=False)
+    with pytest.raises(BadData, match=message):
+        A.read_drops(tmp_path / "audit.csv")
+
+
+def test_the_table_writes_nothing_when_it_cannot_finish(tmp_path, capsys):
+    write_record(tmp_path / "sim" / "p" / "straight30_none.npz", "p", "straight30_none", two_basins)
+    rec = load_sim(tmp_path / "sim" / "p" / "straight30_none.npz")
+    pd.DataFrame(A.audit_rows(rec, 8, two_basins)).to_csv(tmp_path / "audit.csv", index=False)
+    out, summ = tmp_path / "t.csv", tmp_path / "s.csv"
+    tail = [
+        "--audits",
+        str(tmp_path / "audit.csv"),
+        "--settings",
+        json.dumps(SETTINGS),
+        "--out-csv",
+        str(out),
+        "--out-summary",
+        str(summ),
+    ]
+    empty = tmp_path / "empty.csv"
+    empty.write_text("part,config_id\n")
+    for source, said in (
+        (
+            ["--configurations", str(tmp_path / "nowhere.csv"), "--sim-dir", str(tmp_path / "sim")],
+            "nowhere.csv is missing",
+        ),
+        (["--configurations", str(empty), "--sim-dir", str(tmp_path / "sim")], "no configuration to tabulate"),
+        (["--configurations", str(empty)], "--configurations needs --sim-dir"),
+    ):
+        assert main(["audit", "table", *source, *tail]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and said in err[0], err
+        assert not out.exists() and not summ.exists()
 
 
 @pytest.mark.parametrize("audits", [1, 0, -3, True, 2.5])

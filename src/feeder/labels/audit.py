@@ -271,7 +271,8 @@ def summary(frame):
         out.append(row)
     table = pd.DataFrame(out)
     # what the audit stage cost beside the simulations: every configuration's, kept or not
-    everything = float(frame["audit_cpu_s"].sum()) / float(frame["sim_cpu_s"].sum())
+    sim_cpu = float(frame["sim_cpu_s"].sum())  # 0 for files that predate the key
+    everything = float(frame["audit_cpu_s"].sum()) / sim_cpu if sim_cpu > 0 else np.nan
     table["audit_cpu_over_sim"] = np.where(table["fences"] == "all", everything, np.nan)
     return table
 
@@ -280,20 +281,36 @@ def summary(frame):
 # CLI
 # --------------------------------------------------------------------------------------------
 def read_drops(path):
-    """An audit file (:data:`DROP_COLUMNS`), a one-line error when it is missing, unreadable or
-    lacks a column."""
+    """An audit file (:data:`DROP_COLUMNS`), a one-line error when it is missing, unreadable, lacks
+    a column, holds a non-numeric count or yaw, an unknown status, or an ok drop without a finite
+    final yaw."""
     import pandas as pd
+
+    from feeder.sim.drops import STATUSES
 
     path = Path(path)
     if not path.is_file():
         raise BadData(f"audit file {path} is missing")
     try:
-        frame = pd.read_csv(path, dtype={"part": str, "config_id": str, "status": str})
+        frame = pd.read_csv(path, dtype={"part": str, "config_id": str, "status": str}, keep_default_na=False)
     except (ValueError, OSError) as err:
         raise BadData(f"audit file {path} is unreadable ({type(err).__name__}: {err})") from None
     missing = [c for c in DROP_COLUMNS if c not in frame.columns]
     if missing:
         raise BadData(f"audit file {path} lacks column {missing[0]!r}")
+    for column in ("seed", "audits", "audit", "initial_yaw_deg", "final_yaw_deg", "cpu_s"):
+        values = pd.to_numeric(frame[column].replace("", np.nan), errors="coerce")
+        if values.isna().to_numpy()[frame[column].astype(str) != ""].any():
+            raise BadData(f"audit file {path}: column {column!r} holds a value that is not a number")
+        frame[column] = values
+    unknown = sorted(set(frame["status"]) - set(STATUSES))
+    if unknown:
+        raise BadData(f"audit file {path}: unknown status {unknown[0]!r} (known: {', '.join(STATUSES)})")
+    ok = frame["status"] == "ok"
+    if not np.isfinite(frame.loc[ok, "final_yaw_deg"].to_numpy(dtype=np.float64)).all():
+        raise BadData(f"audit file {path}: an ok drop has no finite final yaw")
+    if not np.isfinite(frame["initial_yaw_deg"].to_numpy(dtype=np.float64)).all():
+        raise BadData(f"audit file {path}: a drop has no finite initial yaw")
     return frame
 
 
@@ -374,6 +391,8 @@ def _table(args) -> int:
     if args.configurations is not None:
         if args.sim_dir is None:
             raise FeederError("--configurations needs --sim-dir (the folder holding <part>/<config>.npz)")
+        if not Path(args.configurations).is_file():
+            raise FeederError(f"{args.configurations} is missing")
         configurations = pd.read_csv(args.configurations, dtype={"part": str, "config_id": str})
         for column in ("part", "config_id"):
             if column not in configurations.columns:
@@ -385,10 +404,13 @@ def _table(args) -> int:
         ]
     else:
         entries = [("", Path(f)) for f in args.sims]
+    if not entries:
+        raise FeederError("no configuration to tabulate")
     drops = pd.concat([read_drops(f) for f in args.audits], ignore_index=True)
     frame = pd.DataFrame(label_error_rows(entries, drops, settings))
+    table = summary(frame)  # both built before either is written
     write_csv(args.out_csv, frame)
-    write_csv(args.out_summary, summary(frame))
+    write_csv(args.out_summary, table)
     kept = frame[frame["kept"]]
     print(
         f"{len(frame)} configurations, {len(kept)} kept labels: estimated circular W1 median "
