@@ -179,6 +179,12 @@ def test_a_configuration_without_a_label_is_not_audited_and_is_listed_as_such(tm
         A.label_error_rows(entries, drops.iloc[:0], SETTINGS)
 
 
+def table_argv(source: list[str], audit: Path, out: Path, summary: Path) -> list[str]:
+    """``feeder audit table`` on ``source`` (the configuration options) with the tests' settings."""
+    files = ["--out-csv", str(out), "--out-summary", str(summary)]
+    return ["audit", "table", *source, "--audits", str(audit), "--settings", json.dumps(SETTINGS), *files]
+
+
 def test_the_table_command_takes_the_studys_list_or_files_of_ones_own(tmp_path, capsys):
     sim = tmp_path / "sim"
     write_record(sim / "p" / "straight30_none.npz", "p", "straight30_none", two_basins)
@@ -187,43 +193,17 @@ def test_the_table_command_takes_the_studys_list_or_files_of_ones_own(tmp_path, 
     pd.DataFrame(A.audit_rows(rec, 8, two_basins)).to_csv(audit, index=False)
     cfgs = tmp_path / "configurations.csv"
     pd.DataFrame({"part": ["p"], "config_id": ["straight30_none"], "dataset": ["main"]}).to_csv(cfgs, index=False)
-    settings = json.dumps(SETTINGS)
     out = {}
     for name, source in (
         ("study", ["--configurations", str(cfgs), "--sim-dir", str(sim)]),
         ("own", ["--sims", str(sim / "p" / "straight30_none.npz")]),
     ):
         csv, summ = tmp_path / f"{name}.csv", tmp_path / f"{name}_summary.csv"
-        argv = [
-            "audit",
-            "table",
-            *source,
-            "--audits",
-            str(audit),
-            "--settings",
-            settings,
-            "--out-csv",
-            str(csv),
-            "--out-summary",
-            str(summ),
-        ]
-        assert main(argv) == 0
+        assert main(table_argv(source, audit, csv, summ)) == 0
         out[name] = pd.read_csv(csv)
     assert out["study"].drop(columns="dataset").equals(out["own"].drop(columns="dataset"))
     bad = tmp_path / "bad.csv"
-    argv = [
-        "audit",
-        "table",
-        "--audits",
-        str(audit),
-        "--settings",
-        settings,
-        "--out-csv",
-        str(bad),
-        "--out-summary",
-        str(bad),
-    ]
-    assert main(argv) == 2
+    assert main(table_argv([], audit, bad, bad)) == 2
     assert "either --configurations (with --sim-dir) or --sims" in capsys.readouterr().err and not bad.exists()
 
 
@@ -290,16 +270,6 @@ def test_the_table_writes_nothing_when_it_cannot_finish(tmp_path, capsys):
     rec = load_sim(tmp_path / "sim" / "p" / "straight30_none.npz")
     pd.DataFrame(A.audit_rows(rec, 8, two_basins)).to_csv(tmp_path / "audit.csv", index=False)
     out, summ = tmp_path / "t.csv", tmp_path / "s.csv"
-    tail = [
-        "--audits",
-        str(tmp_path / "audit.csv"),
-        "--settings",
-        json.dumps(SETTINGS),
-        "--out-csv",
-        str(out),
-        "--out-summary",
-        str(summ),
-    ]
     empty = tmp_path / "empty.csv"
     empty.write_text("part,config_id\n")
     for source, said in (
@@ -310,7 +280,7 @@ def test_the_table_writes_nothing_when_it_cannot_finish(tmp_path, capsys):
         (["--configurations", str(empty), "--sim-dir", str(tmp_path / "sim")], "no configuration to tabulate"),
         (["--configurations", str(empty)], "--configurations needs --sim-dir"),
     ):
-        assert main(["audit", "table", *source, *tail]) == 2
+        assert main(table_argv(source, tmp_path / "audit.csv", out, summ)) == 2
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and said in err[0], err
         assert not out.exists() and not summ.exists()
@@ -320,6 +290,12 @@ def test_the_table_writes_nothing_when_it_cannot_finish(tmp_path, capsys):
 def test_an_audit_count_below_two_or_not_an_integer_is_refused(audits):
     with pytest.raises(FeederError, match="audits must be an integer of at least 2"):
         A.check_audits(audits)
+
+
+def run_argv(sim: Path, out: Path, audits: int = 8) -> list[str]:
+    """``feeder audit run`` of rect-a2 on one simulation file."""
+    part = str(ROOT / "parts" / "rect-a2.stl")
+    return ["audit", "run", "--part", part, "--sims", str(sim), "--audits", str(audits), "--out", str(out)]
 
 
 def test_a_drawn_design_is_refused_before_any_simulation(tmp_path, capsys):
@@ -344,42 +320,18 @@ def test_a_drawn_design_is_refused_before_any_simulation(tmp_path, capsys):
         },
     )
     out = tmp_path / "audit.csv"
-    argv = [
-        "audit",
-        "run",
-        "--part",
-        str(ROOT / "parts" / "rect-a2.stl"),
-        "--sims",
-        str(path),
-        "--audits",
-        "8",
-        "--out",
-        str(out),
-    ]
-    assert main(argv) == 2
+    assert main(run_argv(path, out)) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "only grid and adaptive labels are audited" in err[0]
     assert not out.exists()
-    assert main([*argv[:-4], "--audits", "1", "--out", str(out)]) == 2
+    assert main(run_argv(path, out, audits=1)) == 2
     assert "at least 2" in capsys.readouterr().err and not out.exists()
 
 
 def test_a_simulation_file_of_another_part_is_refused(tmp_path, capsys):
     write_record(tmp_path / "a.npz", "lshape-a", "straight30_none", two_basins)
     out = tmp_path / "audit.csv"
-    argv = [
-        "audit",
-        "run",
-        "--part",
-        str(ROOT / "parts" / "rect-a2.stl"),
-        "--sims",
-        str(tmp_path / "a.npz"),
-        "--audits",
-        "8",
-        "--out",
-        str(out),
-    ]
-    assert main(argv) == 2
+    assert main(run_argv(tmp_path / "a.npz", out)) == 2
     assert "is of part 'lshape-a', not 'rect-a2'" in capsys.readouterr().err and not out.exists()
 
 
