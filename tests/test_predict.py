@@ -507,11 +507,28 @@ def test_predict_simulate_answers_with_the_simulator(tmp_path, capsys):
     assert "simulated 4 drops (ok 4)" in printed.err and "(simulated): 1.00" in printed.out
 
 
+@pytest.mark.skipif(not (PARTS / "rect-a2.stl").is_file(), reason="no part library in parts/")
+def test_predict_simulate_audit_says_how_far_the_answer_may_be(tmp_path, capsys):
+    """``--audit 4``: four drops more, the same answer, and its error estimate on stderr."""
+    from feeder.cli import main as cli
+
+    args = ["predict", "--part", str(PARTS / "rect-a2.stl"), "--loc1", "straight:30", "--loc2", "none"]
+    outs = {k: tmp_path / f"{k}.csv" for k in ("plain", "audited")}
+    assert cli([*args, "--simulate", "4", "--out", str(outs["plain"])]) == 0
+    capsys.readouterr()
+    assert cli([*args, "--simulate", "4", "--audit", "4", "--out", str(outs["audited"])]) == 0
+    err = capsys.readouterr().err
+    assert outs["plain"].read_bytes() == outs["audited"].read_bytes()  # the audit does not change the answer
+    assert "4 audit drops more" in err and "upper estimates, feeder audit" in err
+
+
 @pytest.mark.parametrize(
     ("extra", "message"),
     [
         (["--simulate", "1"], "at least 2 drops"),
         (["--simulate", "4", "--model", "analytic"], "not both"),
+        (["--simulate", "4", "--audit", "1"], "at least 2 audit drops"),
+        (["--audit", "4"], "give it with --simulate"),
     ],
 )
 def test_predict_simulate_refuses_bad_input_and_writes_nothing(tmp_path, capsys, extra, message):

@@ -306,13 +306,15 @@ def _main_simulated(args) -> int:
         raise FeederError("give --model or --simulate, not both")
     if args.simulate < 2:
         raise FeederError(f"--simulate: a budget of at least 2 drops (got {args.simulate})")
+    if args.audit and args.audit < 2:
+        raise FeederError(f"--audit: at least 2 audit drops, or 0 for none (got {args.audit})")
     if args.features is not None:
         raise FeederError("--simulate simulates the part: give it as --part PART.stl, not --features")
     geom = verify_part(args.part)
     study = study_settings(args, "scene", "labels", "sim")
     check_part_fits(args.part, "feeder predict", study["scene"])
     print(f"feeder predict: simulating at most {args.simulate} drops (the study's adaptive design)", file=sys.stderr)
-    frame, info = simulated_frame(geom, args.loc1, args.loc2, args.simulate, study)
+    frame, info = simulated_frame(geom, args.loc1, args.loc2, args.simulate, study, audits=args.audit or 0)
     done = f"{info['simulations']} drops ({info['statuses']}), {info['cpu_s']:.1f} s CPU"
     if frame is None:
         raise FeederError(f"no orientation to give: every one of the {done} failed to leave the fences")
@@ -334,6 +336,15 @@ def _main_simulated(args) -> int:
         title = f"simulated ({args.simulate} drops at most): {args.part.stem}, loc1 {args.loc1}, loc2 {args.loc2}"
         save_figure(args.plot, plot(frame, title, outline, holes))
     print(f"feeder predict: simulated {done}", file=sys.stderr)
+    if "estimate" in info:
+        est = info["estimate"]
+        print(
+            f"feeder predict: {est.audits} audit drops more ({info['audit_cpu_s']:.1f} s CPU, "
+            f"{est.misses} contradicting the answer's map) put it within circular W1 {est.circular_w1_deg:.1f} deg "
+            "and sup|dCDF| "
+            f"{est.sup_cdf:.3f} of the simulator's exact answer (upper estimates, feeder audit)",
+            file=sys.stderr,
+        )
     return 0
 
 
@@ -355,6 +366,13 @@ def main(argv: list[str]) -> int:
         "(>= 2; needs --part as an STL; seconds of CPU a drop; results/tables/frontier.csv: budget 8 is "
         "closer than every model)",
     )
+    parser.add_argument(
+        "--audit",
+        type=int,
+        metavar="K",
+        help="with --simulate: K more drops at stratified random yaws (>= 2), which do not change the answer, "
+        "and from them an upper estimate of its error (feeder audit; docs/performance.md)",
+    )
     parser.add_argument("--out", type=Path, help="CSV path; - or unset: stdout")
     parser.add_argument("--plot", type=Path, help="also draw the PMF/CDF to this image")
     add_settings_options(parser)
@@ -371,6 +389,8 @@ def main(argv: list[str]) -> int:
         check_figure_path(args.plot)
     if args.simulate is not None:
         return _main_simulated(args)
+    if args.audit is not None:
+        raise FeederError("--audit estimates the error of a simulated answer: give it with --simulate")
     study = study_settings(args, "scene", "labels")
     model = choose_model(args.model, "feeder predict", study)
     check_push_source(model, args.part)

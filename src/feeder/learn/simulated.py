@@ -52,11 +52,15 @@ def verify_part(part: Path | None):
     return load_part(part, "auto")
 
 
-def simulated_frame(geom, loc1: str, loc2: str, budget: int, study: dict) -> tuple[pd.DataFrame | None, dict]:
+def simulated_frame(
+    geom, loc1: str, loc2: str, budget: int, study: dict, audits: int = 0
+) -> tuple[pd.DataFrame | None, dict]:
     """The answer of the simulator: ``geom`` through (``loc1``, ``loc2``) with the study's adaptive
     design at most ``budget`` drops (below ``sim.adaptive.n0`` an evenly spaced grid of ``budget``
     drops), labelled as the workflow labels (part frame). Returns the PMF/CDF frame (None when
-    every drop jammed or fell off) and ``{ok_mass, statuses, simulations, cpu_s}``."""
+    every drop jammed or fell off) and ``{ok_mass, statuses, simulations, cpu_s}``; with ``audits``
+    > 0 also ``estimate`` and ``audit_cpu_s``: that many audit drops simulated beside the answer and
+    its error estimate (:mod:`feeder.labels.audit`; ``sim.adaptive_target.confidence``)."""
     from feeder.labels.pmf import sim_label
     from feeder.lane.fences import parse_location
     from feeder.sim.record import record_of
@@ -85,6 +89,13 @@ def simulated_frame(geom, loc1: str, loc2: str, budget: int, study: dict) -> tup
         return None, info
     label = sim_label(rec, settings["bins"], settings["sigma"])
     info["ok_mass"] = float(label.ok_mass)
+    if audits:
+        from feeder.labels import audit as A
+
+        drops = pd.DataFrame(A.audit_rows(rec, audits, A.simulator(geom, rec)))
+        confidence = float(study["sim"]["adaptive_target"]["confidence"])
+        info["estimate"] = A.estimate_from_audit(rec, drops, settings["bins"], settings["sigma"], confidence)
+        info["audit_cpu_s"] = float(drops["cpu_s"].sum())
     bins = label.pmf.size
     frame = pd.DataFrame({"angle_deg": np.arange(bins) * (360.0 / bins), "pmf": label.pmf, "cdf": np.cumsum(label.pmf)})
     return frame, info
