@@ -183,7 +183,7 @@ rule label_errors:
         "../envs/feeder.yaml"
     params:
         settings=settings_json("labels", "sim.min_ok_mass", "sim.adaptive_target"),
-        sim_dir=f"{RESULTS}/sim",
+        sim_dir=lambda wildcards, input: os.path.dirname(os.path.dirname(input.sims[0])),  # <results>/sim
     shell:
         "feeder audit table --configurations {input.configurations} --sim-dir {params.sim_dir}"
         " --audits {input.audits} --settings '{params.settings}'"
