@@ -168,7 +168,9 @@ rule label_errors:
         audits=expand(f"{RESULTS}/audit/{{part}}.csv", part=AUDIT_PARTS),
     output:
         csv=report(
-            f"{RESULTS}/tables/label_error_estimate.csv", caption="../report/label_error_estimate.rst", category="Datasets"
+            f"{RESULTS}/tables/label_error_estimate.csv",
+            caption="../report/label_error_estimate.rst",
+            category="Datasets",
         ),
         summary=report(
             f"{RESULTS}/tables/label_error_estimate_summary.csv",
