@@ -74,9 +74,10 @@ def check_audits(audits) -> int:
     return int(audits)
 
 
-def audit_plan(rec, audits: int) -> np.ndarray:
+def audit_plan(rec, audits: int, design=None) -> np.ndarray:
     """The ``audits`` stratified random initial yaws of a grid or adaptive record, over its
-    design's period from its offset (ascending, not reduced mod 360)."""
+    design's period from its offset (ascending, not reduced mod 360). ``design``: the record's
+    :func:`feeder.labels.pmf.record_design`, when the caller has it already."""
     from feeder.labels.pmf import MAP_DESIGNS, record_design
     from feeder.sim.errest import audit_yaws
 
@@ -86,7 +87,7 @@ def audit_plan(rec, audits: int) -> np.ndarray:
             f"a {rec.design} label is a sample of drops (its error is statistical): "
             "only grid and adaptive labels are audited"
         )
-    design = record_design(rec)
+    design = record_design(rec) if design is None else design
     rng = np.random.default_rng(audit_stream(rec, k))
     return audit_yaws(rng, k, design.offset_deg, design.period_deg)
 
@@ -153,10 +154,11 @@ def simulator(geom, rec):
     return evaluate
 
 
-def estimate_from_audit(rec, drops, bins: int, sigma: float, confidence: float):
+def estimate_from_audit(rec, drops, bins: int, sigma: float, confidence: float, design=None):
     """The record's error estimate (:class:`feeder.sim.errest.ErrorEstimate`) from its audit drops
     (a frame of :data:`DROP_COLUMNS` rows of this configuration). The drops must be this record's:
-    the initial yaws recomputed from its seed and their count must match, else a one-line error."""
+    the initial yaws recomputed from its seed and their count must match, else a one-line error.
+    ``design``: the record's :func:`feeder.labels.pmf.record_design`, when the caller has it."""
     from feeder.labels.pmf import record_design
     from feeder.sim.errest import estimate_or_worst
 
@@ -166,14 +168,14 @@ def estimate_from_audit(rec, drops, bins: int, sigma: float, confidence: float):
     counts = set(int(a) for a in drops["audits"])
     if len(counts) != 1 or counts != {len(drops)}:
         raise BadData(f"{where}: {len(drops)} audit drops against the count {sorted(counts)} they were drawn for")
+    design = record_design(rec) if design is None else design
     drops = drops.sort_values("audit")
     beta = np.asarray(drops["initial_yaw_deg"], dtype=np.float64)
-    expected = audit_plan(rec, len(drops))
+    expected = audit_plan(rec, len(drops), design)
     if not np.allclose(beta, expected, rtol=0.0, atol=YAW_MATCH_DEG):
         raise BadData(
             f"{where}: the audit drops were drawn for another simulation file (initial yaws differ); rerun feeder audit"
         )
-    design = record_design(rec)
     final = np.asarray(drops["final_yaw_deg"], dtype=np.float64)
     status = np.asarray(drops["status"]).astype(str)
     return estimate_or_worst(design, beta, final, status, int(bins), float(sigma), float(confidence))
@@ -228,13 +230,14 @@ def label_error_rows(entries, audit_drops, settings: dict) -> list[dict]:
             continue
         label = sim_label(rec, bins, sigma)
         drops = by_configuration.get((part, config), audit_drops.iloc[:0])
-        est = estimate_from_audit(rec, drops, bins, sigma, confidence)
+        design = record_design(rec)
+        est = estimate_from_audit(rec, drops, bins, sigma, confidence, design)
         rows.append(
             {
                 **row,
                 "ok_mass": label.ok_mass,
                 "kept": bool(label.ok_mass >= min_ok),
-                "unresolved_share": float(record_design(rec).unresolved_share),
+                "unresolved_share": float(design.unresolved_share),
                 "audits": est.audits,
                 "misses": est.misses,
                 "est_sup_cdf": est.sup_cdf,
