@@ -860,3 +860,188 @@ def test_the_protocol_reads_each_configurations_drops_and_compares_with_them():
     table = comparison_table(long, {"resamples": 50, "level": 0.95, "seed": 0})
     assert set(table[table.baseline == DROPS].experiment) == {"unseen_groupkfold", "unseen_locked", "test", "fences"}
     assert set(choices.drops) == {4}
+
+
+def _grid_map(finals, statuses=None):
+    """A sampled drop map at 0, 90, 180 and 270 deg (a grid design, as a grid record rebuilds it)."""
+    from feeder.sim.adaptive import design_from_samples
+
+    statuses = statuses or ["ok"] * len(finals)
+    return design_from_samples(
+        np.array([0.0, 90.0, 180.0, 270.0]),
+        np.array(finals, dtype=float),
+        np.array(statuses),
+        period_deg=360.0,
+        offset_deg=0.0,
+        tolerance_deg=2.0,
+        min_width_deg=90.0,
+        max_width_deg=90.0,
+        band_gap_deg=0.0,
+        edge_check_deg=0.0,
+    )
+
+
+# the downstream fence alone: 40 for initial yaws in [0, 135) and [315, 360), 220 in [135, 315)
+# (agreeing intervals keep their basin, disagreeing ones take the nearer sample's)
+DOWNSTREAM = ([40.0, 40.0, 220.0, 220.0], None)
+
+
+def test_compose_maps_by_hand():
+    from feeder.learn.structured_data import compose_maps
+
+    down = _grid_map(*DOWNSTREAM)
+    pmf, share = compose_maps(_grid_map([100.0] * 4), down, 5.0, 360, 0.0, yaws=720)
+    assert share == 1.0 and pmf[45] == pytest.approx(1.0)  # every yaw rests at 100, then 40; the frame turns it by 5
+    # upstream: ok at 100 for [0, 45) and [315, 360), ok at 200 for [135, 225), jammed elsewhere
+    up = _grid_map([100.0, 0.0, 200.0, 0.0], ["ok", "jammed", "ok", "jammed"])
+    pmf, share = compose_maps(up, down, 0.0, 360, 0.0, yaws=720)
+    assert share == pytest.approx(0.5) and pmf[40] == pytest.approx(0.5) and pmf[220] == pytest.approx(0.5)
+    smooth, _ = compose_maps(up, down, 0.0, 360, 1.0, yaws=720)
+    assert smooth.sum() == pytest.approx(1.0) and 0 < smooth[40] < 0.5 and smooth[41] > 0  # smoothed as labels are
+    none, share = compose_maps(_grid_map([0.0] * 4, ["jammed"] * 4), down, 0.0, 360, 0.0, yaws=720)
+    assert none is None and share == 0.0
+    with pytest.raises(FeederError, match="yaws must be >= 1"):
+        compose_maps(up, down, 0.0, 360, 0.0, yaws=0)
+
+
+def test_one_fence_rows_pick_each_fence_alone_of_its_type_nearest_in_angle():
+    from feeder.learn.structured_data import one_fence_rows
+
+    parts = ["p"] * 7 + ["q"]
+    cids = [
+        "curved20_straight30",  # 0: two fences
+        "none_straight25",  # 1: the upstream fence alone, 5 deg away
+        "none_straight35",  # 2: 5 deg away too (the lower index wins)
+        "none_curved30",  # 3: another type
+        "curved40_none",  # 4: the downstream fence alone, 20 deg away
+        "curved10_none",  # 5: 10 deg away
+        "straight30_none",  # 6: another type
+        "curved20_none",  # 7: another part
+    ]
+    pool = np.ones(8, dtype=bool)
+    up, d_up, down, d_down = one_fence_rows(parts, cids, pool, np.arange(8))
+    assert (up[0], d_up[0], down[0], d_down[0]) == (1, 5.0, 5, 10.0)
+    assert (up[1:] == -1).all() and (down[1:] == -1).all() and np.isinf(d_up[1:]).all()  # one fence or none
+    pool[[1, 5]] = False
+    up, d_up, down, d_down = one_fence_rows(parts, cids, pool, np.array([0]))
+    assert (up[0], down[0], d_down[0]) == (2, 4, 20.0)
+    pool[2] = False
+    assert one_fence_rows(parts, cids, pool, np.array([0]))[0][0] == -1
+
+
+def _composed_arrays():
+    from feeder.learn.structured_data import one_fence_maps  # noqa: F401 (the entry it builds, by hand here)
+
+    bins = 360
+    analytic = np.full((4, bins), 1.0 / bins)
+    return {
+        "part": np.array(["p", "p", "p", "q"]),
+        "config_id": np.array(["curved20_straight30", "none_straight30", "curved20_none", "curved20_straight30"]),
+        "kept": np.ones(4, dtype=bool),
+        "frame_deg": np.zeros(4),
+        "analytic": analytic,
+        "analytic_ok": np.array([0.9, 0.8, 0.7, 0.6]),
+        "x": np.zeros((4, 2)),
+        "composed_maps": {
+            "maps": {1: _grid_map([100.0] * 4), 2: _grid_map(*DOWNSTREAM)},
+            "sigma_bins": 0.0,
+            "memo": {},
+        },
+    }
+
+
+def test_the_composed_block_by_hand():
+    from feeder.learn.structured_data import FAR_DEG, composed_block
+
+    a = _composed_arrays()
+    feats, pmfs = composed_block(a, np.ones(4, dtype=bool), 10.0)
+    assert feats.shape == (4, 5) and pmfs.shape == (4, 1, 360)
+    assert feats[0].tolist() == [1.0, 0.0, 0.0, 1.0, 1.0]  # present, at the row's own angles, every yaw ok
+    assert pmfs[0, 0, 40] == pytest.approx(1.0)
+    for r in (1, 2, 3):  # one fence, or (part q) no one-fence maps: the analytic PMF and ok mass
+        assert feats[r].tolist() == [0.0, FAR_DEG / 90, FAR_DEG / 90, 0.0, a["analytic_ok"][r]]
+        assert np.array_equal(pmfs[r, 0], a["analytic"][r])
+    assert list(a["composed_maps"]["memo"]) == [(1, 2, 0.0)]  # made once, reused by the next fit
+    pool = np.array([True, True, False, True])  # the downstream map outside the pool: nothing composed
+    assert composed_block(a, pool, 10.0)[0][0, 0] == 0.0
+    a["kept"][2] = False  # nor when it has no label
+    assert composed_block(a, np.ones(4, dtype=bool), 10.0)[0][0, 0] == 0.0
+
+
+def test_with_composed_appends_a_component_after_the_neighbours_and_its_inputs():
+    from feeder.learn.structured_data import with_composed
+
+    a = _composed_arrays()
+    b = with_composed(a, np.ones(4, dtype=bool), 10.0)
+    assert b["x"].shape == (4, 7) and b["neighbour_pmf"].shape == (4, 1, 360)
+    nb = dict(a, neighbour_pmf=np.repeat(a["analytic"][:, None, :], 2, axis=1), neighbour_offset=np.ones((4, 2)))
+    c = with_composed(nb, np.ones(4, dtype=bool), 10.0)
+    assert c["neighbour_pmf"].shape == (4, 3, 360) and c["neighbour_pmf"][0, 2, 40] == pytest.approx(1.0)
+    assert c["neighbour_offset"].tolist() == [[1.0, 1.0, 0.0]] * 4
+    with pytest.raises(FeederError, match="neighbour_near_deg must be > 0"):
+        with_composed(a, np.ones(4, dtype=bool), 0.0)
+
+
+def test_one_fence_maps_read_the_kept_one_fence_files_only(tmp_path):
+    import json
+
+    from feeder.learn.structured_data import one_fence_maps
+
+    (tmp_path / "p").mkdir()
+    np.savez(
+        tmp_path / "p" / "none_straight30.npz",
+        initial_yaw_deg=np.array([0.0, 90.0, 180.0, 270.0]),
+        final_yaw_deg=np.array([10.0, 100.0, 190.0, 280.0]),
+        status=np.array(["ok"] * 4),
+        meta=np.array(json.dumps({})),
+        design=np.array("grid"),
+    )
+    arrays = {
+        "part": np.array(["p", "p", "p"]),
+        "config_id": np.array(["none_straight30", "curved20_straight30", "curved20_none"]),
+        "kept": np.array([True, True, False]),  # the jammed one-fence row is not read
+    }
+    entry = one_fence_maps(arrays, tmp_path, 1.0)
+    assert list(entry["maps"]) == [0] and entry["sigma_bins"] == 1.0 and entry["memo"] == {}
+    assert entry["maps"][0].final.tolist() == [10.0, 100.0, 190.0, 280.0]
+    arrays["kept"][2] = True
+    with pytest.raises(FeederError, match="curved20_none.npz"):
+        one_fence_maps(arrays, tmp_path, 1.0)
+
+
+@pytest.mark.parametrize("bad", [1, "yes", None])
+def test_a_bad_composed_setting_is_refused(bad):
+    from omegaconf import OmegaConf
+
+    from feeder.learn.structured_protocol import composed_on
+
+    with pytest.raises(FeederError, match="model.composed must be true or false"):
+        composed_on(OmegaConf.create({"model": {"composed": bad}}))
+    assert composed_on(OmegaConf.create({"model": {}})) is False
+
+
+def test_the_protocol_reads_the_composed_maps_and_compares_with_them():
+    pytest.importorskip("torch")
+    from feeder.config import compose_config
+    from feeder.learn.prior import grids
+    from feeder.learn.structured_protocol import COMPOSED, comparison_table, run_protocol
+
+    cfg = compose_config("structured", [*TOY_PROTOCOL, "protocol.bootstrap.resamples=50", "model.composed=true"])
+    a = _toy_library()
+    per_part = 4
+    cids = np.array(["none_straight30", "straight35_none", "straight45_none", "straight40_straight30"])
+    a["config_id"] = cids[np.tile(np.arange(per_part), len(a["part"]) // per_part)]
+    maps = {}
+    for i, c in enumerate(a["config_id"]):
+        if c == "none_straight30":
+            maps[i] = _grid_map([100.0] * 4)
+        elif c.endswith("_none"):
+            maps[i] = _grid_map(*DOWNSTREAM)
+    a["composed_maps"] = {"maps": maps, "sigma_bins": 1.0, "memo": {}}
+    a["frame_deg"] = np.zeros(len(a["part"]))
+    long, choices = run_protocol(a, cfg, grids(compose_config("train")["prior"]))
+    composed = long[long.predictor == COMPOSED]
+    assert set(composed.experiment) == {"test", "fences"}  # known parts only
+    table = comparison_table(long, {"resamples": 50, "level": 0.95, "seed": 0})
+    assert set(table[table.baseline == COMPOSED].experiment) == {"test", "fences"}
+    assert choices.composed.all()

@@ -697,3 +697,133 @@ def with_drops(arrays: dict, top: int, merge_deg: float, window_deg: float) -> d
         out["neighbour_offset"] = np.concatenate([arrays["neighbour_offset"], np.zeros((n, 1))], axis=1)
     present = np.where(np.asarray(arrays["drop_has"]) > 0, np.arange(n), -1)[:, None]  # each row its own drops
     return neighbour_candidates(out, drop, present, int(top), float(merge_deg), float(window_deg))
+
+
+# ----------------------------------------------------------------------------------------------
+# A two-fence configuration composed from the part's own one-fence maps (known parts)
+# ----------------------------------------------------------------------------------------------
+# appended to x by with_composed: present (0/1); the upstream and downstream maps' angle distances
+# over 90° (FAR_DEG when missing); closeness exp(−(both distances) / near_deg); the composed ok share
+COMPOSED_FEATURES = ("has", "up_distance", "down_distance", "closeness", "ok")
+COMPOSE_YAWS = 36_000  # initial yaws on an even grid (0.01° apart) pushed through both maps
+
+
+def compose_maps(upstream, downstream, frame_deg: float, bins: int, sigma_bins: float, yaws: int = COMPOSE_YAWS):
+    """The label of a part that meets the upstream fence's drop map and then, at rest on the belt
+    and carried without turning, the downstream fence's (two sampled maps,
+    :class:`feeder.sim.adaptive.Design`, final yaws in the part frame, as
+    :func:`feeder.sim.pushforward.map_yaws` interpolates them): the even grid of ``yaws`` initial
+    yaws pushed through both, binned in the label frame ``frame_deg`` and smoothed by
+    ``sigma_bins`` as labels are. Returns (PMF, or None when no yaw ends ok; the ok share)."""
+    from feeder.circular import FULL_TURN_DEG, normalize_yaw, wrapped_gaussian_smooth
+    from feeder.labels.metrics import histogram
+    from feeder.sim.pushforward import map_yaws
+
+    if int(yaws) < 1:
+        raise FeederError(f"compose_maps: yaws must be >= 1, got {yaws!r}")
+    beta = (np.arange(int(yaws)) + 0.5) * (FULL_TURN_DEG / int(yaws))
+    mid, _ = map_yaws(upstream, beta)
+    final, _ = map_yaws(downstream, mid[np.isfinite(mid)])
+    final = final[np.isfinite(final)]
+    share = final.size / int(yaws)
+    if not final.size:
+        return None, share
+    hist = histogram(normalize_yaw(final + float(frame_deg)), int(bins))
+    return (wrapped_gaussian_smooth(hist, float(sigma_bins)) if sigma_bins > 0 else hist / hist.sum()), share
+
+
+def one_fence_rows(parts, config_ids, pool, rows) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """For each of ``rows`` with two fences: the row of ``pool`` (a boolean mask) of the same part
+    with the upstream (Location 2) fence alone, of its type and nearest in angle, and the one with
+    the downstream (Location 1) fence alone, likewise; ties to the lower index. Returns (upstream
+    indices, −1 where none or the row has fewer than two fences; their angle distances (inf);
+    downstream indices; distances)."""
+    parts = np.asarray(parts).astype(str)
+    keys = [fence_key(c) for c in config_ids]
+    alone: dict[tuple, list[int]] = {}  # (part, location, type) -> rows with that fence alone
+    for j in np.flatnonzero(np.asarray(pool, dtype=bool)):
+        (t1, t2), _ = keys[j]
+        if t1 == "none" and t2 != "none":
+            alone.setdefault((parts[j], 2, t2), []).append(int(j))
+        elif t2 == "none" and t1 != "none":
+            alone.setdefault((parts[j], 1, t1), []).append(int(j))
+    rows = np.asarray(rows, dtype=np.int64)
+    out = [np.full(rows.size, -1, dtype=np.int64) if k % 2 == 0 else np.full(rows.size, np.inf) for k in range(4)]
+    for n, i in enumerate(rows):
+        (t1, t2), (a1, a2) = keys[i]
+        if t1 == "none" or t2 == "none":
+            continue
+        for slot, (loc, kind, angle) in enumerate(((2, t2, a2), (1, t1, a1))):
+            group = alone.get((parts[i], loc, kind), [])
+            if group:
+                d = np.abs(np.array([keys[j][1][loc - 1] for j in group]) - angle)
+                best = int(np.argmin(d))  # the first of equal distances: the lower index
+                out[2 * slot][n], out[2 * slot + 1][n] = group[best], d[best]
+    return out[0], out[1], out[2], out[3]
+
+
+def one_fence_maps(arrays: dict, sim_dir, sigma_bins: float) -> dict:
+    """The ``composed_maps`` entry that :func:`with_composed` reads: ``maps``, the sampled drop maps
+    (:func:`feeder.labels.pmf.record_design`, part frame) of every kept one-fence row by row index;
+    ``sigma_bins``, the labels' smoothing; ``memo``, the compositions made so far. A missing or
+    broken file is a one-line FeederError naming it."""
+    from feeder.labels.pmf import record_design
+    from feeder.sim.record import BadData, load_sim
+
+    maps = {}
+    for i, (part, cid) in enumerate(zip(arrays["part"], arrays["config_id"], strict=True)):
+        (t1, t2), _ = fence_key(cid)
+        if not arrays["kept"][i] or (t1 == "none") == (t2 == "none"):
+            continue
+        path = Path(sim_dir) / str(part) / f"{cid}.npz"
+        try:
+            maps[i] = record_design(load_sim(path, min_ok_drops=0))
+        except BadData as err:
+            raise FeederError(f"{path}: {err}") from None
+    return {"maps": maps, "sigma_bins": float(sigma_bins), "memo": {}}
+
+
+def composed_block(arrays: dict, pool, near_deg: float) -> tuple[np.ndarray, np.ndarray]:
+    """Every row's composition of its part's one-fence maps in ``pool`` (kept rows,
+    :func:`one_fence_rows`, :func:`compose_maps`) as an input of the structured predictor:
+    (features (N, 5) of :data:`COMPOSED_FEATURES`, PMFs (N, 1, bins)). A row with fewer than two
+    fences, or without both maps, or whose composition ends no yaw ok, gets its analytic PMF (the
+    component then changes nothing) and its analytic ok mass. ``arrays["composed_maps"]``
+    (:func:`one_fence_maps`) holds the maps; compositions are memoised there per (upstream row,
+    downstream row, frame)."""
+    entry = arrays["composed_maps"]
+    maps, memo, sigma_bins = entry["maps"], entry["memo"], entry["sigma_bins"]
+    pool = np.asarray(pool, dtype=bool) & np.asarray(arrays["kept"], dtype=bool)
+    n = len(arrays["part"])
+    up, d_up, down, d_down = one_fence_rows(arrays["part"], arrays["config_id"], pool, np.arange(n))
+    analytic = np.asarray(arrays["analytic"], np.float64)
+    pmfs = analytic[:, None, :].copy()
+    ok = np.asarray(arrays["analytic_ok"], np.float64).copy()
+    has = np.zeros(n)
+    for i in np.flatnonzero((up >= 0) & (down >= 0)):
+        key = (int(up[i]), int(down[i]), float(arrays["frame_deg"][i]))
+        if key not in memo:
+            memo[key] = compose_maps(maps[key[0]], maps[key[1]], key[2], analytic.shape[1], sigma_bins)
+        pmf, share = memo[key]
+        if pmf is not None:
+            pmfs[i, 0], ok[i], has[i] = pmf, share, 1.0
+    du = np.where(has > 0, d_up, FAR_DEG)
+    dd = np.where(has > 0, d_down, FAR_DEG)
+    close = np.where(has > 0, np.exp(-(du + dd) / float(near_deg)), 0.0)
+    return np.column_stack([has, du / RIGHT_ANGLE_DEG, dd / RIGHT_ANGLE_DEG, close, ok]), pmfs
+
+
+def with_composed(arrays: dict, pool, near_deg: float) -> dict:
+    """``arrays`` whose two-fence rows read the composition of their part's one-fence maps in
+    ``pool`` (:func:`composed_block`): its PMF as one more diffuse component (after the
+    neighbours', starting as they do) and its inputs appended to ``x``."""
+    if not near_deg > 0:
+        raise FeederError(f"model.neighbour_near_deg must be > 0, got {near_deg}")
+    feats, comp = composed_block(arrays, pool, near_deg)
+    n = comp.shape[0]
+    extra = arrays.get("neighbour_pmf")
+    comps = comp if extra is None else np.concatenate([np.asarray(extra, dtype=np.float64), comp], axis=1)
+    out = dict(arrays, x=np.concatenate([arrays["x"], feats], axis=1), neighbour_pmf=comps)
+    if "neighbour_offset" in arrays:
+        out["neighbour_offset"] = np.concatenate([arrays["neighbour_offset"], np.zeros((n, 1))], axis=1)
+    return out

@@ -47,6 +47,7 @@ PRIOR = "analytic_prior"
 MEAN = "mean_pmf"
 M3 = "m3"
 GATED = "neighbour_gated"  # the part's nearest labelled angle within a gate, else the analytic PMF
+COMPOSED = "composed"  # the part's one-fence maps composed (model.composed; else the analytic PMF)
 DROPS = "drops"  # the label of the configuration's own few start-grid drops (model.drops > 0)
 
 
@@ -89,7 +90,7 @@ def fit_protocol(arrays: dict, train: np.ndarray, cfg, key: str, known: bool = T
     its part's other validation rows as neighbours; otherwise (unseen parts) validation rows see
     none, as the scored parts will not, and the choice and early stopping mirror that."""
     from feeder.learn.structured import fit
-    from feeder.learn.structured_data import with_drops, with_neighbours
+    from feeder.learn.structured_data import with_composed, with_drops, with_neighbours
 
     base = int(cfg.seed)
     val_parts = pick_parts(arrays["part"][train], float(cfg.protocol.val_part_fraction), derived_seed(base, key), "val")
@@ -105,8 +106,10 @@ def fit_protocol(arrays: dict, train: np.ndarray, cfg, key: str, known: bool = T
     near = float(cfg.model.neighbour_near_deg)
     nb_opts = neighbour_options(cfg)
 
-    def inputs(pool):  # the part's neighbours in pool, then the row's own drops (when read)
+    def inputs(pool):  # the part's neighbours in pool, their composition, then the row's own drops (when read)
         a = with_neighbours(arrays, pool, k, near, cross, **nb_opts)
+        if composed_on(cfg):
+            a = with_composed(a, pool, near)
         if "drop_pmf" not in arrays:
             return a
         return with_drops(a, drop_count(cfg, "drop_candidates"), nb_opts["merge_deg"], nb_opts["window_deg"])
@@ -178,7 +181,8 @@ def fit_protocol(arrays: dict, train: np.ndarray, cfg, key: str, known: bool = T
         "neighbour_basins": int(nb_opts["basins"]),
         "neighbour_candidates": int(nb_opts["candidates"]),
         "drops": drop_count(cfg),
-        "val_neighbours": bool(known and k + cross > 0),
+        "composed": composed_on(cfg),
+        "val_neighbours": bool(known and (k + cross > 0 or composed_on(cfg))),
     }
     return {
         "fits": fits,
@@ -208,6 +212,16 @@ def drop_count(cfg, key: str = "drops") -> int:
     (the largest basins of their label made candidates), ``neighbour_basins``,
     ``neighbour_candidates``."""
     return neighbour_count(cfg, key) if key in cfg.model else 0
+
+
+def composed_on(cfg) -> bool:
+    """``model.composed`` (false when absent): two-fence rows read the composition of their part's
+    one-fence maps (:func:`feeder.learn.structured_data.with_composed`). A one-line FeederError
+    unless it is a boolean."""
+    value = cfg.model.get("composed", False)
+    if not isinstance(value, bool):
+        raise FeederError(f"model.composed must be true or false, got {value!r}")
+    return value
 
 
 def neighbour_options(cfg) -> dict:
@@ -345,6 +359,10 @@ def run_job(job: tuple, arrays: dict, cfg, prior_grids, m3_pmf: dict | None, loc
         extra = {DROPS: arrays["drop_pmf"][idx]} if "drop_pmf" in arrays else {}
         if kind == "main":
             extra[GATED] = gated_neighbour(arrays, train, idx, list(cfg.neighbour.gates_deg))
+            if composed_on(cfg):  # the composition alone (else the analytic PMF)
+                from feeder.learn.structured_data import composed_block
+
+                extra[COMPOSED] = composed_block(arrays, train, float(cfg.model.neighbour_near_deg))[1][idx, 0]
             if m3_pmf is not None and index == 0:
                 nan_row = np.full(arrays["pmf"].shape[1], np.nan)
                 keys = zip(arrays["part"][idx], arrays["config_id"][idx], strict=True)
@@ -443,7 +461,7 @@ def comparison_table(long: pd.DataFrame, bootstrap: dict, m3_parts: pd.Series | 
             model = unit_scores(long, experiment, STRUCTURED, metric)
             seeds = long[(long.experiment == experiment) & (long.predictor == STRUCTURED)]
             present = set(long[long.experiment == experiment].predictor)
-            baselines = [ANALYTIC, PRIOR, MEAN] + [b for b in (GATED, M3, DROPS) if b in present]
+            baselines = [ANALYTIC, PRIOR, MEAN] + [b for b in (GATED, COMPOSED, M3, DROPS) if b in present]
             if metric == "ok_abs_err":
                 baselines = [ANALYTIC, MEAN]
             series = {b: unit_scores(long, experiment, b, metric) for b in baselines}
@@ -522,12 +540,12 @@ def main(argv: list[str]) -> int:
     from feeder.config import compose_config
     from feeder.labels.dataset import load_dataset
     from feeder.learn.prior import grids
-    from feeder.learn.structured_data import drop_arrays, structured_arrays
+    from feeder.learn.structured_data import drop_arrays, one_fence_maps, structured_arrays
 
     args = _parser().parse_args(argv)
     cfg = compose_config("structured", args.overrides)
     check_workers(cfg.train.workers)  # before the data and the candidates, not after
-    neighbour_options(cfg), drop_count(cfg), drop_count(cfg, "drop_candidates")  # bad counts: a one-line error
+    neighbour_options(cfg), drop_count(cfg), drop_count(cfg, "drop_candidates"), composed_on(cfg)  # a one-line error
     prior_grids = grids(compose_config("train")["prior"])
     import torch
 
@@ -538,8 +556,10 @@ def main(argv: list[str]) -> int:
     cache = args.cache or args.dataset.with_name("structured_candidates.npz")
     say = lambda m: print(m, flush=True)  # noqa: E731
     arrays = structured_arrays(data, cfg, args.sim_dir, args.parts_dir, args.features_dir, cache, say)
+    labels = json.loads(str(data["settings"]))["labels"]
+    if composed_on(cfg):  # the one-fence configurations' drop maps, read from their simulation files
+        arrays["composed_maps"] = one_fence_maps(arrays, args.sim_dir, float(labels["sigma_bins"]))
     if drop_count(cfg):  # each configuration's own first drops, read from its simulation file
-        labels = json.loads(str(data["settings"]))["labels"]
         arrays = drop_arrays(arrays, args.sim_dir, drop_count(cfg), int(labels["bins"]), float(labels["sigma_bins"]))
     m3 = m3_predictions(data, args.m3_model) if args.m3_model else None
     long, choices = run_protocol(arrays, cfg, prior_grids, m3, progress=say, workers=cfg.train.workers)
