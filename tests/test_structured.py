@@ -964,7 +964,11 @@ def test_the_composed_block_by_hand():
     assert list(a["composed_maps"]["memo"]) == [(1, 2, 0.0)]  # made once, reused by the next fit
     pool = np.array([True, True, False, True])  # the downstream map outside the pool: nothing composed
     assert composed_block(a, pool, 10.0)[0][0, 0] == 0.0
+    assert composed_block(a, np.ones(4, dtype=bool), 10.0, rows=[1, 2, 3])[0][0, 0] == 0.0  # row 0 not asked
     a["kept"][2] = False  # nor when it has no label
+    assert composed_block(a, np.ones(4, dtype=bool), 10.0)[0][0, 0] == 0.0
+    a["kept"][2] = True
+    del a["composed_maps"]["maps"][2]  # nor without its map
     assert composed_block(a, np.ones(4, dtype=bool), 10.0)[0][0, 0] == 0.0
 
 

@@ -72,7 +72,7 @@ SMALL = [
 CONFIGS = ["straight30_none", "straight40_none", "straight50_none", "curved30_none", "straight30_straight45"]
 
 
-def _small_study(frame_deg: float):
+def _small_study(frame_deg: float, configs=CONFIGS, overrides=()):
     """Two parts x five configurations with labels made from their analytic PMFs (rolled 7 bins,
     so the network has something to learn), a label frame of ``frame_deg`` for the first part."""
     from feeder.config import compose_config
@@ -81,9 +81,9 @@ def _small_study(frame_deg: float):
     from feeder.mechanics.candidates import variants_from_config
     from feeder.mechanics.fence import default_scene
 
-    cfg = compose_config("structured", SMALL)
+    cfg = compose_config("structured", [*SMALL, *overrides])
     parts = ["rect-a3"] * 5 + ["hex-a"] * 5
-    cids = CONFIGS * 2
+    cids = list(configs) * 2
     frames = [frame_deg] * 5 + [0.0] * 5
     scene = default_scene()
     variants = variants_from_config(cfg.candidates.variants)
@@ -129,6 +129,52 @@ def test_the_shipped_answer_is_the_protocols_prediction_of_the_row():
         assert not np.allclose(got, a["analytic"][row], atol=1e-3)  # the network did something
     with pytest.raises(FeederError, match="not trained with part nope"):
         shipped.frame_of("nope")
+
+
+def _grid_map(finals):
+    """A sampled drop map at 0, 90, 180 and 270 deg, every drop ok (a grid design)."""
+    from feeder.sim.adaptive import design_from_samples
+
+    return design_from_samples(
+        np.array([0.0, 90.0, 180.0, 270.0]),
+        np.array(finals, dtype=float),
+        np.array(["ok"] * 4),
+        period_deg=360.0,
+        offset_deg=0.0,
+        tolerance_deg=2.0,
+        min_width_deg=90.0,
+        max_width_deg=90.0,
+        band_gap_deg=0.0,
+        edge_check_deg=0.0,
+    )
+
+
+def test_the_shipped_answer_composes_the_one_fence_maps_as_the_protocol_does():
+    pytest.importorskip("torch")
+    from feeder.learn.structured import predict
+    from feeder.learn.structured_protocol import fit_protocol
+    from feeder.learn.structured_shipped import ShippedStructured, shipped_arrays
+    from feeder.mechanics.hull import push_geometry
+    from feeder.parts.geometry import load_profile
+
+    configs = ["straight30_none", "none_straight45", "straight50_none", "none_curved30", "straight30_straight45"]
+    cfg, a, scene = _small_study(17.0, configs, ["model.composed=true"])
+    maps = {0: _grid_map([40.0, 40.0, 220.0, 220.0]), 1: _grid_map([100.0] * 4)}  # downstream, upstream alone
+    a["composed_maps"] = {"maps": {**maps, **{i + 5: m for i, m in maps.items()}}, "sigma_bins": 1.0, "memo": {}}
+    fitted = fit_protocol(a, np.ones(10, dtype=bool), cfg, "shipped", known=True)
+    assert fitted["choice"]["composed"]
+    shipped = ShippedStructured(shipped_arrays(fitted, a, cfg, "principal", BINS, 1.0, scene))
+    assert shipped.meta["composed"] and shipped.has_neighbour("straight20_straight40", configs[:2])
+    assert not shipped.has_neighbour("curved20_straight40", configs[:2])  # no curved downstream fence alone
+    outline, holes, _ = load_profile(PARTS_DIR / "rect-a3.stl", "auto")
+    geom = push_geometry(outline, holes)
+    pool = [0, 1, 2, 3]
+    args = (geom, "rect-a3", [configs[4]], [configs[i] for i in pool], a["pmf"][pool], a["ok"][pool], scene)
+    got = shipped.answer(*args, pool_maps=maps)
+    want = np.mean([predict(f, fitted["scaled"], [4], fitted["mean_pmf"])[0] for f in fitted["fits"]], axis=0)
+    assert got == pytest.approx(want, abs=2e-5)
+    assert fitted["scaled"]["neighbour_pmf"][4, -1, 57] > 0.3  # composed: 40 deg, turned by the frame's 17
+    assert not np.allclose(shipped.answer(*args), got, atol=1e-4)  # without the maps, another answer
 
 
 def test_a_neighbour_is_of_the_same_fence_types_or_of_the_same_downstream_fence_type():

@@ -783,24 +783,28 @@ def one_fence_maps(arrays: dict, sim_dir, sigma_bins: float) -> dict:
     return {"maps": maps, "sigma_bins": float(sigma_bins), "memo": {}}
 
 
-def composed_block(arrays: dict, pool, near_deg: float) -> tuple[np.ndarray, np.ndarray]:
+def composed_block(arrays: dict, pool, near_deg: float, rows=None) -> tuple[np.ndarray, np.ndarray]:
     """Every row's composition of its part's one-fence maps in ``pool`` (kept rows,
     :func:`one_fence_rows`, :func:`compose_maps`) as an input of the structured predictor:
     (features (N, 5) of :data:`COMPOSED_FEATURES`, PMFs (N, 1, bins)). A row with fewer than two
     fences, or without both maps, or whose composition ends no yaw ok, gets its analytic PMF (the
     component then changes nothing) and its analytic ok mass. ``arrays["composed_maps"]``
     (:func:`one_fence_maps`) holds the maps; compositions are memoised there per (upstream row,
-    downstream row, frame)."""
+    downstream row, frame); a pool row without a map there is left out. ``rows``: compose for these rows only (default: every row); the others
+    get the analytic PMF as if they had no maps."""
     entry = arrays["composed_maps"]
     maps, memo, sigma_bins = entry["maps"], entry["memo"], entry["sigma_bins"]
-    pool = np.asarray(pool, dtype=bool) & np.asarray(arrays["kept"], dtype=bool)
     n = len(arrays["part"])
+    mapped = np.isin(np.arange(n), list(maps))  # a row without a map is no one-fence row to compose
+    pool = np.asarray(pool, dtype=bool) & np.asarray(arrays["kept"], dtype=bool) & mapped
+    asked = np.zeros(n, dtype=bool)
+    asked[np.arange(n) if rows is None else np.asarray(rows, dtype=np.int64)] = True
     up, d_up, down, d_down = one_fence_rows(arrays["part"], arrays["config_id"], pool, np.arange(n))
     analytic = np.asarray(arrays["analytic"], np.float64)
     pmfs = analytic[:, None, :].copy()
     ok = np.asarray(arrays["analytic_ok"], np.float64).copy()
     has = np.zeros(n)
-    for i in np.flatnonzero((up >= 0) & (down >= 0)):
+    for i in np.flatnonzero((up >= 0) & (down >= 0) & asked):
         key = (int(up[i]), int(down[i]), float(arrays["frame_deg"][i]))
         if key not in memo:
             memo[key] = compose_maps(maps[key[0]], maps[key[1]], key[2], analytic.shape[1], sigma_bins)

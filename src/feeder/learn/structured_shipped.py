@@ -59,7 +59,7 @@ def fit_shipped(arrays: dict, cfg, data: dict, train=None) -> dict:
     of the dataset ``data``, whose settings give the label frame, bins, scene and units), in
     :func:`shipped_arrays`, keeping the neighbour inputs (each label's analytic miss) of ``train``
     rows only: no other row's label is in the file."""
-    from feeder.learn.structured_protocol import composed_on, drop_count, fit_protocol
+    from feeder.learn.structured_protocol import drop_count, fit_protocol
     from feeder.mechanics.fence import default_scene
 
     if drop_count(cfg, "neighbour_basins") or drop_count(cfg, "neighbour_candidates"):
@@ -68,8 +68,6 @@ def fit_shipped(arrays: dict, cfg, data: dict, train=None) -> dict:
         )
     if drop_count(cfg):
         raise FeederError("fit-structured ships a predictor that simulates nothing (model.drops: 0)")
-    if composed_on(cfg):
-        raise FeederError("fit-structured does not ship the composed one-fence maps yet (model.composed: false)")
     train = np.ones(len(arrays["part"]), dtype=bool) if train is None else np.asarray(train, dtype=bool)
     settings = json.loads(str(data["settings"]))
     labels = settings["labels"]
@@ -99,7 +97,7 @@ def shipped_arrays(
     from omegaconf import OmegaConf
 
     from feeder.learn.structured_data import candidate_settings, label_miss
-    from feeder.learn.structured_protocol import neighbour_count
+    from feeder.learn.structured_protocol import composed_on, neighbour_count
 
     parts, first = np.unique(arrays["part"], return_index=True)
     kept = np.asarray(arrays["kept"], dtype=bool)
@@ -111,6 +109,7 @@ def shipped_arrays(
         "neighbours": neighbour_count(cfg),
         "cross_neighbours": neighbour_count(cfg, "cross_neighbours"),
         "neighbour_near_deg": float(cfg.model.neighbour_near_deg),
+        "composed": composed_on(cfg),
         "wide_sigma_bins": float(cfg.model.wide_sigma_bins),
         "variants": OmegaConf.to_container(cfg.candidates.variants, resolve=True),
         "candidates": candidate_settings(cfg.candidates, bins, sigma_bins),
@@ -205,24 +204,30 @@ class ShippedStructured:
         from feeder.learn.structured_data import fence_key
 
         (t1, t2), _ = fence_key(config_id)
+        alone = set()  # (location, type) of the part's one-fence configurations
         for other in pool_ids:
             (o1, o2), _ = fence_key(other)
             if self.meta["neighbours"] > 0 and (o1, o2) == (t1, t2):
                 return True
             if self.meta["cross_neighbours"] > 0 and t1 != "none" and o1 == t1 and (o1, o2) != (t1, t2):
                 return True
-        return False
+            if (o1 == "none") != (o2 == "none"):
+                alone.add((2, o2) if o1 == "none" else (1, o1))
+        return bool(self.meta.get("composed")) and "none" not in (t1, t2) and {(1, t1), (2, t2)} <= alone
 
     def answer(
-        self, geom, part: str, config_ids, pool_ids, pool_pmf, pool_ok, scene: dict, progress=None
+        self, geom, part: str, config_ids, pool_ids, pool_pmf, pool_ok, scene: dict, progress=None, pool_maps=None
     ) -> np.ndarray:
         """(len(config_ids), bins) PMFs in the label frame of ``part`` (push geometry ``geom``) at
         ``config_ids``, from its labelled configurations ``pool_ids`` with their labels ``pool_pmf``
         (label frame) and ok shares ``pool_ok``. ``progress(message)`` hears of every
-        :data:`PROGRESS_EVERY` configurations' candidates."""
+        :data:`PROGRESS_EVERY` configurations' candidates. A predictor trained with
+        ``model.composed`` also reads ``pool_maps``: the sampled drop maps (part frame) of the
+        pool's one-fence configurations by their index in ``pool_ids``."""
         from feeder.lane.fences import parse_config_id
         from feeder.learn.structured import batch_inputs, diffuse_components, forward_numpy
         from feeder.learn.structured_data import (
+            composed_block,
             configuration_inputs,
             label_miss,
             neighbour_block,
@@ -273,7 +278,16 @@ class ShippedStructured:
         feats, npmf = neighbour_block(
             rows, rows["kept"], m["neighbours"], m["neighbour_near_deg"], m["cross_neighbours"], miss
         )
-        x = (np.concatenate([q["x"], feats[n_pool:]], axis=1) - self.x_mean) / self.x_sd
+        blocks = [q["x"], feats[n_pool:]]
+        if m.get("composed"):  # the part's one-fence maps composed, as the protocol's with_composed
+            rows["frame_deg"] = np.full(n_pool + n_q, frame)
+            rows["composed_maps"] = {"maps": dict(pool_maps or {}), "sigma_bins": m["sigma_bins"], "memo": {}}
+            c_feats, c_pmf = composed_block(
+                rows, rows["kept"], m["neighbour_near_deg"], np.arange(n_pool, n_pool + n_q)
+            )
+            blocks.append(c_feats[n_pool:])
+            npmf = np.concatenate([npmf, c_pmf], axis=1)
+        x = (np.concatenate(blocks, axis=1) - self.x_mean) / self.x_sd
         diffuse = diffuse_components(q["analytic"], self.mean_pmf, m["wide_sigma_bins"], npmf[n_pool:])
         b = batch_inputs(dict(q, x=x), np.arange(n_q), diffuse, self.settings.start)
         out = np.zeros((n_q, bins))
@@ -299,14 +313,15 @@ def main(argv: list[str]) -> int:
     from feeder import io
     from feeder.config import compose_config
     from feeder.labels.dataset import load_dataset
-    from feeder.learn.structured_data import structured_arrays
-    from feeder.learn.structured_protocol import check_count
+    from feeder.learn.structured_data import one_fence_maps, structured_arrays
+    from feeder.learn.structured_protocol import check_count, composed_on
 
     if args.out.suffix != ".npz":
         raise FeederError(f"--out {args.out}: the file to write ends in .npz")
     cfg = compose_config("structured", args.overrides)
     check_count(cfg.seeds, "seeds")
     check_count(cfg.train.threads, "train.threads")
+    composed_on(cfg)  # a bad value: a one-line error before any work
     if not cfg.search:
         raise FeederError("search: at least one setting to try (config/hydra/structured.yaml)")
     if not args.dataset.is_file():
@@ -319,6 +334,9 @@ def main(argv: list[str]) -> int:
     torch.set_num_threads(int(cfg.train.threads))
     say = lambda msg: print(f"feeder fit-structured: {msg}", file=sys.stderr, flush=True)  # noqa: E731
     arrays = structured_arrays(data, cfg, args.sim_dir, args.parts_dir, args.features_dir, args.cache, say)
+    if composed_on(cfg):  # the one-fence configurations' drop maps, read from their simulation files
+        sigma = float(json.loads(str(data["settings"]))["labels"]["sigma_bins"])
+        arrays["composed_maps"] = one_fence_maps(arrays, args.sim_dir, sigma)
     say(f"training on {len(arrays['part'])} configurations of {len(set(arrays['part']))} parts")
     out = fit_shipped(arrays, cfg, data)
     io.write_npz(args.out, **out)
