@@ -171,8 +171,11 @@ class _Shipped:
     def knows(self, part):
         return part == "p"
 
-    def answer(self, geom, part, config_ids, pool_ids, pool_pmf, pool_ok, scene, progress=None):
+    composes = False
+
+    def answer(self, geom, part, config_ids, pool_ids, pool_pmf, pool_ok, scene, progress=None, pool_maps=None):
         self.calls.append((part, list(config_ids), list(pool_ids), np.asarray(pool_pmf), list(pool_ok)))
+        self.maps = pool_maps
         out = np.zeros((len(config_ids), 360))
         out[:, 50] = 1.0
         return out
@@ -204,6 +207,25 @@ def test_a_known_part_at_a_new_angle_gets_the_structured_predictor_where_it_has_
     model = S.StudyModel(360, 1.0, SCENE, lib)
     model.bind(stl, ids)
     assert model.sources() == ["simulated", "neighbour", "analytic", "analytic", "analytic"]
+
+
+def test_a_composing_predictor_gets_the_parts_one_fence_drop_maps(tmp_path):
+    stl = tmp_path / "p.stl"
+    stl.write_bytes((Path(__file__).resolve().parents[1] / "parts" / "rect-a3.stl").read_bytes())
+    lib = _library(stl)
+    grid = json.dumps({"yaw_sampling": "grid", "design": "grid"})
+    lib.meta = np.array([grid, RANDOM, grid, grid])  # straight60_none: random drops sample no map
+    lib.config_id[1] = "none_straight60"
+    lib.structured = _Shipped()
+    lib.structured.composes = True
+    lib.structured.rule.meta["composed"] = True
+    model = S.StudyModel(360, 1.0, SCENE, lib)
+    model.bind(stl, ["straight20_straight50"])
+    assert model.sources() == ["structured"]
+    model.predict(np.zeros((1, 45)), np.zeros((1, 8)), _push(0.5, 1), np.full((1, 360), 1.0 / 360))
+    assert lib.structured.calls[0][2] == ["straight30_none", "none_straight60"]
+    assert list(lib.structured.maps) == [0]  # the random-drop row has no map; the jammed row is no pool row
+    assert lib.structured.maps[0].final.tolist() == [10.0, 10.0, 190.0, 190.0]
 
 
 def test_a_broken_structured_file_is_a_one_line_error(tmp_path):

@@ -790,8 +790,8 @@ def composed_block(arrays: dict, pool, near_deg: float, rows=None) -> tuple[np.n
     fences, or without both maps, or whose composition ends no yaw ok, gets its analytic PMF (the
     component then changes nothing) and its analytic ok mass. ``arrays["composed_maps"]``
     (:func:`one_fence_maps`) holds the maps; compositions are memoised there per (upstream row,
-    downstream row, frame); a pool row without a map there is left out. ``rows``: compose for these rows only (default: every row); the others
-    get the analytic PMF as if they had no maps."""
+    downstream row, frame); a pool row without a map there is left out. ``rows``: compose for these
+    rows only (default: every row); the others get the analytic PMF as if they had no maps."""
     entry = arrays["composed_maps"]
     maps, memo, sigma_bins = entry["maps"], entry["memo"], entry["sigma_bins"]
     n = len(arrays["part"])

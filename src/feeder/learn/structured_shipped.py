@@ -179,6 +179,11 @@ class ShippedStructured:
         """How the parts' STLs were read in training (``parts.units``)."""
         return str(self.meta.get("units", "auto"))
 
+    @property
+    def composes(self) -> bool:
+        """Whether it reads the part's one-fence drop maps composed (trained with ``model.composed``)."""
+        return bool(self.meta.get("composed"))
+
     def knows(self, part: str) -> bool:
         """Whether it was trained with the library part ``part``."""
         return str(part) in self.frames
@@ -213,7 +218,7 @@ class ShippedStructured:
                 return True
             if (o1 == "none") != (o2 == "none"):
                 alone.add((2, o2) if o1 == "none" else (1, o1))
-        return bool(self.meta.get("composed")) and "none" not in (t1, t2) and {(1, t1), (2, t2)} <= alone
+        return self.composes and "none" not in (t1, t2) and {(1, t1), (2, t2)} <= alone
 
     def answer(
         self, geom, part: str, config_ids, pool_ids, pool_pmf, pool_ok, scene: dict, progress=None, pool_maps=None
@@ -279,7 +284,7 @@ class ShippedStructured:
             rows, rows["kept"], m["neighbours"], m["neighbour_near_deg"], m["cross_neighbours"], miss
         )
         blocks = [q["x"], feats[n_pool:]]
-        if m.get("composed"):  # the part's one-fence maps composed, as the protocol's with_composed
+        if self.composes:  # the part's one-fence maps composed, as the protocol's with_composed
             rows["frame_deg"] = np.full(n_pool + n_q, frame)
             rows["composed_maps"] = {"maps": dict(pool_maps or {}), "sigma_bins": m["sigma_bins"], "memo": {}}
             c_feats, c_pmf = composed_block(

@@ -592,7 +592,7 @@ class StudyModel(AnalyticModel):
         frame = shipped.frame_of(self.known)
         pool = [int(i) for i in np.flatnonzero(lib.part == self.known) if lib.kept[i]]
         labels = [self._label(i, frame) for i in pool]
-        maps = self._one_fence_maps(pool) if shipped.meta.get("composed") else None
+        maps = self._one_fence_maps(pool) if shipped.composes else None
         outline, holes, _ = load_profile(self.part_path, shipped.units)
         pmf = shipped.answer(
             push_geometry(outline, holes),
@@ -611,15 +611,18 @@ class StudyModel(AnalyticModel):
 
     def _one_fence_maps(self, pool: list[int]) -> dict:
         """The sampled drop maps (part frame) of the one-fence configurations among library rows
-        ``pool``, by their index in ``pool`` (what the structured predictor composes)."""
-        from feeder.labels.pmf import record_design
+        ``pool``, by their index in ``pool`` (what the structured predictor composes); a row of a
+        design that samples no map (random drops) has none."""
+        from feeder.labels.pmf import MAP_DESIGNS, record_design
         from feeder.learn.structured_data import fence_key
 
         maps = {}
         for k, i in enumerate(pool):
             (t1, t2), _ = fence_key(str(self.library.config_id[i]))
             if (t1 == "none") != (t2 == "none"):
-                maps[k] = record_design(self.library.record(i))
+                rec = self.library.record(i)
+                if rec.design in MAP_DESIGNS:
+                    maps[k] = record_design(rec)
         return maps
 
     def predict(self, part_raw, feeder_raw, push_raw=None, analytic=None) -> tuple[np.ndarray, np.ndarray]:
