@@ -205,7 +205,8 @@ class ShippedStructured:
 
     def has_neighbour(self, config_id: str, pool_ids) -> bool:
         """Whether ``config_id`` has a neighbour among the part's labelled ``pool_ids`` (same fence
-        types, or the same downstream fence type when cross neighbours are used)."""
+        types, the same downstream fence type when cross neighbours are used, or each of its two fences
+        alone when it composes)."""
         from feeder.learn.structured_data import fence_key
 
         (t1, t2), _ = fence_key(config_id)
