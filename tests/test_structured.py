@@ -982,6 +982,9 @@ def test_with_composed_appends_a_component_after_the_neighbours_and_its_inputs()
     c = with_composed(nb, np.ones(4, dtype=bool), 10.0)
     assert c["neighbour_pmf"].shape == (4, 3, 360) and c["neighbour_pmf"][0, 2, 40] == pytest.approx(1.0)
     assert c["neighbour_offset"].tolist() == [[1.0, 1.0, 0.0]] * 4
+    d = with_composed(dict(a, neighbour_pmf=nb["neighbour_pmf"]), np.ones(4, dtype=bool), 10.0, -3.0)
+    assert d["neighbour_offset"].tolist() == [[0.0, 0.0, -3.0]] * 4  # the composition starts less trusted
+    assert "neighbour_offset" not in b
     with pytest.raises(FeederError, match="neighbour_near_deg must be > 0"):
         with_composed(a, np.ones(4, dtype=bool), 0.0)
 
@@ -1022,6 +1025,20 @@ def test_a_bad_composed_setting_is_refused(bad):
     with pytest.raises(FeederError, match="model.composed must be true or false"):
         composed_on(OmegaConf.create({"model": {"composed": bad}}))
     assert composed_on(OmegaConf.create({"model": {}})) is False
+
+
+def test_the_protocol_runs_the_fits_it_is_asked_for():
+    from feeder.config import compose_config
+    from feeder.learn.structured_protocol import protocol_jobs
+
+    a = _toy_library()
+    jobs, _ = protocol_jobs(a, compose_config("structured", [*TOY_PROTOCOL, "protocol.fits=[main]"]))
+    assert [j[1] for j in jobs] == ["main:0", "main:1"]
+    jobs, _ = protocol_jobs(a, compose_config("structured", TOY_PROTOCOL))
+    assert [j[0] for j in jobs] == ["groupkfold"] * 3 + ["main"] * 2 + ["locked"]
+    for bad in ("[]", "[main,oops]"):
+        with pytest.raises(FeederError, match="protocol.fits must be a non-empty list of groupkfold, main, locked"):
+            protocol_jobs(a, compose_config("structured", [*TOY_PROTOCOL, f"protocol.fits={bad}"]))
 
 
 def test_the_protocol_reads_the_composed_maps_and_compares_with_them():

@@ -817,10 +817,11 @@ def composed_block(arrays: dict, pool, near_deg: float, rows=None) -> tuple[np.n
     return np.column_stack([has, du / RIGHT_ANGLE_DEG, dd / RIGHT_ANGLE_DEG, close, ok]), pmfs
 
 
-def with_composed(arrays: dict, pool, near_deg: float) -> dict:
+def with_composed(arrays: dict, pool, near_deg: float, start_logit: float = 0.0) -> dict:
     """``arrays`` whose two-fence rows read the composition of their part's one-fence maps in
     ``pool`` (:func:`composed_block`): its PMF as one more diffuse component (after the
-    neighbours', starting as they do) and its inputs appended to ``x``."""
+    neighbours', its logit offset by ``start_logit`` throughout: 0 starts it as they start) and its
+    inputs appended to ``x``."""
     if not near_deg > 0:
         raise FeederError(f"model.neighbour_near_deg must be > 0, got {near_deg}")
     feats, comp = composed_block(arrays, pool, near_deg)
@@ -828,6 +829,7 @@ def with_composed(arrays: dict, pool, near_deg: float) -> dict:
     extra = arrays.get("neighbour_pmf")
     comps = comp if extra is None else np.concatenate([np.asarray(extra, dtype=np.float64), comp], axis=1)
     out = dict(arrays, x=np.concatenate([arrays["x"], feats], axis=1), neighbour_pmf=comps)
-    if "neighbour_offset" in arrays:
-        out["neighbour_offset"] = np.concatenate([arrays["neighbour_offset"], np.zeros((n, 1))], axis=1)
+    if "neighbour_offset" in arrays or float(start_logit) != 0.0:
+        before = arrays.get("neighbour_offset", np.zeros((n, comps.shape[1] - 1)))
+        out["neighbour_offset"] = np.concatenate([before, np.full((n, 1), float(start_logit))], axis=1)
     return out

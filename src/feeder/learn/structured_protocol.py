@@ -47,6 +47,7 @@ PRIOR = "analytic_prior"
 MEAN = "mean_pmf"
 M3 = "m3"
 GATED = "neighbour_gated"  # the part's nearest labelled angle within a gate, else the analytic PMF
+FIT_KINDS = ("groupkfold", "main", "locked")  # the protocol's fits (protocol.fits runs some of them)
 COMPOSED = "composed"  # the part's one-fence maps composed (model.composed; else the analytic PMF)
 DROPS = "drops"  # the label of the configuration's own few start-grid drops (model.drops > 0)
 
@@ -109,7 +110,7 @@ def fit_protocol(arrays: dict, train: np.ndarray, cfg, key: str, known: bool = T
     def inputs(pool):  # the part's neighbours in pool, their composition, then the row's own drops (when read)
         a = with_neighbours(arrays, pool, k, near, cross, **nb_opts)
         if composed_on(cfg):
-            a = with_composed(a, pool, near)
+            a = with_composed(a, pool, near, float(cfg.model.get("composed_start_logit", 0.0)))
         if "drop_pmf" not in arrays:
             return a
         return with_drops(a, drop_count(cfg, "drop_candidates"), nb_opts["merge_deg"], nb_opts["window_deg"])
@@ -305,6 +306,9 @@ def protocol_jobs(arrays: dict, cfg) -> tuple[list[tuple], set]:
     """The protocol's fits in their order (module doc): ``(kind, key, index, train, scored)`` per
     fit, with ``scored`` the rows it scores by experiment; and the locked parts."""
     base = int(cfg.seed)
+    kinds = list(cfg.protocol.get("fits", FIT_KINDS))
+    if not kinds or set(kinds) - set(FIT_KINDS):
+        raise FeederError(f"protocol.fits must be a non-empty list of {', '.join(FIT_KINDS)}, got {kinds}")
     parts = arrays["part"]
     locked = pick_parts(parts, float(cfg.protocol.locked_fraction), base, "locked")
     is_locked = np.isin(parts, list(locked))
@@ -328,7 +332,7 @@ def protocol_jobs(arrays: dict, cfg) -> tuple[list[tuple], set]:
         jobs.append(("main", f"main:{r}", r, ~is_locked & ~test & ~fences, {"test": test, "fences": fences}))
     # the locked parts, once
     jobs.append(("locked", "locked", 0, ~is_locked, {"unseen_locked": is_locked}))
-    return jobs, locked
+    return [job for job in jobs if job[0] in kinds], locked
 
 
 def check_count(value, key: str) -> int:
