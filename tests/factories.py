@@ -175,3 +175,23 @@ def make_level_dataset(path, n_parts=6, n_configs=10, drops=200, seed=0):
     arrays["n_ok"] = np.full(len(arrays["part"]), drops)
     np.savez(path, **arrays)
     return arrays
+
+
+def grid_map(finals, statuses=None):
+    """A sampled drop map at 0, 90, 180 and 270 deg (a grid design, as a grid simulation record
+    rebuilds it); every drop ok unless ``statuses`` says otherwise."""
+    from feeder.sim.adaptive import design_from_samples
+
+    statuses = statuses or ["ok"] * len(finals)
+    return design_from_samples(
+        np.array([0.0, 90.0, 180.0, 270.0]),
+        np.array(finals, dtype=float),
+        np.array(statuses),
+        period_deg=360.0,
+        offset_deg=0.0,
+        tolerance_deg=2.0,
+        min_width_deg=90.0,
+        max_width_deg=90.0,
+        band_gap_deg=0.0,
+        edge_check_deg=0.0,
+    )

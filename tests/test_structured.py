@@ -9,6 +9,7 @@ import math
 import numpy as np
 import pandas as pd
 import pytest
+from factories import grid_map
 
 from feeder.errors import FeederError
 from feeder.labels.metrics import circular_w1
@@ -862,25 +863,6 @@ def test_the_protocol_reads_each_configurations_drops_and_compares_with_them():
     assert set(choices.drops) == {4}
 
 
-def _grid_map(finals, statuses=None):
-    """A sampled drop map at 0, 90, 180 and 270 deg (a grid design, as a grid record rebuilds it)."""
-    from feeder.sim.adaptive import design_from_samples
-
-    statuses = statuses or ["ok"] * len(finals)
-    return design_from_samples(
-        np.array([0.0, 90.0, 180.0, 270.0]),
-        np.array(finals, dtype=float),
-        np.array(statuses),
-        period_deg=360.0,
-        offset_deg=0.0,
-        tolerance_deg=2.0,
-        min_width_deg=90.0,
-        max_width_deg=90.0,
-        band_gap_deg=0.0,
-        edge_check_deg=0.0,
-    )
-
-
 # the downstream fence alone: 40 for initial yaws in [0, 135) and [315, 360), 220 in [135, 315)
 # (agreeing intervals keep their basin, disagreeing ones take the nearer sample's)
 DOWNSTREAM = ([40.0, 40.0, 220.0, 220.0], None)
@@ -889,16 +871,16 @@ DOWNSTREAM = ([40.0, 40.0, 220.0, 220.0], None)
 def test_compose_maps_by_hand():
     from feeder.learn.structured_data import compose_maps
 
-    down = _grid_map(*DOWNSTREAM)
-    pmf, share = compose_maps(_grid_map([100.0] * 4), down, 5.0, 360, 0.0, yaws=720)
+    down = grid_map(*DOWNSTREAM)
+    pmf, share = compose_maps(grid_map([100.0] * 4), down, 5.0, 360, 0.0, yaws=720)
     assert share == 1.0 and pmf[45] == pytest.approx(1.0)  # every yaw rests at 100, then 40; the frame turns it by 5
     # upstream: ok at 100 for [0, 45) and [315, 360), ok at 200 for [135, 225), jammed elsewhere
-    up = _grid_map([100.0, 0.0, 200.0, 0.0], ["ok", "jammed", "ok", "jammed"])
+    up = grid_map([100.0, 0.0, 200.0, 0.0], ["ok", "jammed", "ok", "jammed"])
     pmf, share = compose_maps(up, down, 0.0, 360, 0.0, yaws=720)
     assert share == pytest.approx(0.5) and pmf[40] == pytest.approx(0.5) and pmf[220] == pytest.approx(0.5)
     smooth, _ = compose_maps(up, down, 0.0, 360, 1.0, yaws=720)
     assert smooth.sum() == pytest.approx(1.0) and 0 < smooth[40] < 0.5 and smooth[41] > 0  # smoothed as labels are
-    none, share = compose_maps(_grid_map([0.0] * 4, ["jammed"] * 4), down, 0.0, 360, 0.0, yaws=720)
+    none, share = compose_maps(grid_map([0.0] * 4, ["jammed"] * 4), down, 0.0, 360, 0.0, yaws=720)
     assert none is None and share == 0.0
     with pytest.raises(FeederError, match="yaws must be >= 1"):
         compose_maps(up, down, 0.0, 360, 0.0, yaws=0)
@@ -943,7 +925,7 @@ def _composed_arrays():
         "analytic_ok": np.array([0.9, 0.8, 0.7, 0.6]),
         "x": np.zeros((4, 2)),
         "composed_maps": {
-            "maps": {1: _grid_map([100.0] * 4), 2: _grid_map(*DOWNSTREAM)},
+            "maps": {1: grid_map([100.0] * 4), 2: grid_map(*DOWNSTREAM)},
             "sigma_bins": 0.0,
             "memo": {},
         },
@@ -1055,9 +1037,9 @@ def test_the_protocol_reads_the_composed_maps_and_compares_with_them():
     maps = {}
     for i, c in enumerate(a["config_id"]):
         if c == "none_straight30":
-            maps[i] = _grid_map([100.0] * 4)
+            maps[i] = grid_map([100.0] * 4)
         elif c.endswith("_none"):
-            maps[i] = _grid_map(*DOWNSTREAM)
+            maps[i] = grid_map(*DOWNSTREAM)
     a["composed_maps"] = {"maps": maps, "sigma_bins": 1.0, "memo": {}}
     a["frame_deg"] = np.zeros(len(a["part"]))
     long, choices = run_protocol(a, cfg, grids(compose_config("train")["prior"]))

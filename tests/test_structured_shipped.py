@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from factories import grid_map
 
 from feeder.errors import FeederError
 
@@ -131,24 +132,6 @@ def test_the_shipped_answer_is_the_protocols_prediction_of_the_row():
         shipped.frame_of("nope")
 
 
-def _grid_map(finals):
-    """A sampled drop map at 0, 90, 180 and 270 deg, every drop ok (a grid design)."""
-    from feeder.sim.adaptive import design_from_samples
-
-    return design_from_samples(
-        np.array([0.0, 90.0, 180.0, 270.0]),
-        np.array(finals, dtype=float),
-        np.array(["ok"] * 4),
-        period_deg=360.0,
-        offset_deg=0.0,
-        tolerance_deg=2.0,
-        min_width_deg=90.0,
-        max_width_deg=90.0,
-        band_gap_deg=0.0,
-        edge_check_deg=0.0,
-    )
-
-
 def test_the_shipped_answer_composes_the_one_fence_maps_as_the_protocol_does():
     pytest.importorskip("torch")
     from feeder.learn.structured import predict
@@ -159,7 +142,7 @@ def test_the_shipped_answer_composes_the_one_fence_maps_as_the_protocol_does():
 
     configs = ["straight30_none", "none_straight45", "straight50_none", "none_curved30", "straight30_straight45"]
     cfg, a, scene = _small_study(17.0, configs, ["model.composed=true"])
-    maps = {0: _grid_map([40.0, 40.0, 220.0, 220.0]), 1: _grid_map([100.0] * 4)}  # downstream, upstream alone
+    maps = {0: grid_map([40.0, 40.0, 220.0, 220.0]), 1: grid_map([100.0] * 4)}  # downstream, upstream alone
     a["composed_maps"] = {"maps": {**maps, **{i + 5: m for i, m in maps.items()}}, "sigma_bins": 1.0, "memo": {}}
     fitted = fit_protocol(a, np.ones(10, dtype=bool), cfg, "shipped", known=True)
     assert fitted["choice"]["composed"]
