@@ -887,8 +887,14 @@ def test_compose_maps_by_hand():
 
 
 def test_one_fence_rows_pick_each_fence_alone_of_its_type_nearest_in_angle():
-    from feeder.learn.structured_data import one_fence_rows
+    from feeder.learn.structured_data import fence_alone, one_fence_rows
 
+    assert [fence_alone(c) for c in ("none_curved30", "straight40_none", "straight40_curved30", "none_none")] == [
+        (2, "curved"),
+        (1, "straight"),
+        None,
+        None,
+    ]
     parts = ["p"] * 7 + ["q"]
     cids = [
         "curved20_straight30",  # 0: two fences

@@ -732,6 +732,14 @@ def compose_maps(upstream, downstream, frame_deg: float, bins: int, sigma_bins: 
     return (wrapped_gaussian_smooth(hist, float(sigma_bins)) if sigma_bins > 0 else hist / hist.sum()), share
 
 
+def fence_alone(config_id: str) -> tuple[int, str] | None:
+    """(location, type) of a configuration's only fence, or None when it has two or none."""
+    (t1, t2), _ = fence_key(config_id)
+    if (t1 == "none") == (t2 == "none"):
+        return None
+    return (2, t2) if t1 == "none" else (1, t1)
+
+
 def one_fence_rows(parts, config_ids, pool, rows) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """For each of ``rows`` with two fences: the row of ``pool`` (a boolean mask) of the same part
     with the upstream (Location 2) fence alone, of its type and nearest in angle, and the one with
@@ -742,11 +750,9 @@ def one_fence_rows(parts, config_ids, pool, rows) -> tuple[np.ndarray, np.ndarra
     keys = [fence_key(c) for c in config_ids]
     alone: dict[tuple, list[int]] = {}  # (part, location, type) -> rows with that fence alone
     for j in np.flatnonzero(np.asarray(pool, dtype=bool)):
-        (t1, t2), _ = keys[j]
-        if t1 == "none" and t2 != "none":
-            alone.setdefault((parts[j], 2, t2), []).append(int(j))
-        elif t2 == "none" and t1 != "none":
-            alone.setdefault((parts[j], 1, t1), []).append(int(j))
+        only = fence_alone(config_ids[j])
+        if only is not None:
+            alone.setdefault((parts[j], *only), []).append(int(j))
     rows = np.asarray(rows, dtype=np.int64)
     out = [np.full(rows.size, -1, dtype=np.int64) if k % 2 == 0 else np.full(rows.size, np.inf) for k in range(4)]
     for n, i in enumerate(rows):
@@ -772,8 +778,7 @@ def one_fence_maps(arrays: dict, sim_dir, sigma_bins: float) -> dict:
 
     maps = {}
     for i, (part, cid) in enumerate(zip(arrays["part"], arrays["config_id"], strict=True)):
-        (t1, t2), _ = fence_key(cid)
-        if not arrays["kept"][i] or (t1 == "none") == (t2 == "none"):
+        if not arrays["kept"][i] or fence_alone(cid) is None:
             continue
         path = Path(sim_dir) / str(part) / f"{cid}.npz"
         try:

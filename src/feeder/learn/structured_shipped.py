@@ -207,7 +207,7 @@ class ShippedStructured:
         """Whether ``config_id`` has a neighbour among the part's labelled ``pool_ids`` (same fence
         types, the same downstream fence type when cross neighbours are used, or each of its two fences
         alone when it composes)."""
-        from feeder.learn.structured_data import fence_key
+        from feeder.learn.structured_data import fence_alone, fence_key
 
         (t1, t2), _ = fence_key(config_id)
         alone = set()  # (location, type) of the part's one-fence configurations
@@ -217,8 +217,7 @@ class ShippedStructured:
                 return True
             if self.meta["cross_neighbours"] > 0 and t1 != "none" and o1 == t1 and (o1, o2) != (t1, t2):
                 return True
-            if (o1 == "none") != (o2 == "none"):
-                alone.add((2, o2) if o1 == "none" else (1, o1))
+            alone.add(fence_alone(other))
         return self.composes and "none" not in (t1, t2) and {(1, t1), (2, t2)} <= alone
 
     def answer(

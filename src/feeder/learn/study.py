@@ -614,12 +614,11 @@ class StudyModel(AnalyticModel):
         ``pool``, by their index in ``pool`` (what the structured predictor composes); a row of a
         design that samples no map (random drops) has none."""
         from feeder.labels.pmf import MAP_DESIGNS, record_design
-        from feeder.learn.structured_data import fence_key
+        from feeder.learn.structured_data import fence_alone
 
         maps = {}
         for k, i in enumerate(pool):
-            (t1, t2), _ = fence_key(str(self.library.config_id[i]))
-            if (t1 == "none") != (t2 == "none"):
+            if fence_alone(str(self.library.config_id[i])) is not None:
                 rec = self.library.record(i)
                 if rec.design in MAP_DESIGNS:
                     maps[k] = record_design(rec)
