@@ -1029,6 +1029,13 @@ def test_the_protocol_runs_the_fits_it_is_asked_for():
             protocol_jobs(a, compose_config("structured", [*TOY_PROTOCOL, f"protocol.fits={bad}"]))
 
 
+def test_a_bad_fits_setting_is_refused_before_any_work(tmp_path):
+    from feeder.learn.structured_protocol import main
+
+    with pytest.raises(FeederError, match="protocol.fits must be a non-empty list"):
+        main(["--dataset", str(tmp_path / "missing.npz"), "protocol.fits=[oops]"])
+
+
 def test_the_protocol_reads_the_composed_maps_and_compares_with_them():
     pytest.importorskip("torch")
     from feeder.config import compose_config

@@ -306,9 +306,7 @@ def protocol_jobs(arrays: dict, cfg) -> tuple[list[tuple], set]:
     """The protocol's fits in their order (module doc): ``(kind, key, index, train, scored)`` per
     fit, with ``scored`` the rows it scores by experiment; and the locked parts."""
     base = int(cfg.seed)
-    kinds = list(cfg.protocol.get("fits", FIT_KINDS))
-    if not kinds or set(kinds) - set(FIT_KINDS):
-        raise FeederError(f"protocol.fits must be a non-empty list of {', '.join(FIT_KINDS)}, got {kinds}")
+    kinds = fit_kinds(cfg)
     parts = arrays["part"]
     locked = pick_parts(parts, float(cfg.protocol.locked_fraction), base, "locked")
     is_locked = np.isin(parts, list(locked))
@@ -333,6 +331,15 @@ def protocol_jobs(arrays: dict, cfg) -> tuple[list[tuple], set]:
     # the locked parts, once
     jobs.append(("locked", "locked", 0, ~is_locked, {"unseen_locked": is_locked}))
     return [job for job in jobs if job[0] in kinds], locked
+
+
+def fit_kinds(cfg) -> list[str]:
+    """``protocol.fits`` (all of :data:`FIT_KINDS` when absent): the kinds of fit to run. A one-line
+    FeederError unless it is a non-empty list of them."""
+    kinds = list(cfg.protocol.get("fits", FIT_KINDS))
+    if not kinds or set(kinds) - set(FIT_KINDS):
+        raise FeederError(f"protocol.fits must be a non-empty list of {', '.join(FIT_KINDS)}, got {kinds}")
+    return kinds
 
 
 def check_count(value, key: str) -> int:
@@ -549,7 +556,8 @@ def main(argv: list[str]) -> int:
     args = _parser().parse_args(argv)
     cfg = compose_config("structured", args.overrides)
     check_workers(cfg.train.workers)  # before the data and the candidates, not after
-    neighbour_options(cfg), drop_count(cfg), drop_count(cfg, "drop_candidates"), composed_on(cfg)  # a one-line error
+    # bad settings: a one-line error before any work
+    neighbour_options(cfg), drop_count(cfg), drop_count(cfg, "drop_candidates"), composed_on(cfg), fit_kinds(cfg)
     prior_grids = grids(compose_config("train")["prior"])
     import torch
 
