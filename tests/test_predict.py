@@ -491,6 +491,33 @@ def test_predict_answers_a_part_with_a_hole_with_a_note(model_dir, tmp_path, cap
     assert not np.allclose(of_stl, solid)
 
 
+def test_the_hole_note_only_where_the_answer_cannot_see_the_hole(model_dir, tmp_path, capsys):
+    """The analytic push PMF sees a part's holes (its centre of mass is the holed face's), so its
+    answer for a holed plate differs from the solid plate's and carries no note; neither does the
+    simulator's (``--simulate``). A trained network reads the outer contour's features: the note."""
+    from feeder.learn.analytic import AnalyticModel
+    from feeder.learn.predict import reads_contour_only
+    from feeder.parts.geometry import stl_bytes
+    from feeder.parts.shapes import holes_mm, outline_mm
+
+    spec = "plate-60x30x10"
+    pmfs = {}
+    for name, holes in (("holed", holes_mm(spec)), ("solid", [])):
+        part = tmp_path / f"{name}.stl"
+        part.write_bytes(stl_bytes(outline_mm(spec), 5.0, name, holes=holes))
+        out = tmp_path / f"{name}.csv"
+        argv = ["--model", "analytic", "--part", str(part), "--loc1", "straight:40", "--loc2", "none"]
+        assert P.main([*argv, "--out", str(out)]) == 0
+        assert "through-hole" not in capsys.readouterr().err
+        pmfs[name] = pd.read_csv(out).pmf.to_numpy()
+    assert np.abs(np.cumsum(pmfs["holed"]) - np.cumsum(pmfs["solid"])).max() > 0.01  # the hole moves the answer
+    assert not reads_contour_only(AnalyticModel(360))
+    assert reads_contour_only(P.load_model(model_dir / "m3"))
+    holed = ["--part", str(tmp_path / "holed.stl"), "--loc1", "straight:40", "--loc2", "none"]
+    assert P.main([*holed, "--simulate", "2", "--out", str(tmp_path / "sim.csv")]) == 0  # the simulator: 2 drops
+    assert "through-hole" not in capsys.readouterr().err
+
+
 @pytest.mark.skipif(not (PARTS / "rect-a2.stl").is_file(), reason="no part library in parts/")
 def test_predict_simulate_answers_with_the_simulator(tmp_path, capsys):
     """``--simulate 4``: the study's design with at most 4 drops (a grid below n0), its label in the

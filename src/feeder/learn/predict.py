@@ -82,14 +82,18 @@ def choose_model(model_arg, prog: str, study: dict):
     return load_model(resolve_model_dir(model_arg, prog))
 
 
-def check_part_fits(part: Path, prog: str = "feeder predict", scene: dict | None = None) -> None:
+def check_part_fits(
+    part: Path, prog: str = "feeder predict", scene: dict | None = None, contour_only: bool = True
+) -> None:
     """Refuse an STL part the simulator refuses (wider than the belt, or too thin for the fences:
     :func:`feeder.sim.body.check_fit`, units as ``--units auto``): the model has never seen such a
     part and would answer for a scene that cannot happen. A face point cloud (``.xyz``) has no
-    thickness and is not checked. A part with through-holes is answered with a note on stderr: the
-    shape features describe its outer contour only (as in the paper), so the model does not see
-    how the holes move its centre of mass. ``scene``: the study's scene section (default: the
-    study config's, :func:`feeder.lane.settings.load_settings`)."""
+    thickness and is not checked. ``contour_only``: the answer reads the part's DFT shape features,
+    which describe its outer contour only (as in the paper), so a part with through-holes gets a
+    note on stderr that the model does not see how the holes move its centre of mass (the analytic
+    push model, the study's labels and the simulator all do: :func:`reads_contour_only`).
+    ``scene``: the study's scene section (default: the study config's,
+    :func:`feeder.lane.settings.load_settings`)."""
     if part.suffix.lower() != ".stl":
         return
     from feeder.lane.settings import load_settings
@@ -99,7 +103,7 @@ def check_part_fits(part: Path, prog: str = "feeder predict", scene: dict | None
     outline, holes, thickness = load_profile(part, "auto")
     _, centroid, _ = profile_moments(outline, holes)
     check_fit(part.stem, outline, centroid, thickness, load_settings()[0] if scene is None else scene)
-    if holes:
+    if holes and contour_only:
         print(
             f"{prog}: note: {part.name} has {len(holes)} through-hole(s); the model sees its outer "
             "contour only, so check the answer with feeder simulate",
@@ -107,12 +111,25 @@ def check_part_fits(part: Path, prog: str = "feeder predict", scene: dict | None
         )
 
 
+def reads_contour_only(model) -> bool:
+    """Whether ``model`` answers from the part's DFT shape features (a trained network,
+    :class:`feeder.learn.inference.NumpyModel`), which see its outer contour only; the analytic push
+    PMF and the study's answers (labels, the structured predictor) see its holes."""
+    from feeder.learn.inference import NumpyModel
+
+    return isinstance(model, NumpyModel)
+
+
 def part_vector(
-    part: Path | None, features: Path | None, prog: str = "feeder predict", scene: dict | None = None
+    part: Path | None,
+    features: Path | None,
+    prog: str = "feeder predict",
+    scene: dict | None = None,
+    contour_only: bool = True,
 ) -> tuple[np.ndarray, float | None]:
     """(the 45 raw DFT values, ``frame_deg`` or None) of a part, from its geometry file or a features
     JSON; ``prog`` names the command in a note on stderr; ``scene`` is the scene the part must fit
-    (:func:`check_part_fits`)."""
+    and ``contour_only`` whether the answer sees the outer contour only (:func:`check_part_fits`)."""
     if (part is None) == (features is None):
         raise FeederError("give exactly one of --part or --features")
     if features is not None:
@@ -126,7 +143,7 @@ def part_vector(
         return load_features(features), frame
     if not part.is_file():
         raise FeederError(f"part file {part} is missing")
-    check_part_fits(part, prog, scene)
+    check_part_fits(part, prog, scene, contour_only)
     from feeder.parts.features import as_vector, features_of_file
 
     feats = features_of_file(part)
@@ -312,7 +329,7 @@ def _main_simulated(args) -> int:
         raise FeederError("--simulate simulates the part: give it as --part PART.stl, not --features")
     geom = verify_part(args.part)
     study = study_settings(args, "scene", "labels", "sim")
-    check_part_fits(args.part, "feeder predict", study["scene"])
+    check_part_fits(args.part, "feeder predict", study["scene"], contour_only=False)
     print(f"feeder predict: simulating at most {args.simulate} drops (the study's adaptive design)", file=sys.stderr)
     frame, info = simulated_frame(geom, args.loc1, args.loc2, args.simulate, study, audits=args.audit or 0)
     done = f"{info['simulations']} drops ({info['statuses']}), {info['cpu_s']:.1f} s CPU"
@@ -395,7 +412,9 @@ def main(argv: list[str]) -> int:
     model = choose_model(args.model, "feeder predict", study)
     check_push_source(model, args.part)
     t0 = time.perf_counter()
-    part_raw, frame_deg = part_vector(args.part, args.features, scene=study.get("scene"))
+    part_raw, frame_deg = part_vector(
+        args.part, args.features, scene=study.get("scene"), contour_only=reads_contour_only(model)
+    )
     if hasattr(model, "bind"):  # the study's predictor: what it knows of this part and configuration
         from feeder.lane.fences import config_id, parse_location
 

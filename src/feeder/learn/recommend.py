@@ -186,7 +186,7 @@ def verify(geom, config_ids, settings: dict, target_deg, tolerance_deg, order, l
 def main(argv: list[str]) -> int:
     from feeder.config import add_settings_options, study_settings
     from feeder.learn.export import add_model_option
-    from feeder.learn.predict import check_push_source, choose_model, part_vector, push_inputs
+    from feeder.learn.predict import check_push_source, choose_model, part_vector, push_inputs, reads_contour_only
 
     parser = argparse.ArgumentParser(prog="feeder recommend", description=__doc__.splitlines()[0])
     add_model_option(parser)
@@ -232,7 +232,9 @@ def main(argv: list[str]) -> int:
     order = symmetry_order(args.symmetry, args.part)
     model = choose_model(args.model, "feeder recommend", study)
     check_push_source(model, args.part)
-    part_raw, frame_deg = part_vector(args.part, args.features, "feeder recommend", study.get("scene"))
+    part_raw, frame_deg = part_vector(
+        args.part, args.features, "feeder recommend", study.get("scene"), reads_contour_only(model)
+    )
     if hasattr(model, "bind"):  # the study's predictor: which configurations it has simulated for this part
         print(f"feeder recommend: {model.bind(args.part, config_ids)}", file=sys.stderr)
         model.progress = lambda message: print(f"feeder recommend: {message}", file=sys.stderr, flush=True)
