@@ -346,6 +346,77 @@ def test_each_label_carries_its_audit_estimate_into_the_answer(tmp_path, part_st
         S.export_study(*args, tmp_path / "neighbour.csv", [0, 20], tmp_path / "x", label_errors=tmp_path / "short.csv")
 
 
+@pytest.mark.parametrize(
+    ("config_id", "kind"),
+    [
+        ("straight30_none", "straight_none"),
+        ("straight50_none", "straight_none, steep"),  # at the threshold: steep
+        ("none_straight49.9", "none_straight"),
+        ("curved80_none", "curved_none"),  # a curved fence is never "steep": its own kind
+        ("curved20_straight55", "curved_straight, steep"),
+        ("straight60_straight15", "straight_straight, steep"),  # either straight fence
+        ("none_none", "none_none"),
+    ],
+)
+def test_scene_kinds_by_hand(config_id, kind):
+    assert S.scene_kind(config_id, 50.0) == kind
+
+
+@pytest.mark.parametrize("bad", [0, -5, 90, 120, "steep", None, float("nan")])
+def test_a_bad_steep_angle_is_refused(bad):
+    with pytest.raises(FeederError, match="analytic_scenes.steep_deg"):
+        S.check_steep_deg(bad)
+
+
+def test_the_analytic_error_by_scene_by_hand():
+    """Labels at 10, 20 and 30 deg; analytic PMFs 40, 30 and 0 deg off (30's is a half-and-half mix
+    of 10 and 50 deg: W1 20 to a label at 30). Two straight scenes below 50, one steep."""
+
+    def at(*yaws):
+        return L.pmf_from_yaws(np.array(yaws, dtype=float), 360, 0.0)
+
+    ids = ["straight30_none", "straight40_none", "straight55_none"]
+    pmf = np.stack([at(10.0), at(20.0), at(30.0)])
+    analytic = np.stack([at(50.0), at(350.0), at(10.0, 50.0)])
+    rows = {r["scene"]: r for r in S.analytic_by_scene(ids, pmf, analytic, 50.0)}
+    assert list(rows) == ["straight_none", "straight_none, steep"]
+    low, steep = rows["straight_none"], rows["straight_none, steep"]
+    assert low["configurations"] == 2 and steep["configurations"] == 1
+    assert low["mean_circular_w1_deg"] == pytest.approx(35.0) and low["median_circular_w1_deg"] == pytest.approx(35.0)
+    assert low["p90_circular_w1_deg"] == pytest.approx(30.0 + 0.9 * 10.0)  # numpy's linear percentile of 30, 40
+    assert steep["mean_circular_w1_deg"] == pytest.approx(20.0)
+    with pytest.raises(FeederError, match="one label and one analytic PMF"):
+        S.analytic_by_scene(ids[:2], pmf, analytic, 50.0)
+
+
+def test_an_analytic_answer_says_how_far_the_analytic_pmf_lay_in_scenes_of_its_kind(tmp_path, part_stl):
+    parts_dir, sim_dir = _study_inputs(tmp_path)
+    args = (pd.read_csv(tmp_path / "configurations.csv"), sim_dir, parts_dir, tmp_path / "dataset.npz")
+    card = S.export_study(*args, tmp_path / "neighbour.csv", [0, 20], tmp_path / "study", steep_deg=50.0)
+    # the dataset's labels: straight 30, 40 and 80, each 40 deg from its analytic PMF
+    kinds = {k["scene"]: k for k in card["analytic_scenes"]["kinds"]}
+    assert card["analytic_scenes"]["steep_deg"] == 50.0
+    assert kinds["straight_none"]["configurations"] == 2 and kinds["straight_none, steep"]["configurations"] == 1
+    assert kinds["straight_none"]["mean_circular_w1_deg"] == pytest.approx(40.0, abs=0.01)
+    assert "| straight_none, steep | 1 | 40.0 | 40.0 | 40.0 |" in (tmp_path / "study" / "MODEL_CARD.md").read_text()
+    other = tmp_path / "other.stl"
+    other.write_bytes(b"solid other\n")
+    model = S.StudyModel(360, 1.0, SCENE, S.load_library(tmp_path / "study"))
+    model.bind(other, ["straight35_none", "straight70_none", "curved40_none"])
+    assert model.describe(0) == (
+        "the analytic push PMF; on the study's 2 labelled configurations of this kind (straight_none) it lay "
+        "circular W1 40.0 deg from the simulator on average (median 40.0, 90th percentile 40.0); "
+        "--simulate BUDGET asks the simulator"
+    )
+    assert "(straight_none, steep)" in model.describe(1)
+    assert model.describe(2) == "the analytic push PMF"  # no labelled scene of its kind: nothing to say
+    elsewhere = S.StudyModel(360, 1.0, {**SCENE, "belt": {"speed": 0.2, "friction": 1.0}}, model.library)
+    elsewhere.bind(other, ["straight35_none"])
+    assert elsewhere.describe(0) == "the analytic push PMF"  # measured in another scene: not quoted
+    plain = S.export_study(*args, tmp_path / "neighbour.csv", [0, 20], tmp_path / "plain")
+    assert "analytic_scenes" not in plain  # an export without the setting (an older card) says nothing either
+
+
 def test_a_missing_or_foreign_library_is_a_one_line_error(tmp_path):
     with pytest.raises(FeederError, match="make run"):
         S.load_library(tmp_path / "nowhere")
@@ -412,6 +483,8 @@ def test_export_study_refuses_bad_input_in_one_line_and_writes_nothing(tmp_path)
         (tmp_path / "missing.csv", [], "missing.csv is missing"),
         (tmp_path / "bad.csv", [], "no column config_id"),
         (tmp_path / "configurations.csv", ["neighbour.gates_deg=[]"], "neighbour.gates_deg"),
+        (tmp_path / "configurations.csv", ["analytic_scenes.steep_deg=0"], "analytic_scenes.steep_deg"),
+        (tmp_path / "configurations.csv", ["analytic_scenes.steep_deg=steep"], "analytic_scenes.steep_deg"),
     ]:
         proc = _cli(*base, "--configurations", str(configurations), *gates)
         err = proc.stderr.strip()

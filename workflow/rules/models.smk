@@ -215,7 +215,7 @@ rule neighbour:
     conda:
         "../envs/feeder.yaml"
     params:
-        settings=resolved_yaml("structured", drop=("candidates", "model", "train", "search")),
+        settings=resolved_yaml("structured", drop=("candidates", "model", "train", "search", "analytic_scenes")),
     shell:
         "feeder neighbour --dataset {input.dataset} --out-csv {output.csv} --out-rows {output.rows} > {log} 2>&1"
 
@@ -248,7 +248,7 @@ rule fit_structured:
     conda:
         "../envs/feeder.yaml"
     params:
-        settings=resolved_yaml("structured", STRUCTURED_OVERRIDES, drop=("neighbour",)),
+        settings=resolved_yaml("structured", STRUCTURED_OVERRIDES, drop=("neighbour", "analytic_scenes")),
         overrides=" ".join(shlex.quote(o) for o in STRUCTURED_OVERRIDES),
     shell:
         "feeder fit-structured --dataset {input.dataset} --sim-dir $(dirname $(dirname {input.sims[0]}))"

@@ -205,6 +205,55 @@ def label_error_arrays(arrays: dict, table: pd.DataFrame) -> dict:
     }
 
 
+def scene_kind(config_id: str, steep_deg: float) -> str:
+    """The kind of scene a configuration is, as the analytic PMF's error is told by
+    (:func:`analytic_by_scene`): its fence types as its id writes them (Location 1 first, e.g.
+    ``straight_none``), with ", steep" when one of its straight fences stands at ``steep_deg`` or
+    more, where the push model misses most."""
+    from feeder.lane.fences import parse_config_id
+
+    fences = parse_config_id(str(config_id))
+    steep = any(f.type == "straight" and float(f.angle) >= float(steep_deg) for f in fences)
+    return f"{fences[0].type}_{fences[1].type}" + (", steep" if steep else "")
+
+
+def check_steep_deg(value) -> float:
+    """``analytic_scenes.steep_deg`` as a float in (0, 90); a one-line FeederError otherwise."""
+    try:
+        steep = float(value)
+    except (TypeError, ValueError):
+        steep = float("nan")
+    if not 0.0 < steep < 90.0:
+        raise FeederError(f"analytic_scenes.steep_deg must be a number of degrees in (0, 90), got {value!r}")
+    return steep
+
+
+def analytic_by_scene(config_ids, pmf, pmf_analytic, steep_deg: float) -> list[dict]:
+    """How far the analytic PMF lies from the labels, by :func:`scene_kind`: per kind (sorted by
+    name) its number of configurations and the mean, median and 90th percentile of the circular W1
+    (degrees) between each label ``pmf`` and its analytic PMF ``pmf_analytic`` (rows alike)."""
+    from feeder.labels.metrics import circular_w1
+
+    pmf, analytic = np.asarray(pmf, np.float64), np.asarray(pmf_analytic, np.float64)
+    if pmf.shape != analytic.shape or pmf.ndim != 2 or pmf.shape[0] != len(config_ids):
+        raise FeederError("analytic_by_scene: one label and one analytic PMF per configuration, on the same bins")
+    w1 = np.atleast_1d(circular_w1(np.cumsum(pmf, axis=1), np.cumsum(analytic, axis=1)))
+    kinds = np.array([scene_kind(c, steep_deg) for c in config_ids])
+    out = []
+    for kind in sorted(set(kinds.tolist())):
+        w = w1[kinds == kind]
+        out.append(
+            {
+                "scene": kind,
+                "configurations": int(w.size),
+                "mean_circular_w1_deg": float(w.mean()),
+                "median_circular_w1_deg": float(np.median(w)),
+                "p90_circular_w1_deg": float(np.percentile(w, 90)),
+            }
+        )
+    return out
+
+
 def gate_scores(dataset: dict, gates) -> pd.DataFrame:
     """Mean circular W1 of the gated neighbour at each gate over every labelled configuration of the
     dataset, each predicted from its nearest other one of the same part and fence types
@@ -283,11 +332,13 @@ def export_study(
     structured=None,
     structured_table=None,
     label_errors=None,
+    steep_deg: float | None = None,
 ) -> dict:
     """Write ``out`` (``labels.npz``, ``card.json``, ``MODEL_CARD.md`` and, given ``structured``, the
     shipped structured predictor of :mod:`feeder.learn.structured_shipped` with the evidence of
-    ``structured_table``; given ``label_errors``, each label's audit estimate) atomically; returns
-    the card."""
+    ``structured_table``; given ``label_errors``, each label's audit estimate; given ``steep_deg``,
+    the analytic PMF's error on the labels by kind of scene, :func:`analytic_by_scene`) atomically;
+    returns the card."""
     with np.load(dataset_path, allow_pickle=False) as z:
         dataset = {k: z[k] for k in ("part", "config_id", "pmf", "pmf_analytic", "settings")}
     settings = json.loads(str(dataset["settings"]))
@@ -306,6 +357,11 @@ def export_study(
         "sim": settings.get("sim", {}),
         "test_evidence": neighbour_evidence(pd.read_csv(neighbour_table)),
     }
+    if steep_deg is not None:
+        card["analytic_scenes"] = {
+            "steep_deg": check_steep_deg(steep_deg),
+            "kinds": analytic_by_scene(dataset["config_id"], dataset["pmf"], dataset["pmf_analytic"], steep_deg),
+        }
     if label_errors is not None:
         arrays |= label_error_arrays(arrays, pd.read_csv(label_errors, dtype={"part": str, "config_id": str}))
         w1 = arrays["est_circular_w1_deg"][arrays["kept"]]
@@ -366,6 +422,7 @@ def card_markdown(card: dict) -> str:
         *_card_label_errors(card),
         *_card_new_angle(card),
         "- A new part, or another scene: the analytic push PMF.",
+        *_card_analytic_scenes(card),
         "",
         f"Test evidence (`results/tables/neighbour.csv`, {ev['configurations']} configurations x {ev['repeats']} "
         f"Main splits): circular W1 {ev['value']:.1f} deg against {ev['baseline_value']:.1f} for the analytic PMF, "
@@ -391,6 +448,29 @@ def _card_label_errors(card: dict) -> list[str]:
         f"`results/tables/label_error_estimate.csv`; {errors['audited']} kept labels, median circular W1 "
         f"{errors['est_circular_w1_deg_median']:.1f} deg), which `feeder predict` prints with it."
     ]
+
+
+def _card_analytic_scenes(card: dict) -> list[str]:
+    """The card's table of the analytic PMF's error on the labels by kind of scene, when exported with it."""
+    scenes = card.get("analytic_scenes")
+    if not scenes:
+        return []
+    lines = [
+        "",
+        f"How far the analytic push PMF lies from the study's labels (circular W1, deg; every labelled configuration, "
+        f"none trained on: it is untrained), by kind of scene (fence types as configuration ids write them, Location 1 "
+        f"first; steep: a straight fence at "
+        f"{scenes['steep_deg']:g} deg or more). `feeder predict` prints its row with the analytic answer:",
+        "",
+        "| scene | configurations | mean | median | 90th percentile |",
+        "|---|---|---|---|---|",
+    ]
+    for k in scenes["kinds"]:
+        lines.append(
+            f"| {k['scene']} | {k['configurations']} | {k['mean_circular_w1_deg']:.1f} | "
+            f"{k['median_circular_w1_deg']:.1f} | {k['p90_circular_w1_deg']:.1f} |"
+        )
+    return lines
 
 
 def _card_new_angle(card: dict) -> list[str]:
@@ -540,8 +620,30 @@ class StudyModel(AnalyticModel):
                 f"({dist:g} deg away, gate {self.gate_deg:g})"
             )
         if np.isfinite(dist):
-            return f"the analytic push PMF (the nearest simulated angle is {dist:g} deg away, gate {self.gate_deg:g})"
-        return "the analytic push PMF"
+            return (
+                f"the analytic push PMF (the nearest simulated angle is {dist:g} deg away, gate {self.gate_deg:g})"
+                f"{self._analytic_error(row)}"
+            )
+        return f"the analytic push PMF{self._analytic_error(row)}"
+
+    def _analytic_error(self, row: int) -> str:
+        """``; ...`` with how far the analytic PMF lay from the study's labels in row ``row``'s kind of
+        scene (:func:`analytic_by_scene`), or '' without that table, in another scene or for a kind
+        the study has no label of."""
+        scenes = self.library.card.get("analytic_scenes")
+        if not scenes or not self.same_scene or row >= len(self.config_ids):
+            return ""
+        kind = scene_kind(self.config_ids[row], scenes["steep_deg"])
+        hit = [k for k in scenes["kinds"] if k["scene"] == kind]
+        if not hit:
+            return ""
+        k = hit[0]
+        return (
+            f"; on the study's {k['configurations']} labelled configurations of this kind ({kind}) it lay "
+            f"circular W1 {k['mean_circular_w1_deg']:.1f} deg from the simulator on average (median "
+            f"{k['median_circular_w1_deg']:.1f}, 90th percentile {k['p90_circular_w1_deg']:.1f}); "
+            "--simulate BUDGET asks the simulator"
+        )
 
     def _label_error(self, i: int) -> str:
         """``; ...`` with library row ``i``'s audit estimate, or '' without one."""
@@ -699,7 +801,9 @@ def main(argv: list[str]) -> int:
     args = parser.parse_args(argv)
     from feeder.config import compose_config
 
-    gates = check_gates(compose_config("structured", args.overrides)["neighbour"]["gates_deg"])
+    settings = compose_config("structured", args.overrides)
+    gates = check_gates(settings["neighbour"]["gates_deg"])
+    steep_deg = check_steep_deg(settings["analytic_scenes"]["steep_deg"])
     if args.structured_table is not None and args.structured is None:
         raise FeederError("--structured-table is the evidence of --structured: give both")
     for path in (
@@ -727,6 +831,7 @@ def main(argv: list[str]) -> int:
         args.structured,
         args.structured_table,
         args.label_errors,
+        steep_deg,
     )
     print(
         f"feeder export-study: {card['configurations']} configurations of {card['parts']} parts, "
