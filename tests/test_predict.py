@@ -512,7 +512,10 @@ def test_the_hole_note_only_where_the_answer_cannot_see_the_hole(model_dir, tmp_
         pmfs[name] = pd.read_csv(out).pmf.to_numpy()
     assert np.abs(np.cumsum(pmfs["holed"]) - np.cumsum(pmfs["solid"])).max() > 0.01  # the hole moves the answer
     assert not reads_contour_only(AnalyticModel(360))
-    assert reads_contour_only(P.load_model(model_dir / "m3"))
+    assert reads_contour_only(P.load_model(model_dir / "m3"))  # the paper's inputs: the DFT alone
+    shipped = PARTS.parent / "models" / "m3pushonly"
+    if shipped.is_dir():  # fence+push inputs: the push block of the holed face, no DFT
+        assert not reads_contour_only(P.load_model(shipped))
     holed = ["--part", str(tmp_path / "holed.stl"), "--loc1", "straight:40", "--loc2", "none"]
     assert P.main([*holed, "--simulate", "2", "--out", str(tmp_path / "sim.csv")]) == 0  # the simulator: 2 drops
     assert "through-hole" not in capsys.readouterr().err

@@ -112,12 +112,13 @@ def check_part_fits(
 
 
 def reads_contour_only(model) -> bool:
-    """Whether ``model`` answers from the part's DFT shape features (a trained network,
-    :class:`feeder.learn.inference.NumpyModel`), which see its outer contour only; the analytic push
-    PMF and the study's answers (labels, the structured predictor) see its holes."""
+    """Whether ``model`` answers from the part's DFT shape features alone (a trained network,
+    :class:`feeder.learn.inference.NumpyModel`, with the paper's inputs), which see its outer
+    contour only. The analytic push PMF, the push block of a network's ``paper+push`` or
+    ``fence+push`` inputs and the study's answers (labels, the structured predictor) see its holes."""
     from feeder.learn.inference import NumpyModel
 
-    return isinstance(model, NumpyModel)
+    return isinstance(model, NumpyModel) and model.inputs == "paper"
 
 
 def part_vector(
