@@ -7,6 +7,10 @@ They are read-only; a test that needs other arguments calls the factory itself
 
 from __future__ import annotations
 
+# isort: off
+import feeder  # noqa: F401 - first, before numpy loads: it pins OpenBLAS's kernel (feeder/__init__.py)
+
+# isort: on
 import pytest
 from factories import make_level_dataset, make_regression_dataset
 

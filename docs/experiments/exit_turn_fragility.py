@@ -1,8 +1,10 @@
 """How fragile is the analytic model's exit turn to the last bits of a fence angle? (hard cases)
 
 The dataset rebuilt on 2026-11-28 from the archived simulations (``results/archive/sim-3396802.tar.gz``)
-gave the same labels, but one analytic PMF 47 degrees (circular W1 to the label: 37.8 against 85.2)
-away from the run's own: keyhole-c ``straight55_straight40``. This script measures why and how often:
+on a machine whose OpenBLAS ran its AVX-512 kernels gave the same labels, but one analytic PMF 47
+degrees (circular W1 to the label: 37.8 against 85.2) away from the run's own: keyhole-c
+``straight55_straight40``. feeder now pins OpenBLAS's AVX2 kernel (docs/testing.md); this script
+(importing feeder first, so under that kernel) measures how fragile the exit turn is:
 
 1. every configuration of the study (``configurations.csv``): the base analytic PMF
    (``feeder.mechanics.distribution.analytic_distribution``) as is, and with every exit turn
@@ -19,6 +21,10 @@ It reads no simulation; about 2 minutes on one core.
 
 from __future__ import annotations
 
+# isort: off
+import feeder  # noqa: F401 - first, before numpy loads: OpenBLAS's AVX2 kernel (feeder/__init__.py)
+
+# isort: on
 import sys
 from pathlib import Path
 

@@ -18,6 +18,10 @@ Seconds; reads no simulation. If the scatter remains, the corner landing is not 
 
 from __future__ import annotations
 
+# isort: off
+import feeder  # noqa: F401 - first, before numpy loads: OpenBLAS's AVX2 kernel (feeder/__init__.py)
+
+# isort: on
 import sys
 from pathlib import Path
 
