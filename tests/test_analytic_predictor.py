@@ -64,6 +64,7 @@ def test_predict_answers_the_smoothed_analytic_pmf_of_the_part_frame(tmp_path):
 
 def test_analytic_needs_an_stl_and_writes_nothing_without_one(tmp_path):
     out = tmp_path / "a.csv"
+    (tmp_path / "f.json").write_text("{}")  # a features file, present: it still has no outline
     with pytest.raises(FeederError, match="--part PART.stl"):
         P.main(["--model", "analytic", "--features", str(tmp_path / "f.json"), "--loc1", "none", "--loc2", "none"])
     assert not out.exists()
@@ -78,6 +79,125 @@ def test_recommend_ranks_with_the_analytic_pmf(tmp_path, capsys):
     assert set(ranked.config_id) == set(configs.split(","))
     assert ranked.probability.between(0, 1).all()
     assert ranked.probability.is_monotonic_decreasing
+
+
+def test_a_uniform_answer_names_no_preferred_yaw(tmp_path, capsys):
+    """No fence: the analytic answer is uniform up to rounding; the summary, the plot and recommend's
+    mode must not climb that rounding noise to a made-up peak."""
+    from feeder.labels.metrics import is_uniform
+
+    out, png = tmp_path / "u.csv", tmp_path / "u.png"
+    argv = ["--model", "analytic", "--part", str(PART), "--loc1", "none", "--loc2", "none"]
+    assert P.main([*argv, "--out", str(out), "--plot", str(png)]) == 0
+    assert is_uniform(pd.read_csv(out).pmf.to_numpy())
+    said = capsys.readouterr().out
+    assert "no preferred final yaw" in said and "most likely" not in said
+    assert png.stat().st_size > 0
+    ranked = tmp_path / "r.csv"
+    rargv = ["--model", "analytic", "--part", str(PART), "--target", "0", "--tolerance", "10"]
+    assert R.main([*rargv, "--configs", "none_none,straight45_none", "--out", str(ranked)]) == 0
+    modes = pd.read_csv(ranked).set_index("config_id").mode_deg
+    assert np.isnan(modes["none_none"]) and np.isfinite(modes["straight45_none"])
+
+
+@pytest.mark.parametrize(
+    "extra, message",
+    [
+        (["--symmetry", "7"], "--symmetry 7: part has no 7-fold symmetry"),
+        (["--tolerance", "90"], "covers every yaw"),  # rect-a2 is 2-fold: windows of 180 deg each
+        (["--symmetry", "1", "--tolerance", "180"], "give less than 180 deg"),
+    ],
+)
+def test_recommend_refuses_a_symmetry_the_part_lacks_and_a_window_of_everything(tmp_path, capsys, extra, message):
+    from feeder.cli import main as cli
+
+    out = tmp_path / "r.csv"
+    argv = ["recommend", "--model", "analytic", "--part", str(PART), "--target", "0", "--configs", "straight45_none"]
+    if "--tolerance" not in extra:
+        argv += ["--tolerance", "10"]
+    assert cli([*argv, *extra, "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()  # after the line that names the predictor
+    assert message in err[-1] and err[-1].startswith("feeder recommend: error:") and not out.exists()
+
+
+def test_recommend_takes_a_symmetry_the_part_has(tmp_path):
+    out = tmp_path / "r.csv"
+    argv = ["--model", "analytic", "--part", str(PART), "--target", "0", "--tolerance", "10"]
+    for order in ("1", "2"):
+        assert R.main([*argv, "--configs", "straight45_none", "--symmetry", order, "--out", str(out)]) == 0
+
+
+@pytest.mark.parametrize(
+    "part, message",
+    [
+        (None, "give exactly one of --part or --features"),
+        ("folder", "is a folder, not a file"),
+        ("p.obj", "unknown file type '.obj' (expected .stl or .xyz)"),
+        ("gone.stl", "not found"),
+    ],
+)
+@pytest.mark.parametrize("command", ["predict", "predict --simulate 4", "recommend"])
+def test_a_part_argument_no_answer_can_read_is_one_line_before_any_work(tmp_path, capsys, part, message, command):
+    """Also without --model (the study's answer), where the message used to be about features JSONs."""
+    from feeder.cli import main as cli
+
+    (tmp_path / "folder").mkdir()
+    (tmp_path / "p.obj").write_text("v 0 0 0\n")
+    out = tmp_path / "a.csv"
+    argv = command.split()
+    argv += (
+        ["--loc1", "straight:30", "--loc2", "none"] if argv[0] == "predict" else ["--target", "0", "--tolerance", "5"]
+    )
+    if part is not None:
+        argv += ["--part", str(tmp_path / part)]
+    assert cli([*argv, "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert message in err[-1] and not out.exists()
+
+
+class _StudyLike:
+    """rank's view of the study's predictor: a PMF per configuration, where each answer comes from
+    and the analytic PMF's error by kind of scene (NaN for the other answers)."""
+
+    label_frame = "part"
+
+    def __init__(self, pmf, sources, errors):
+        self.pmf, self._sources, self._errors = np.asarray(pmf, float), sources, np.asarray(errors, float)
+
+    def predict(self, part_raw, feeder_raw, push_raw=None, analytic=None):
+        return self.pmf, np.cumsum(self.pmf, axis=1)
+
+    def sources(self):
+        return self._sources
+
+    def analytic_error_deg(self):
+        return self._errors
+
+
+def test_recommend_breaks_ties_by_how_often_the_analytic_pmf_is_right_there_and_says_so():
+    sharp = np.zeros(360)
+    sharp[0] = 1.0
+    ids = ["straight30_none", "curved0_straight30", "none_straight30", "straight70_none"]
+    model = _StudyLike(
+        [sharp, sharp, sharp, np.full(360, 1 / 360)],
+        ["analytic", "analytic", "structured", "analytic"],
+        [9.1, 20.8, np.nan, 31.3],
+    )
+    ranked = R.rank(model, np.zeros(45), None, ids, 0.0, 5.0, 1)
+    # equal probabilities (1.0): the structured answer, then the kind the analytic PMF gets right more often
+    assert ranked.config_id.tolist() == ["none_straight30", "straight30_none", "curved0_straight30", "straight70_none"]
+    assert ranked.probability.tolist()[:3] == [1.0, 1.0, 1.0]
+    note = R.analytic_note(ranked.head(3))
+    assert note.startswith("note: 2 of these answers are the analytic push PMF, which lay 9-21 deg")
+    assert R.analytic_note(ranked.iloc[[0]]) == ""  # no analytic answer shown: nothing to say
+    assert R.analytic_note(ranked.drop(columns="analytic_w1_deg")) == ""
+
+
+def test_orientation_summary_of_a_peaked_answer_still_names_its_modes():
+    pmf = np.full(360, 0.2 / 358)
+    pmf[[10, 190]] = 0.4
+    frame = pd.DataFrame({"angle_deg": np.arange(360.0), "pmf": pmf})
+    assert P.orientation_summary(frame).startswith("most likely final yaws (part frame): ")
 
 
 @pytest.mark.parametrize("settings", ['{"scene": {}}', '{"labels": {"bins": 360, "sigma_bins": 1.0}}'])

@@ -402,3 +402,81 @@ def test_thinnest_wall_is_the_least_material_around_a_hole_by_hand():
     assert G.thinnest_wall(outline, [square(0.005, 0.005, 0.01, 0.01), square(0.012, 0.005, 0.02, 0.01)]) == (
         pytest.approx(0.002)
     )
+
+
+def _clean_outline_by_rescans(outline, rel_tol=G._REL_TOL):
+    """The reference of clean_outline: after every removal the whole polygon is tested again
+    (quadratic; the rule as first written). clean_outline must give its result to the bit."""
+    pts = np.asarray(outline, dtype=np.float64)
+    tol = rel_tol * float(np.max(np.ptp(pts, axis=0)))
+    changed = True
+    while changed and len(pts) >= 3:
+        changed = False
+        nxt = np.roll(pts, -1, axis=0)
+        keep = np.linalg.norm(nxt - pts, axis=1) > tol
+        if not keep.all():
+            pts = pts[keep]
+            changed = True
+            continue
+        prv = np.roll(pts, 1, axis=0)
+        nxt = np.roll(pts, -1, axis=0)
+        d1, d2 = pts - prv, nxt - pts
+        cross = d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0]
+        chord = np.linalg.norm(nxt - prv, axis=1)
+        dev = np.abs(cross) / np.maximum(chord, tol)
+        straight = (dev <= tol) & (np.sum(d1 * d2, axis=1) > 0)
+        if straight.any():
+            pts = np.delete(pts, int(np.flatnonzero(straight)[0]), axis=0)
+            changed = True
+    if len(pts) < 3:
+        raise FeederError("fewer than 3 distinct non-collinear vertices")
+    return pts if G.signed_area(pts) >= 0 else pts[::-1].copy()
+
+
+def _outlines_to_clean():
+    rng = np.random.default_rng(20261128)
+    t = np.linspace(0.0, 2 * np.pi, 3001)[:-1]
+    yield "fine circle (every vertex within tolerance of its chord)", 0.02 * np.column_stack([np.cos(t), np.sin(t)])
+    yield "fine circle, clockwise", 0.02 * np.column_stack([np.cos(t), -np.sin(t)])
+    square = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], float)
+    dense = np.vstack([np.linspace(a, b, 40, endpoint=False) for a, b in zip(square, np.roll(square, -1, 0))])
+    for shift in (0, 1, 39, 40, 159):  # collinear runs across the wrap at 0/360 of the index
+        yield f"square with collinear runs, rolled {shift}", np.roll(dense, shift, axis=0)
+    yield "closing duplicate", np.vstack([square, square[:1]])
+    yield "repeated vertices", np.repeat(square, 3, axis=0)
+    near = dense.copy()
+    near[1::2] += rng.normal(scale=1e-7, size=near[1::2].shape)  # within and beyond the tolerance
+    yield "noisy collinear runs", near
+    for k in range(40):  # random walks: repeated, collinear and nearly collinear vertices at random
+        n = int(rng.integers(3, 60))
+        pts = np.cumsum(rng.choice([-1.0, 0.0, 1.0], size=(n, 2)) * rng.choice([1e-7, 1e-3, 1.0], size=(n, 1)), axis=0)
+        yield f"random walk {k}", pts
+    yield "all on one line", np.column_stack([np.linspace(0, 1, 7), np.zeros(7)])
+
+
+@pytest.mark.parametrize("name, outline", list(_outlines_to_clean()), ids=lambda v: v if isinstance(v, str) else "")
+def test_clean_outline_equals_the_rescanning_rule_to_the_bit(name, outline):
+    try:
+        want = _clean_outline_by_rescans(outline)
+    except FeederError:
+        with pytest.raises(FeederError):
+            G.clean_outline(outline)
+        return
+    got = G.clean_outline(outline)
+    assert got.dtype == np.float64 and got.shape == want.shape
+    assert got.tobytes() == want.tobytes()
+
+
+def test_clean_outline_of_a_finely_faceted_part_is_linear_not_quadratic():
+    """A CAD export of a round part: 16,000 facets, each within the tolerance of its chord, most
+    removed one by one. Counted, not timed: every vertex test and every removal takes one square
+    root, and they stay within a few per vertex (a rescan after each removal tested each vertex
+    again: about 16,000 x 15,000)."""
+    import unittest.mock as mock
+
+    t = np.linspace(0.0, 2 * np.pi, 16001)[:-1]
+    circle = 0.02 * np.column_stack([np.cos(t), np.sin(t)])
+    with mock.patch.object(G.math, "sqrt", wraps=math.sqrt) as sqrt:
+        out = G.clean_outline(circle)
+    assert 100 < len(out) < len(circle) // 4  # most facets were within the tolerance
+    assert sqrt.call_count <= 4 * len(circle)

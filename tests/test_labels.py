@@ -290,6 +290,24 @@ def test_r2_best_cut_every_cut_at_once_equals_the_cut_by_cut_definition():
     assert L.r2_cdf_best_cut(L.cdf(sharp[0]), L.cdf(sharp[0])) == 1.0  # exact, as r2_cdf's constant case
 
 
+def test_is_uniform_takes_rounding_noise_as_flat_and_a_real_bump_as_not():
+    from feeder.labels.metrics import is_uniform
+
+    flat = np.full(360, 1.0 / 360)
+    assert is_uniform(flat)
+    noisy = flat.copy()
+    noisy[216] = np.nextafter(noisy[216], 1.0)  # one ulp above the rest, as a summed PMF can be
+    assert is_uniform(noisy)
+    assert is_uniform(0.3 * flat)  # a PMF over the drops that leave: total below 1
+    bump = flat.copy()
+    bump[0] *= 1.001  # 0.1 % above the rest: a preferred orientation, however slight
+    assert not is_uniform(bump)
+    assert not is_uniform(np.zeros(360))  # nothing leaves: not "every orientation equally likely"
+    assert not is_uniform(np.array([0.5, 0.5, np.nan]))
+    with pytest.raises(FeederError, match="1-D PMF"):
+        is_uniform(np.ones((2, 3)))
+
+
 def test_resting_orientations_are_the_modes_with_their_basin_mass():
     from feeder.labels.metrics import resting_orientations as modes
 

@@ -298,6 +298,7 @@ def test_recommend_ranks_configurations_by_the_models_own_predictions(model_dir,
     [
         (["--target", "400", "--tolerance", "5"], "target must be in"),
         (["--target", "0", "--tolerance", "-1"], "tolerance"),
+        (["--target", "0", "--tolerance", "180"], "covers every yaw"),
     ],
 )
 def test_recommend_bad_input_is_one_line_and_writes_nothing(model_dir, tmp_path, capsys, args, message):
@@ -580,4 +581,5 @@ def test_predict_simulate_with_every_drop_jammed_is_an_error_without_output(tmp_
     args = ["predict", "--part", str(PARTS / "rect-a2.stl"), "--loc1", "straight:30", "--loc2", "none"]
     assert cli([*args, "--simulate", "4", "--out", str(out)]) != 0
     err = capsys.readouterr().err
-    assert "every one of the 4 drops (jammed 4)" in err and not out.exists()
+    assert "none of the 4 drops left the fences lying flat (jammed 4; " in err and "ok mass 0" in err
+    assert not out.exists()

@@ -593,6 +593,17 @@ def test_a_part_left_with_a_residual_velocity_by_the_compliant_belt_still_comes_
     assert (out["diag"]["sim_time"] < 10.0).all() and out["diag"]["skips"].min() >= 1
 
 
+@pytest.mark.parametrize("name", ["sim.csv", "sim", "sim.npz.tmp"])
+def test_simulate_refuses_an_output_name_that_is_not_npz_before_any_work(tmp_path, capsys, name):
+    from feeder.cli import main
+
+    out = tmp_path / name
+    argv = ["simulate", "--part", str(ROOT / "parts" / "rect-a2.stl"), "--loc1", "straight:30", "--loc2", "none"]
+    assert main([*argv, "--drops", "2", "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "name it .npz" in err and "\n" not in err and not out.exists()
+
+
 def test_a_part_in_millimetres_with_its_origin_moved_drops_like_the_metre_part(tmp_path, capsys):
     """CAD tools export millimetres: --units auto (and mm) reads them; neither the units nor
     the file's origin changes a drop (same initial yaws: same basin, within 0.5 deg)."""

@@ -410,6 +410,7 @@ def test_an_analytic_answer_says_how_far_the_analytic_pmf_lay_in_scenes_of_its_k
     )
     assert "(straight_none, steep)" in model.describe(1)
     assert model.describe(2) == "the analytic push PMF"  # no labelled scene of its kind: nothing to say
+    np.testing.assert_allclose(model.analytic_error_deg(), [40.0, 40.0, np.nan], atol=0.01)  # recommend's column
     elsewhere = S.StudyModel(360, 1.0, {**SCENE, "belt": {"speed": 0.2, "friction": 1.0}}, model.library)
     elsewhere.bind(other, ["straight35_none"])
     assert elsewhere.describe(0) == "the analytic push PMF"  # measured in another scene: not quoted

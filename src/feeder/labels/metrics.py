@@ -227,6 +227,9 @@ def r2_cdf_best_cut(cdf_true, cdf_pred) -> np.ndarray:
 
 
 _CONST_CDF_RTOL = 1e-9  # SS_tot this small (relative) at some cut: score that row cut by cut
+# Bins of a PMF that differ by no more than this share of their mean are equal up to rounding:
+# such a PMF is uniform, with no preferred orientation (:func:`is_uniform`).
+UNIFORM_RTOL = 1e-9
 
 
 def _r2_every_cut(t: np.ndarray, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -321,6 +324,17 @@ def _climb(pmf) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, float]:
                 run_of[i] = run_of[j]
     owner = run_of[peak]
     return p, owner, run_of, is_peak, width
+
+
+def is_uniform(pmf, rtol: float = UNIFORM_RTOL) -> bool:
+    """Whether a PMF (any total > 0) is uniform up to rounding: its bins differ by at most ``rtol``
+    of their mean. Such a PMF has no preferred orientation, and its climbing
+    (:func:`resting_orientations`) would follow rounding noise to made-up peaks."""
+    p = np.asarray(pmf, dtype=np.float64)
+    if p.ndim != 1 or p.size < 1:
+        raise FeederError(f"is_uniform: need a 1-D PMF, got shape {p.shape}")
+    mean = float(p.mean())
+    return bool(np.isfinite(p).all()) and mean > 0.0 and float(p.max() - p.min()) <= rtol * mean
 
 
 def basin_owners(pmf) -> np.ndarray:

@@ -1,5 +1,5 @@
-"""``feeder predict``: the orientation PMF of one part behind one fence configuration, from a
-trained regression model, without simulating.
+"""``feeder predict``: the orientation PMF of one part behind one fence configuration, from what the
+study knows of it (or a model you name), in about a second; ``--simulate BUDGET`` asks the simulator.
 
     feeder predict [--model results/models/m3/seed0] --part parts/<id>.stl --loc1 straight:30 --loc2 none \\
         [--out pmf.csv] [--plot pmf.png]
@@ -19,8 +19,8 @@ or from a precomputed ``--features results/features/<id>.json``; the fences are 
 bin's lower edge in degrees), ``pmf`` (probability of the bin) and ``cdf`` (cumulative from 0°),
 post-processed exactly as in evaluation, for the yaw of the part file's own frame (a model trained
 on ``principal``-frame labels is shifted back by the part's ``frame_deg``). Without ``--out`` the
-CSV goes to stdout. The time spent on features and on the network is printed to stderr in
-milliseconds.
+CSV goes to stdout. The time spent on features, push features and the answer itself is printed
+to stderr in milliseconds.
 
 A model with ``model.inputs: paper+push`` also reads the analytic push block of the part in the
 configuration (:func:`push_inputs`: :func:`feeder.mechanics.features.push_features` of the STL's outline, in
@@ -97,12 +97,13 @@ def check_part_fits(
     if part.suffix.lower() != ".stl":
         return
     from feeder.lane.settings import load_settings
-    from feeder.parts.geometry import load_profile, profile_moments
+    from feeder.parts.geometry import MAX_PART_SIZE_M, load_profile, profile_moments
     from feeder.sim.body import check_fit
 
     outline, holes, thickness = load_profile(part, "auto")
     _, centroid, _ = profile_moments(outline, holes)
-    check_fit(part.stem, outline, centroid, thickness, load_settings()[0] if scene is None else scene)
+    hint = f" ({prog} reads a part file in metres, or in millimetres where it is over {MAX_PART_SIZE_M:g} m across)"
+    check_fit(part.stem, outline, centroid, thickness, load_settings()[0] if scene is None else scene, hint)
     if holes and contour_only:
         print(
             f"{prog}: note: {part.name} has {len(holes)} through-hole(s); the model sees its outer "
@@ -149,6 +150,24 @@ def part_vector(
 
     feats = features_of_file(part)
     return as_vector(feats), feats["frame_deg"]
+
+
+PART_SUFFIXES = (".stl", ".xyz")  # a part's solid, or its face as points (feeder parts xyz)
+
+
+def check_part_arg(part: Path | None, features: Path | None) -> None:
+    """A one-line FeederError, before any other work, for a part argument no answer can read:
+    neither or both of ``--part`` and ``--features``, a missing path, a folder, or a file that is
+    not an STL or a face point cloud."""
+    if (part is None) == (features is None):
+        raise FeederError("give exactly one of --part or --features")
+    given, what = (part, "part file") if part is not None else (features, "features file")
+    if given.is_dir():
+        raise FeederError(f"{what} {given} is a folder, not a file")
+    if not given.is_file():
+        raise FeederError(f"{what} {given} not found")
+    if part is not None and part.suffix.lower() not in PART_SUFFIXES:
+        raise FeederError(f"{part}: unknown file type {part.suffix.lower()!r} (expected {' or '.join(PART_SUFFIXES)})")
 
 
 def check_push_source(model, part: Path | None) -> None:
@@ -259,9 +278,11 @@ def rotated_outline(outline, yaw_deg: float, centre=None) -> np.ndarray:
 
 def draw_part(ax, outline, frame: pd.DataFrame, holes=()) -> None:
     """The part (and its through-holes) at its most likely final yaw, the belt running up the page (+y)."""
-    from feeder.labels.metrics import resting_orientations
+    from feeder.labels.metrics import is_uniform, resting_orientations
 
-    yaw, mass = resting_orientations(frame["pmf"].to_numpy(), 1)[0]
+    pmf = frame["pmf"].to_numpy()
+    uniform = is_uniform(pmf)
+    yaw, mass = (0.0, 0.0) if uniform else resting_orientations(pmf, 1)[0]
     pts = rotated_outline(outline, yaw)
     closed = np.vstack([pts, pts[:1]])
     ax.fill(closed[:, 0], closed[:, 1], color="tab:blue", alpha=0.3)
@@ -279,7 +300,8 @@ def draw_part(ax, outline, frame: pd.DataFrame, holes=()) -> None:
     ax.set_xlim(-1.3 * r, 1.45 * r)
     ax.set_ylim(-1.2 * r, 1.2 * r)
     ax.set_xlabel("mm")
-    ax.set_title(f"most likely: {yaw:.1f} deg (p={mass:.2f})", fontsize=9)
+    title = "no preferred yaw (uniform); as in the file" if uniform else f"most likely: {yaw:.1f} deg (p={mass:.2f})"
+    ax.set_title(title, fontsize=9)
 
 
 def plot(frame: pd.DataFrame, title: str, outline=None, holes=()):
@@ -308,10 +330,14 @@ def plot(frame: pd.DataFrame, title: str, outline=None, holes=()):
 
 def orientation_summary(frame, top: int = TOP_ORIENTATIONS) -> str:
     """The most likely resting orientations of a predicted PMF (part frame) with their
-    probabilities (:func:`feeder.labels.metrics.resting_orientations`), one line."""
-    from feeder.labels.metrics import resting_orientations
+    probabilities (:func:`feeder.labels.metrics.resting_orientations`), one line; a uniform PMF
+    (:func:`feeder.labels.metrics.is_uniform`) has none, and the line says so."""
+    from feeder.labels.metrics import is_uniform, resting_orientations
 
-    modes = resting_orientations(frame["pmf"].to_numpy(), top)
+    pmf = frame["pmf"].to_numpy()
+    if is_uniform(pmf):
+        return "no preferred final yaw: the answer is uniform, every orientation equally likely"
+    modes = resting_orientations(pmf, top)
     return "most likely final yaws (part frame): " + ", ".join(f"{yaw:.1f} deg p={mass:.2f}" for yaw, mass in modes)
 
 
@@ -328,14 +354,18 @@ def _main_simulated(args) -> int:
         raise FeederError(f"--audit: at least 2 audit drops, or 0 for none (got {args.audit})")
     if args.features is not None:
         raise FeederError("--simulate simulates the part: give it as --part PART.stl, not --features")
+    check_part_arg(args.part, None)
     geom = verify_part(args.part)
     study = study_settings(args, "scene", "labels", "sim")
     check_part_fits(args.part, "feeder predict", study["scene"], contour_only=False)
     print(f"feeder predict: simulating at most {args.simulate} drops (the study's adaptive design)", file=sys.stderr)
     frame, info = simulated_frame(geom, args.loc1, args.loc2, args.simulate, study, audits=args.audit or 0)
     done = f"{info['simulations']} drops ({info['statuses']}), {info['cpu_s']:.1f} s CPU"
-    if frame is None:
-        raise FeederError(f"no orientation to give: every one of the {done} failed to leave the fences")
+    if frame is None:  # every drop jammed, fell off or tipped over: no yaw to give (ok mass 0)
+        raise FeederError(
+            f"no orientation to give: none of the {info['simulations']} drops left the fences lying flat "
+            f"({info['statuses']}; {info['cpu_s']:.1f} s CPU): ok mass 0"
+        )
     if args.out is not None:
         from feeder.io import write_csv
 
@@ -411,6 +441,7 @@ def main(argv: list[str]) -> int:
         raise FeederError("--audit estimates the error of a simulated answer: give it with --simulate")
     study = study_settings(args, "scene", "labels")
     model = choose_model(args.model, "feeder predict", study)
+    check_part_arg(args.part, args.features)
     check_push_source(model, args.part)
     t0 = time.perf_counter()
     part_raw, frame_deg = part_vector(
@@ -454,7 +485,7 @@ def main(argv: list[str]) -> int:
         save_figure(args.plot, plot(frame, title, outline, holes))
     push_ms = "" if push_raw is None and analytic is None else f", push features {1e3 * (t1 - t_dft):.1f} ms"
     print(
-        f"feeder predict: features {1e3 * (t_dft - t0):.1f} ms{push_ms}, network {1e3 * (t2 - t1):.1f} ms",
+        f"feeder predict: features {1e3 * (t_dft - t0):.1f} ms{push_ms}, answer {1e3 * (t2 - t1):.1f} ms",
         file=sys.stderr,
     )
     return 0

@@ -90,7 +90,7 @@ def rank(
 ) -> pd.DataFrame:
     """Every configuration's predicted probability of the target window, best first (ties in the
     given order); columns ``config_id, loc1, loc2, probability, mode_deg`` (the PMF's largest bin,
-    part frame). ``push_raw``: the push block of every configuration, for a ``paper+push`` model;
+    part frame; NaN for a uniform PMF). ``push_raw``: the push block of every configuration, for a ``paper+push`` model;
     ``analytic``: their analytic PMFs, for a ``base: prior`` model. The analytic predictor
     (``--model analytic``, whose PMF is over the drops that do not jam) adds ``predicted_ok_mass``
     and ``probability_overall`` (probability × ok mass) and is ranked by the latter."""
@@ -116,7 +116,9 @@ def rank(
             "loc1": [f1.spec for f1, _ in pairs],
             "loc2": [f2.spec for _, f2 in pairs],
             "probability": window_probability(pmf, target_deg, tolerance_deg, order),
-            "mode_deg": (np.argmax(pmf, axis=1) + 0.5) * width,
+            "mode_deg": np.where(
+                [L.is_uniform(row) for row in pmf], np.nan, (np.argmax(pmf, axis=1) + 0.5) * width
+            ),  # a uniform PMF has no mode (blank in the CSV)
         }
     )
     key = "probability"
@@ -126,6 +128,13 @@ def rank(
         key = "probability_overall"  # a configuration that always jams does not top the ranking
     if hasattr(model, "sources"):  # the study's predictor: where each answer comes from
         frame["answer"] = model.sources()
+    if hasattr(model, "analytic_error_deg"):
+        # how far the analytic PMF lay from the study's labels in each analytic answer's kind of
+        # scene; among equal probabilities, the answer of a kind it gets right more often ranks first
+        frame["analytic_w1_deg"] = model.analytic_error_deg()
+        return frame.sort_values(
+            [key, "analytic_w1_deg"], ascending=[False, True], kind="stable", na_position="first"
+        ).reset_index(drop=True)
     return frame.sort_values(key, ascending=False, kind="stable").reset_index(drop=True)
 
 
@@ -186,7 +195,14 @@ def verify(geom, config_ids, settings: dict, target_deg, tolerance_deg, order, l
 def main(argv: list[str]) -> int:
     from feeder.config import add_settings_options, study_settings
     from feeder.learn.export import add_model_option
-    from feeder.learn.predict import check_push_source, choose_model, part_vector, push_inputs, reads_contour_only
+    from feeder.learn.predict import (
+        check_part_arg,
+        check_push_source,
+        choose_model,
+        part_vector,
+        push_inputs,
+        reads_contour_only,
+    )
 
     parser = argparse.ArgumentParser(prog="feeder recommend", description=__doc__.splitlines()[0])
     add_model_option(parser)
@@ -215,12 +231,15 @@ def main(argv: list[str]) -> int:
     args = parser.parse_args(argv)
 
     window_probability(np.ones(1), args.target, args.tolerance)  # bad target/tolerance fail before any work
+    check_window(args.tolerance, 1)  # a window of every yaw for any symmetry (and again below for the part's)
     if args.top < 1:
         raise FeederError(f"--top must be positive, got {args.top}")
     if args.verify < 0:
         raise FeederError(f"--verify must be 0 or more, got {args.verify}")
     needed = ("scene", "labels") + (() if args.configs else ("fences",)) + (("sim",) if args.verify else ())
     study = study_settings(args, *needed)
+    model = choose_model(args.model, "feeder recommend", study)
+    check_part_arg(args.part, args.features)
     geom = None
     if args.verify:
         geom = verify_part(args.part)
@@ -230,7 +249,7 @@ def main(argv: list[str]) -> int:
         config_ids = grid_configurations(study["fences"])
     settings = verify_settings(study) if args.verify else None
     order = symmetry_order(args.symmetry, args.part)
-    model = choose_model(args.model, "feeder recommend", study)
+    check_window(args.tolerance, order)
     check_push_source(model, args.part)
     part_raw, frame_deg = part_vector(
         args.part, args.features, "feeder recommend", study.get("scene"), reads_contour_only(model)
@@ -265,17 +284,41 @@ def main(argv: list[str]) -> int:
     human = sys.stderr if to_stdout else sys.stdout  # the table a person reads, off the CSV's stream
     sym = f", {order}-fold symmetric" if order > 1 else ""
     print(
-        f"P(final yaw within {args.tolerance:g} deg of {args.target:g} deg{sym}), {len(ranked)} configurations:",
+        f"P(final yaw within {args.tolerance:g} deg of {args.target:g} deg{sym}), {len(ranked)} "
+        f"configuration{'' if len(ranked) == 1 else 's'}:",
         file=human,
     )
     table = ranked.head(shown).rename(columns={"probability": "predicted", "simulated_probability": "simulated"})
     print(table.to_string(index=False, float_format=lambda v: f"{v:.3f}", na_rep="-"), file=human)
+    note = analytic_note(ranked.head(shown))
+    if note:
+        print(note, file=human)
     return 0
 
 
+def analytic_note(shown: pd.DataFrame) -> str:
+    """A line for the printed table when some of its answers are the analytic PMF, whose
+    probabilities read as certainties (1.000) where the push model has one basin: how far it lay
+    from the study's labels in those kinds of scene (column ``analytic_w1_deg``), '' otherwise."""
+    if "analytic_w1_deg" not in shown or "answer" not in shown:
+        return ""
+    err = shown.analytic_w1_deg[shown.answer == "analytic"].dropna()
+    if err.empty:
+        return ""
+    spread = f"{err.min():.0f}" if err.min() == err.max() else f"{err.min():.0f}-{err.max():.0f}"
+    return (
+        f"note: {err.size} of these answers are the analytic push PMF, which lay {spread} deg (mean circular W1, "
+        "column analytic_w1_deg) from the study's simulated labels in those kinds of scene: its probabilities "
+        "are not certainties; --verify K simulates the top K"
+    )
+
+
 def symmetry_order(setting: str, part: Path | None) -> int:
-    """The part's rotational order for ``--symmetry``: the given number, or for ``auto`` the
-    order of its STL outline (:func:`feeder.parts.symmetry.rotational_order`; 1 without an STL)."""
+    """The part's rotational order for ``--symmetry``: the given number, checked against the STL
+    outline where there is one (:func:`feeder.parts.symmetry.check_order`, as ``feeder simulate``
+    checks it), or for ``auto`` the order of its STL outline
+    (:func:`feeder.parts.symmetry.rotational_order`; 1 without an STL)."""
+    order = None
     if setting != "auto":
         try:
             order = int(setting)
@@ -283,12 +326,31 @@ def symmetry_order(setting: str, part: Path | None) -> int:
             raise FeederError(f"--symmetry must be auto or a positive integer, got {setting!r}") from None
         if order < 1:
             raise FeederError(f"--symmetry must be auto or a positive integer, got {setting!r}")
-        return order
     if part is None or part.suffix.lower() != ".stl" or not part.is_file():
-        print("feeder recommend: no STL to read the symmetry from: order 1", file=sys.stderr)
-        return 1
+        if order is None:
+            print("feeder recommend: no STL to read the symmetry from: order 1", file=sys.stderr)
+        return 1 if order is None else order
     from feeder.parts.geometry import load_profile
-    from feeder.parts.symmetry import rotational_order
+    from feeder.parts.symmetry import check_order, rotational_order
 
     outline, holes, _ = load_profile(part, "auto")
-    return rotational_order(outline, holes=holes)
+    if order is None:
+        return rotational_order(outline, holes=holes)
+    try:
+        check_order(outline, order, holes=holes)
+    except FeederError as err:
+        raise FeederError(f"--symmetry {order}: {err}") from None
+    return order
+
+
+def check_window(tolerance_deg: float, order: int) -> None:
+    """A one-line FeederError for a window that covers the whole circle: ``±tolerance_deg`` about
+    each of the target's ``order`` turns (:func:`window_probability`), where every configuration
+    would score 1 and the ranking would say nothing."""
+    period = FULL_TURN_DEG / order
+    if 2 * tolerance_deg >= period:
+        sym = f" and its turns by {period:g} deg ({order}-fold symmetric)" if order > 1 else ""
+        raise FeederError(
+            f"--tolerance {tolerance_deg:g} deg: the window about the target{sym} covers every yaw, so every "
+            f"configuration would score 1; give less than {period / 2:g} deg"
+        )

@@ -630,20 +630,36 @@ class StudyModel(AnalyticModel):
         """``; ...`` with how far the analytic PMF lay from the study's labels in row ``row``'s kind of
         scene (:func:`analytic_by_scene`), or '' without that table, in another scene or for a kind
         the study has no label of."""
-        scenes = self.library.card.get("analytic_scenes")
-        if not scenes or not self.same_scene or row >= len(self.config_ids):
+        k = self._analytic_kind(row)
+        if k is None:
             return ""
-        kind = scene_kind(self.config_ids[row], scenes["steep_deg"])
-        hit = [k for k in scenes["kinds"] if k["scene"] == kind]
-        if not hit:
-            return ""
-        k = hit[0]
         return (
-            f"; on the study's {k['configurations']} labelled configurations of this kind ({kind}) it lay "
+            f"; on the study's {k['configurations']} labelled configurations of this kind ({k['scene']}) it lay "
             f"circular W1 {k['mean_circular_w1_deg']:.1f} deg from the simulator on average (median "
             f"{k['median_circular_w1_deg']:.1f}, 90th percentile {k['p90_circular_w1_deg']:.1f}); "
             "--simulate BUDGET asks the simulator"
         )
+
+    def _analytic_kind(self, row: int) -> dict | None:
+        """The card's row of :func:`analytic_by_scene` for row ``row``'s kind of scene, or None
+        without that table, in another scene or for a kind the study has no label of."""
+        scenes = self.library.card.get("analytic_scenes")
+        if not scenes or not self.same_scene or row >= len(self.config_ids):
+            return None
+        kind = scene_kind(self.config_ids[row], scenes["steep_deg"])
+        hit = [k for k in scenes["kinds"] if k["scene"] == kind]
+        return hit[0] if hit else None
+
+    def analytic_error_deg(self) -> np.ndarray:
+        """Per bound configuration answered by the analytic PMF, the mean circular W1 (degrees) it
+        lay from the study's labels in that kind of scene (:func:`analytic_by_scene`); NaN for the
+        other answers and where the card has no such row."""
+        out = np.full(len(self._answers()), np.nan)
+        for row, (source, _, _) in enumerate(self._answers()):
+            k = self._analytic_kind(row) if source == ANALYTIC else None
+            if k is not None:
+                out[row] = float(k["mean_circular_w1_deg"])
+        return out
 
     def _label_error(self, i: int) -> str:
         """``; ...`` with library row ``i``'s audit estimate, or '' without one."""

@@ -319,14 +319,18 @@ def check_scene_fit(geom, scene: dict) -> None:
         )
 
 
-def check_fit(part_id: str, outline, centroid, thickness: float, scene: dict) -> None:
+# What a refusal of check_fit adds where the command reading the part has ``--units``.
+UNITS_HINT = "; is the part file in other units? (--units)"
+
+
+def check_fit(part_id: str, outline, centroid, thickness: float, scene: dict, hint: str = UNITS_HINT) -> None:
     """:func:`check_scene_fit` from the outline (metres), its area centroid and the thickness,
     without a :class:`~feeder.parts.geometry.PartGeometry` (whose convex decomposition
-    ``feeder predict`` does not need)."""
+    ``feeder predict`` does not need). ``hint`` ends the message (a command without ``--units``
+    says how it read the file's units instead)."""
     centred = np.asarray(outline, np.float64) - np.asarray(centroid, np.float64)
     radius = float(np.max(np.hypot(centred[:, 0], centred[:, 1])))
     half_width = float(scene["belt"]["half_width"])
-    hint = "; is the part file in other units? (--units)"
     if radius >= half_width:
         raise FeederError(
             f"part {part_id}: {2 * radius:.3g} m across (its circumscribed circle), wider than the belt "

@@ -304,6 +304,8 @@ def main(argv: list[str]) -> int:
     loc1, loc2 = parse_location(args.loc1), parse_location(args.loc2)
     if args.drops < 1:
         raise FeederError(f"--drops must be positive, got {args.drops}")
+    if Path(args.out).suffix.lower() != ".npz":  # what it writes, whatever the name says
+        raise FeederError(f"--out {args.out}: feeder simulate writes a NumPy archive of the drops; name it .npz")
     scene, presets = load_settings(args.settings)
     preset = get_preset(presets, args.preset)
     from feeder.parts.geometry import load_part_units
