@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import numpy as np
@@ -191,6 +192,43 @@ def test_recommend_breaks_ties_by_how_often_the_analytic_pmf_is_right_there_and_
     assert note.startswith("note: 2 of these answers are the analytic push PMF, which lay 9-21 deg")
     assert R.analytic_note(ranked.iloc[[0]]) == ""  # no analytic answer shown: nothing to say
     assert R.analytic_note(ranked.drop(columns="analytic_w1_deg")) == ""
+
+
+def test_tipping_ratio_by_hand():
+    from feeder.config import load_study_config, study_root
+    from feeder.learn.predict import tipping_ratio
+
+    scene = load_study_config(root=study_root())["scene"]
+    scene = {
+        **scene,
+        "part": {**scene["part"], "friction": 0.8},
+        "belt": {**scene["belt"], "friction": 1.0},
+        "fences": {**scene["fences"], "clearance": 0.0005, "height": 0.03},
+    }
+    plate = np.array([[0, 0], [0.04, 0], [0.04, 0.02], [0, 0.02]], float)
+    # pushed across its 20 mm: far side 10 mm from the centroid; contact centre (0.5 + 5) / 2 mm
+    assert tipping_ratio(plate, [0.02, 0.01], 0.005, scene) == pytest.approx(0.8 * 2.75 / 10.0)
+    # a 1 x 1 mm rod: the fence meets it above its 0.5 mm gap only, at 0.75 mm; far side 0.5 mm
+    rod = np.array([[0, 0], [0.1, 0], [0.1, 0.001], [0, 0.001]], float)
+    assert tipping_ratio(rod, [0.05, 0.0005], 0.001, scene) == pytest.approx(0.8 * 0.75 / 0.5)
+    # taller than the fence: the contact's centre is the fence face's, (0.5 + 30.5) / 2 mm
+    assert tipping_ratio(plate, [0.02, 0.01], 0.05, scene) == pytest.approx(0.8 * 15.5 / 10.0)
+    # a right triangle (0,0), (30,0), (0,30) mm, centroid (10, 10): pushed on a leg it would tip over
+    # the opposite corner, 20 mm away; on the hypotenuse over the right angle, 20/sqrt(2) mm: the least
+    tri = np.array([[0, 0], [0.03, 0], [0, 0.03]], float)
+    assert tipping_ratio(tri, [0.01, 0.01], 0.005, scene) == pytest.approx(0.8 * 2.75 / (20.0 / math.sqrt(2.0)))
+
+
+def test_a_part_too_tall_for_its_width_gets_a_note_that_a_fence_may_tip_it(tmp_path, capsys):
+    from feeder.parts.geometry import stl_bytes
+
+    needle = tmp_path / "needle.stl"
+    needle.write_bytes(stl_bytes(np.array([[0, 0], [0.1, 0], [0.1, 0.001], [0, 0.001]], float), 0.005))
+    argv = ["--model", "analytic", "--loc1", "straight:30", "--loc2", "none", "--out", str(tmp_path / "a.csv")]
+    assert P.main([*argv, "--part", str(needle)]) == 0
+    assert "would tip it over (4.40 of the tipping moment" in capsys.readouterr().err
+    assert P.main([*argv, "--part", str(PART)]) == 0
+    assert "tip it over" not in capsys.readouterr().err  # a study part: well below
 
 
 def test_orientation_summary_of_a_peaked_answer_still_names_its_modes():
