@@ -75,3 +75,48 @@ def test_a_shipped_model_without_its_tables_stops_the_workflow_at_parse_time(tmp
     )
     assert proc.returncode != 0
     assert "models.ship: m3push must also be in models.regression and models.groupkfold" in proc.stderr + proc.stdout
+
+
+@pytest.mark.parametrize("dotted,value,named", BAD, ids=[b[0] + ":" + repr(b[1])[:12] for b in BAD])
+def test_the_workflows_own_check_names_the_setting_in_one_line(dotted, value, named):
+    """What common.smk raises instead of Snakemake's message, which quotes the whole schema."""
+    from feeder.config import check_study_config
+    from feeder.errors import FeederError
+
+    config = _set(copy.deepcopy(_load("config.yaml")), dotted, value)
+    with pytest.raises(FeederError) as err:
+        check_study_config(config, "config", SCHEMA)
+    message = str(err.value)
+    assert message.startswith("config: ") and named in message and "\n" not in message and len(message) < 300
+
+
+def test_an_unknown_sim_preset_is_named_with_the_presets_there_are():
+    from feeder.config import check_study_config
+    from feeder.errors import FeederError
+
+    config = _set(copy.deepcopy(_load("config.yaml")), "sim.preset", "nosuch")
+    validate(copy.deepcopy(config), schema=SCHEMA)  # the schema cannot see it
+    with pytest.raises(FeederError, match=r"config: sim.preset: 'nosuch' is not one of sim.presets \(faithful, "):
+        check_study_config(config, "config", SCHEMA)
+
+
+@pytest.mark.parametrize(
+    "overlay, message",
+    [
+        ({"sim": {"dropz": 10}}, "config: sim: Additional properties are not allowed ('dropz' was unexpected)"),
+        ({"sim": {"preset": "nosuch"}}, "config: sim.preset: 'nosuch' is not one of sim.presets"),
+    ],
+)
+def test_a_bad_setting_stops_the_workflow_in_a_few_lines(tmp_path, overlay, message):
+    import subprocess
+
+    from workflow_helpers import SNAKEMAKE
+
+    path = tmp_path / "bad.yaml"
+    path.write_text(yaml.safe_dump(overlay))
+    proc = subprocess.run(
+        [SNAKEMAKE, "-n", "--configfile", str(path)], cwd=ROOT, capture_output=True, text=True, timeout=300
+    )
+    said = proc.stderr + proc.stdout
+    assert proc.returncode != 0 and message in said
+    assert len(said.splitlines()) < 20  # not the schema (thousands of lines)

@@ -36,3 +36,42 @@ def test_broken_benchmark_file_is_named(tmp_path):
 
 def test_empty_benchmarks_give_empty_table(tmp_path):
     assert cost_by_stage(read_benchmarks(tmp_path)).empty
+
+
+def test_the_run_config_is_written_alone_and_read_back_into_the_provenance(tmp_path):
+    import hashlib
+    import json
+
+    from feeder.report import main
+
+    config_json = json.dumps({"sim": {"drops": 40}}, sort_keys=True, separators=(",", ":"))
+    run_config = tmp_path / "run_config.json"
+    assert main(["--config-json", config_json, "--config-out", str(run_config)]) == 0
+    assert run_config.read_text() == config_json  # the text itself: its hash is the record's
+    _bench(tmp_path / "bench" / "simulate" / "x.tsv", 2.0, 1.5, 100.0)
+    out, prov = tmp_path / "cost.csv", tmp_path / "provenance.json"
+    argv = ["--benchmarks", str(tmp_path / "bench"), "--out-csv", str(out), "--provenance", str(prov)]
+    assert main([*argv, "--config-file", str(run_config)]) == 0
+    record = json.loads(prov.read_text())
+    assert record["config"] == {"sim": {"drops": 40}}
+    assert record["config_sha256"] == hashlib.sha256(config_json.encode()).hexdigest()
+
+
+@pytest.mark.parametrize(
+    "argv, message",
+    [
+        (["--config-out", "{tmp}/c.json"], "--config-out writes the config given as --config-json"),
+        (["--config-json", "{{", "--config-out", "{tmp}/c.json"], "--config-json: not JSON"),
+        (["--config-json", "{{}}", "--config-file", "{tmp}/x.json", "--out-csv", "{tmp}/o.csv"], "not both"),
+        (["--config-file", "{tmp}/missing.json", "--out-csv", "{tmp}/o.csv"], "not found"),
+        ([], "give --out-csv"),
+    ],
+)
+def test_feeder_cost_bad_arguments_are_one_line_and_write_nothing(tmp_path, capsys, argv, message):
+    from feeder.cli import main
+
+    argv = [a.format(tmp=tmp_path) for a in argv]
+    assert main(["cost", *argv]) == 2
+    err = capsys.readouterr().err.strip()
+    assert message in err and "\n" not in err
+    assert not any(tmp_path.iterdir())

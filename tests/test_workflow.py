@@ -169,7 +169,8 @@ def test_crash_midway_then_restart_gives_identical_outputs(smoke_run, tmp_path):
 # the bench target is planned only when a benchmark reruns; the cost table is the record of a whole
 # run, built after every other result but not re-summed after a partial rerun (its inputs are
 # ancient: `-f results/smoke/tables/cost_by_stage.csv` re-sums), so a clone's redraw of one figure
-# does not send it back to the simulations (tests/test_fresh_clone.py)
+# does not send it back to the simulations (tests/test_fresh_clone.py); a changed setting of the
+# Snakemake config rewrites results/run_config.json, and so the record
 ALWAYS = {"all"}
 
 
@@ -218,6 +219,9 @@ def test_editing_one_fence_angle_reruns_only_the_simulations_that_use_it(smoke_r
     assert not rules & {"part_features", "scene_table", "bench_sim", "parts_s1"}
     assert {"datasets_build", "train_model", "evaluate_models"} <= rules  # and what depends on them
     assert "bench_cost" in rules  # the jobs it projects changed
+    # a changed setting is the run's record too, in the same pass as the jobs upstream of it (whose
+    # inputs are ancient, so Snakemake would not look at its params: it took a second run)
+    assert {"run_config", "cost_by_stage", "draw_cost_by_stage"} <= rules
 
 
 def test_switching_the_yaw_design_reruns_every_simulation_and_no_benchmark(smoke_run, tmp_path):

@@ -126,6 +126,11 @@ def check_study_config(config: dict, source: str = "config", schema: str | os.Pa
     if error is not None:
         where = ".".join(map(str, error.absolute_path)) or "top level"
         raise FeederError(f"{source}: {where}: {_one_line(error.message)}")
+    sim = config.get("sim") or {}
+    if "preset" in sim and "presets" in sim and sim["preset"] not in sim["presets"]:  # what no schema can say
+        raise FeederError(
+            f"{source}: sim.preset: {sim['preset']!r} is not one of sim.presets ({', '.join(map(str, sim['presets']))})"
+        )
     return config
 
 

@@ -99,15 +99,50 @@ def provenance(config_json: str, table: pd.DataFrame) -> dict:
     }
 
 
+def read_config_json(path: str | os.PathLike) -> str:
+    """The run's resolved config as written by ``feeder cost --config-out`` (the text itself: its
+    hash is the provenance's ``config_sha256``); a one-line FeederError if it is missing or not JSON."""
+    path = Path(path)
+    if not path.is_file():
+        raise FeederError(f"config file {path} not found")
+    text = path.read_text()
+    try:
+        json.loads(text)
+    except json.JSONDecodeError as err:
+        raise FeederError(f"{path}: not JSON ({err.msg}, line {err.lineno})") from None
+    return text
+
+
 def main(argv: list[str]) -> int:
     parser = argparse.ArgumentParser(prog="feeder cost", description=__doc__)
     parser.add_argument("--benchmarks", default="benchmarks", help="root of the benchmark files")
-    parser.add_argument("--out-csv", required=True)
+    parser.add_argument("--out-csv", help="the per-stage table")
     parser.add_argument("--provenance", help="also write this provenance JSON")
-    parser.add_argument("--config-json", default="{}", help="the resolved workflow config (for its hash)")
+    parser.add_argument("--config-json", help="the resolved workflow config (for its hash)")
+    parser.add_argument("--config-file", help="... or the file --config-out wrote it to")
+    parser.add_argument(
+        "--config-out",
+        help="write --config-json to this file, alone: the workflow's record of a run's settings, which a "
+        "change of any setting rewrites (and so the run's provenance, which reads it)",
+    )
     args = parser.parse_args(argv)
+    if args.config_json is not None and args.config_file is not None:
+        raise FeederError("give --config-json or --config-file, not both")
+    config_json = read_config_json(args.config_file) if args.config_file is not None else (args.config_json or "{}")
+    if args.config_out is not None:
+        if args.config_json is None:
+            raise FeederError("--config-out writes the config given as --config-json")
+        try:
+            json.loads(config_json)
+        except json.JSONDecodeError as err:
+            raise FeederError(f"--config-json: not JSON ({err.msg}, column {err.colno})") from None
+        io.write_text(args.config_out, config_json)
+    if args.out_csv is None:
+        if args.config_out is None:
+            raise FeederError("give --out-csv (the per-stage table), --config-out, or both")
+        return 0
     table = cost_by_stage(read_benchmarks(args.benchmarks))
     io.write_csv(args.out_csv, table)
     if args.provenance:
-        io.write_json(args.provenance, provenance(args.config_json, table))
+        io.write_json(args.provenance, provenance(config_json, table))
     return 0

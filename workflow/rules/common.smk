@@ -2,10 +2,12 @@
 # and code(): the package modules a job runs, derived from its command's imports (declared as
 # inputs so a code change reruns the job; Snakemake does not track imported Python modules).
 import json
+from pathlib import Path
 
 from snakemake.utils import validate
 
 from feeder.bench.reference import entries as design_bench_entries
+from feeder.config import STUDY_SCHEMA, check_study_config
 from feeder.labels.grid import configurations, protocol_parts
 from feeder.lane.fences import parse_config_id
 from feeder.parts.library import list_parts
@@ -18,7 +20,13 @@ from feeder.workflow import (
     simulations_notice,
 )
 
-validate(config, schema="../schemas/config.schema.yaml")
+try:
+    validate(config, schema="../schemas/config.schema.yaml")
+except Exception:
+    # Snakemake's message quotes the whole schema; the same check names the setting in one line
+    check_study_config(config, "config", Path(workflow.basedir) / STUDY_SCHEMA)
+    raise
+check_study_config(config, "config", Path(workflow.basedir) / STUDY_SCHEMA)  # and what no schema can say
 
 # Every output of a run goes under its results directory (config key `results`), so overlays never
 # overwrite each other's files: the default study writes results/ (and logs/, benchmarks/), an

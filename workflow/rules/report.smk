@@ -19,6 +19,24 @@ PAPER_TARGETS = PARTS_TARGETS + SIM_TARGETS + DATASETS_TARGETS + MODELS_TARGETS 
 ALL_TARGETS = PAPER_TARGETS + [f"{TABLES}/cost_by_stage.csv", f"{FIGURES}/cost_by_stage.png"]
 
 
+rule run_config:
+    """The run's resolved config, on its own: any change of a setting rewrites it, and so the run's
+    provenance below (whose inputs are ancient, so Snakemake would not look at its params while the
+    jobs upstream of it rerun)."""
+    input:
+        code("cost"),
+    output:
+        f"{RESULTS}/run_config.json",
+    log:
+        f"{LOGS}/report/run_config.log",
+    conda:
+        "../envs/feeder.yaml"
+    params:
+        config=settings_json(*config),
+    shell:
+        "feeder cost --config-json '{params.config}' --config-out {output} > {log} 2>&1"
+
+
 rule cost_by_stage:
     """Per-stage wall/CPU/memory from every job's benchmark file, once everything else is built."""
     input:
@@ -26,6 +44,7 @@ rule cost_by_stage:
         # one figure does not make outdated (nor, in a clone, send back to the simulations)
         ancient(PAPER_TARGETS),
         code("cost"),
+        config=f"{RESULTS}/run_config.json",
     output:
         csv=report(f"{TABLES}/cost_by_stage.csv", caption="../report/cost_by_stage.rst", category="Cost"),
         provenance=f"{RESULTS}/provenance.json",
@@ -36,11 +55,10 @@ rule cost_by_stage:
     conda:
         "../envs/feeder.yaml"
     params:
-        config=settings_json(*config),
         benchmarks=BENCHMARKS,
     shell:
         "feeder cost --benchmarks {params.benchmarks} --out-csv {output.csv}"
-        " --provenance {output.provenance} --config-json '{params.config}' > {log} 2>&1"
+        " --provenance {output.provenance} --config-file {input.config} > {log} 2>&1"
 
 
 # name: data file it is drawn from, report caption, report category, extra `feeder figure` options
