@@ -115,10 +115,18 @@ def _drop_collinear(pts: np.ndarray, tol: float) -> tuple[np.ndarray, bool]:
     """Remove collinear vertices of a polygon with no repeated vertices, one at a time and always
     the first by index (as a rescan of the whole polygon after each removal would find it), until
     none is left (``done``) or a removal leaves an edge no longer than ``tol`` (not ``done``: the
-    caller drops repeated vertices first). A removal changes only its two neighbours, so the scan
-    resumes one vertex back; the arithmetic is the vectorised test's, value for value."""
+    caller drops repeated vertices first). All vertices are tested at once first; from the first
+    collinear one a scan goes on vertex by vertex: a removal changes only its two neighbours, so it
+    resumes one vertex back. The scan's arithmetic is the vectorised test's, value for value."""
+    prv, nxt = np.roll(pts, 1, axis=0), np.roll(pts, -1, axis=0)
+    d1, d2 = pts - prv, nxt - pts
+    cross = d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0]
+    chord = np.linalg.norm(nxt - prv, axis=1)
+    straight = (np.abs(cross) / np.maximum(chord, tol) <= tol) & (np.sum(d1 * d2, axis=1) > 0)
+    if not straight.any():  # the usual outline: one vectorised test of every vertex
+        return pts, True
     xs, ys = pts[:, 0].tolist(), pts[:, 1].tolist()
-    i = 0
+    i = int(np.flatnonzero(straight)[0])  # every vertex before it is not collinear
     while len(xs) >= 3 and i < len(xs):
         n = len(xs)
         p, q = (i - 1) % n, (i + 1) % n
