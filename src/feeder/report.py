@@ -99,18 +99,22 @@ def provenance(config_json: str, table: pd.DataFrame) -> dict:
     }
 
 
+def checked_json(text: str, source: str) -> str:
+    """``text`` itself if it parses as JSON, else a one-line FeederError naming ``source``."""
+    try:
+        json.loads(text)
+    except json.JSONDecodeError as err:
+        raise FeederError(f"{source}: not JSON ({err.msg}, line {err.lineno} column {err.colno})") from None
+    return text
+
+
 def read_config_json(path: str | os.PathLike) -> str:
     """The run's resolved config as written by ``feeder cost --config-out`` (the text itself: its
     hash is the provenance's ``config_sha256``); a one-line FeederError if it is missing or not JSON."""
     path = Path(path)
     if not path.is_file():
         raise FeederError(f"config file {path} not found")
-    text = path.read_text()
-    try:
-        json.loads(text)
-    except json.JSONDecodeError as err:
-        raise FeederError(f"{path}: not JSON ({err.msg}, line {err.lineno})") from None
-    return text
+    return checked_json(path.read_text(), str(path))
 
 
 def main(argv: list[str]) -> int:
@@ -132,11 +136,7 @@ def main(argv: list[str]) -> int:
     if args.config_out is not None:
         if args.config_json is None:
             raise FeederError("--config-out writes the config given as --config-json")
-        try:
-            json.loads(config_json)
-        except json.JSONDecodeError as err:
-            raise FeederError(f"--config-json: not JSON ({err.msg}, column {err.colno})") from None
-        io.write_text(args.config_out, config_json)
+        io.write_text(args.config_out, checked_json(config_json, "--config-json"))
     if args.out_csv is None:
         if args.config_out is None:
             raise FeederError("give --out-csv (the per-stage table), --config-out, or both")

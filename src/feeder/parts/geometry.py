@@ -147,7 +147,7 @@ def _drop_collinear(pts: np.ndarray, tol: float) -> tuple[np.ndarray, bool]:
         ex, ey = xs[(p + 1) % n] - xs[p], ys[(p + 1) % n] - ys[p]
         if not math.sqrt(ex * ex + ey * ey) > tol:
             return np.column_stack([xs, ys]), False
-    return np.column_stack([np.asarray(xs, dtype=np.float64), np.asarray(ys, dtype=np.float64)]), True
+    return np.column_stack([xs, ys]), True
 
 
 def is_convex(poly: np.ndarray, rel_tol: float = 1e-9) -> bool:
