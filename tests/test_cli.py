@@ -135,3 +135,14 @@ def test_commands_into_a_pipe_closed_early_end_quietly(tmp_path):
         _, err = proc.communicate(timeout=300)
         assert proc.returncode in statuses, (args, err)
         assert b"Traceback" not in err and b"BrokenPipe" not in err, (args, err)
+
+
+def test_train_refuses_a_word_that_is_not_an_override_in_one_line(capsys):
+    """`feeder train model --help` (a group name without =) used to print Hydra's traceback."""
+    from feeder.learn.train import check_overrides
+
+    assert main(["train", "model", "--help"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "'model' is not an override of the form key=value" in err[0]
+    check_overrides(["model=m3", "--cfg", "job", "-m", "trainer.epochs=2", "+x=1", "~model.hidden"])  # all fine
+    check_overrides(["--config-name", "train", "--info", "defaults"])  # option values are not overrides

@@ -583,3 +583,52 @@ def test_predict_simulate_with_every_drop_jammed_is_an_error_without_output(tmp_
     err = capsys.readouterr().err
     assert "none of the 4 drops left the fences lying flat (jammed 4; " in err and "ok mass 0" in err
     assert not out.exists()
+
+
+def test_a_model_its_card_finds_worse_than_the_analytic_pmf_says_so(model_dir, tmp_path, capsys):
+    """`--model models/m3`: its card's paired comparisons put it behind the analytic push PMF on new
+    parts, and predict says so on stderr; a folder without a card (a `feeder train` output) says nothing."""
+    from feeder.learn.export import worse_than_analytic
+
+    row = {
+        "baseline": "baseline_analytic_pmf",
+        "metric": "cw1",
+        "model": "mx",
+        "split": "parts",
+        "model_mean": 30.0,
+        "baseline_mean": 20.0,
+        "diff_mean": 10.0,
+        "diff_low": 6.0,
+        "diff_high": 14.0,
+        "level": 0.95,
+        "verdict": "worse",
+    }
+    even = {**row, "split": "test", "verdict": "no clear difference"}
+    card = {"model": {"name": "mx"}, "metrics": {"model_vs_baselines": [row, even]}}
+    note = worse_than_analytic(card)
+    assert "new parts (Parts) 30.0° against 20.0° (+10.0° [6.0, 14.0], 95 % paired)" in note and "Test" not in note
+    assert worse_than_analytic({"model": {"name": "mx"}, "metrics": {"model_vs_baselines": [even]}}) is None
+    assert worse_than_analytic({"model": {"name": "other"}, "metrics": {"model_vs_baselines": [row]}}) is None
+    assert worse_than_analytic({}) is None
+    base = ["--features", str(model_dir / "p0.json"), "--loc1", "straight:30", "--loc2", "none"]
+    assert P.main(["--model", str(model_dir / "m3"), *base, "--out", str(tmp_path / "a.csv")]) == 0
+    assert "note:" not in capsys.readouterr().err
+    P.choose_model(str(PARTS.parent / "models" / "m3"), "feeder predict", {"labels": {"bins": 360}})
+    err = capsys.readouterr().err
+    assert "note:" in err and "further from the simulator than the untrained analytic push PMF" in err
+
+
+def test_recommend_says_when_the_symmetry_found_is_only_the_most_it_checks(tmp_path, capsys):
+    """A 64-gon disc is reported as 12-fold, the most the check looks for: recommend says so."""
+    from feeder.learn import recommend as R
+    from feeder.parts.geometry import stl_bytes
+    from feeder.parts.symmetry import DEFAULT_MAX_ORDER
+
+    turn = np.linspace(0.0, 2 * np.pi, 64, endpoint=False)
+    disc = tmp_path / "disc.stl"
+    disc.write_bytes(stl_bytes(0.02 * np.c_[np.cos(turn), np.sin(turn)], 0.005, "disc"))
+    assert R.symmetry_order("auto", disc) == DEFAULT_MAX_ORDER
+    err = capsys.readouterr().err
+    assert f"{DEFAULT_MAX_ORDER}-fold symmetric or more" in err and "--symmetry N" in err
+    assert R.symmetry_order("auto", PARTS / "rect-a2.stl") == 2
+    assert capsys.readouterr().err == ""

@@ -504,3 +504,38 @@ def test_export_study_refuses_bad_input_in_one_line_and_writes_nothing(tmp_path)
     proc = _cli(*base, "--configurations", str(tmp_path / "configurations.csv"))
     err = proc.stderr.strip()
     assert proc.returncode != 0 and "straight40_none.npz" in err and "\n" not in err and not out.exists()
+
+
+def test_the_card_quotes_one_model_of_the_structured_table():
+    from feeder.learn.study import EVIDENCE_MODEL, structured_evidence
+
+    def row(model, experiment, baseline, value):
+        return {
+            "experiment": experiment,
+            "unit": "configuration",
+            "model": model,
+            "metric": "cw1",
+            "baseline": baseline,
+            "n": 5,
+            "structured": value,
+            "structured_seed_sd": np.nan,
+            "baseline_value": 9.0,
+            "diff": value - 9.0,
+            "diff_low": value - 10.0,
+            "diff_high": value - 8.5,
+            "level": 0.95,
+            "verdict": "better",
+        }
+
+    rows = [
+        row(m, e, "analytic_pmf", v)
+        for m, v in (("structured", 7.0), ("structured_ensemble", 6.5))
+        for e in ("test", "fences")
+    ]
+    quoted = structured_evidence(pd.DataFrame(rows + [row("structured", "unseen_groupkfold", "analytic_pmf", 1.0)]))
+    assert [(q["experiment"], q["structured"]) for q in quoted] == [
+        ("test", 7.0 if EVIDENCE_MODEL == "structured" else 6.5),
+        ("fences", 7.0 if EVIDENCE_MODEL == "structured" else 6.5),
+    ]
+    old = pd.DataFrame(rows[:2]).drop(columns="model")  # a table written before the model column
+    assert [q["structured"] for q in structured_evidence(old)] == [7.0, 7.0]

@@ -514,6 +514,42 @@ def card_headline(name: str, metrics: dict) -> str:
     )
 
 
+SPLIT_NAMES = {
+    "test": "known parts at new angles (Test)",
+    "fences": "new fence combinations (Fences)",
+    "parts": "new parts (Parts)",
+}
+
+
+def worse_than_analytic(card: dict) -> str | None:
+    """Where the card's paired comparisons (``metrics.model_vs_baselines``) find the model worse
+    than the untrained analytic push PMF by circular W1, one sentence saying so with the means and
+    the interval; None where they find it nowhere worse (or the card has no comparisons) (pure)."""
+    from feeder.learn.evaluate import BASELINE_ANALYTIC
+
+    name = (card.get("model") or {}).get("name") if isinstance(card.get("model"), dict) else card.get("model")
+    rows = (card.get("metrics") or {}).get("model_vs_baselines") or []
+    worse = [
+        r
+        for r in rows
+        if r.get("baseline") == BASELINE_ANALYTIC
+        and r.get("metric") == "cw1"
+        and r.get("verdict") == "worse"
+        and (name is None or r.get("model") == name)
+    ]
+    if not worse:
+        return None
+    said = "; ".join(
+        f"{SPLIT_NAMES.get(r['split'], r['split'])} {r['model_mean']:.1f}° against {r['baseline_mean']:.1f}° "
+        f"(+{r['diff_mean']:.1f}° [{r['diff_low']:.1f}, {r['diff_high']:.1f}], {100 * r['level']:.0f} % paired)"
+        for r in worse
+    )
+    return (
+        f"on the study's tables this model lies further from the simulator than the untrained analytic push PMF "
+        f"(circular W1: {said}); the default (no --model) answers a new part with that PMF"
+    )
+
+
 def _card_files(card: dict) -> list[str]:
     """The card's files with their digests, and the provenance of the run."""
     lines = ["## Files", ""]

@@ -57,6 +57,17 @@ def load_model(path: Path):
     return inference.load(path)
 
 
+def say_standing(model_dir: Path, prog: str) -> None:
+    """A note on stderr where the model's card finds it worse than the analytic push PMF
+    (:func:`feeder.learn.export.worse_than_analytic`)."""
+    from feeder.learn.export import read_card, worse_than_analytic
+
+    card = read_card(model_dir)
+    note = worse_than_analytic(card) if card is not None else None
+    if note:
+        print(f"{prog}: note: {model_dir}: {note}", file=sys.stderr)
+
+
 def choose_model(model_arg, prog: str, study: dict):
     """The predictor ``--model`` names: the untrained analytic push PMF for ``analytic``
     (:class:`feeder.learn.analytic.AnalyticModel`, over the study's ``labels.bins``), else the
@@ -79,7 +90,10 @@ def choose_model(model_arg, prog: str, study: dict):
         return AnalyticModel(int(study["labels"]["bins"]))
     from feeder.learn.export import resolve_model_dir
 
-    return load_model(resolve_model_dir(model_arg, prog))
+    model_dir = resolve_model_dir(model_arg, prog)
+    model = load_model(model_dir)
+    say_standing(model_dir, prog)
+    return model
 
 
 def check_part_fits(

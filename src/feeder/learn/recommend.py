@@ -331,11 +331,19 @@ def symmetry_order(setting: str, part: Path | None) -> int:
             print("feeder recommend: no STL to read the symmetry from: order 1", file=sys.stderr)
         return 1 if order is None else order
     from feeder.parts.geometry import load_profile
-    from feeder.parts.symmetry import check_order, rotational_order
+    from feeder.parts.symmetry import DEFAULT_MAX_ORDER, DEFAULT_SYMMETRY_TOLERANCE, check_order, rotational_order
 
     outline, holes, _ = load_profile(part, "auto")
     if order is None:
-        return rotational_order(outline, holes=holes)
+        order = rotational_order(outline, holes=holes)
+        if order == DEFAULT_MAX_ORDER:  # the most the check looks for: a round part stops there too
+            print(
+                f"feeder recommend: the part is {order}-fold symmetric or more ({order} is the most checked; a part "
+                f"round to {100 * DEFAULT_SYMMETRY_TOLERANCE:g} % of its radius stops there): scored as {order}-fold; "
+                "--symmetry N checks another order",
+                file=sys.stderr,
+            )
+        return order
     try:
         check_order(outline, order, holes=holes)
     except FeederError as err:

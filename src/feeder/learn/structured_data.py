@@ -236,6 +236,35 @@ def candidate_settings(candidates, bins: int, sigma_bins: float) -> dict:
     return out
 
 
+def cached_candidates(cache_path, key: str, push_raw, compute, n_variants: int, progress=None) -> list:
+    """The candidates of every configuration (:func:`compute_candidates`, called as ``compute()``),
+    read from ``cache_path`` when it holds ``key`` and its push block agrees with the dataset's
+    ``push_raw`` (its first rows: the kept configurations), else computed and cached. The key
+    hashes every input but not the arithmetic: a cache written under other BLAS kernels can differ
+    where an exit turn sits on a knife edge (docs/testing.md), so such a cache is recomputed, not
+    blamed on the dataset. Computed candidates that still disagree are a one-line FeederError."""
+
+    def agrees(cands) -> bool:
+        if push_raw is None:
+            return True
+        push = np.stack([c[3] for c in cands])[: len(push_raw)]
+        return push.shape == np.shape(push_raw) and bool(np.allclose(push, push_raw))
+
+    cands = read_candidates_cache(cache_path, key) if cache_path is not None else None
+    if cands is not None and not agrees(cands):
+        if progress is not None:
+            progress(f"candidates: the cache {cache_path} disagrees with the dataset's push block; recomputing it")
+        cands = None
+    if cands is None:
+        log.info("computing candidates")
+        cands = compute()
+        if not agrees(cands):
+            raise FeederError("the dataset's push_raw differs from this code's push block: rebuild the dataset")
+        if cache_path is not None:
+            write_candidates_cache(cache_path, key, cands, n_variants)
+    return cands
+
+
 def structured_arrays(data: dict, cfg, sim_dir, parts_dir, features_dir, cache_path=None, progress=None) -> dict:
     """The arrays of the module doc for ``data`` (:func:`feeder.labels.dataset.load_dataset`),
     with the candidate settings ``cfg.candidates`` of ``config/hydra/structured.yaml``."""
@@ -263,14 +292,15 @@ def structured_arrays(data: dict, cfg, sim_dir, parts_dir, features_dir, cache_p
         ]
     )
     key = candidates_key(parts, cids, frames, scene, variants, cand_cfg, parts_dir)
-    cands = read_candidates_cache(cache_path, key) if cache_path is not None else None
-    if cands is None:
-        log.info("computing candidates of %d configurations", len(parts))
-        cands = compute_candidates(parts, cids, frames, scene, variants, cand_cfg, parts_dir, bins, units, progress)
-        if cache_path is not None:
-            write_candidates_cache(cache_path, key, cands, len(variants))
-    if "push_raw" in data and not np.allclose(np.stack([c[3] for c in cands])[:n_kept], data["push_raw"]):
-        raise FeederError("the dataset's push_raw differs from this code's push block: rebuild the dataset")
+    push_raw = data["push_raw"] if "push_raw" in data else None
+    cands = cached_candidates(
+        cache_path,
+        key,
+        push_raw,
+        lambda: compute_candidates(parts, cids, frames, scene, variants, cand_cfg, parts_dir, bins, units, progress),
+        len(variants),
+        progress,
+    )
     inputs = row_inputs(
         cands, cids, len(variants), int(cfg.candidates.max_candidates), float(cfg.candidates.present_mass)
     )

@@ -42,6 +42,7 @@ from feeder.learn.splits import derived_seed, pick_parts, resplit_rows
 log = logging.getLogger(__name__)
 
 STRUCTURED = "structured"
+ENSEMBLE = "structured_ensemble"  # the seeds' PMFs averaged: what the shipped predictor answers
 ANALYTIC = "analytic_pmf"
 PRIOR = "analytic_prior"
 MEAN = "mean_pmf"
@@ -267,6 +268,8 @@ def score_rows(arrays: dict, fitted: dict, rows, experiment: str, repeat: int, p
     for s, f in enumerate(fitted["fits"]):
         pmf, ok = predict(f, fitted["scaled"], rows, fitted["mean_pmf"])
         preds.append((STRUCTURED, s, pmf, ok))
+    if len(preds) > 1:  # the shipped answer (feeder.learn.structured_shipped) averages its seeds' PMFs
+        preds.append((ENSEMBLE, -1, np.mean([p[2] for p in preds], axis=0), np.mean([p[3] for p in preds], axis=0)))
     train = fitted["train"]
     ok_mean = float(arrays["ok"][train].mean())
     for name, pmf in baseline_pmfs(arrays, train, rows, prior_grids).items():
@@ -460,53 +463,63 @@ def unit_scores(long: pd.DataFrame, experiment: str, predictor: str, metric: str
 
 
 def comparison_table(long: pd.DataFrame, bootstrap: dict, m3_parts: pd.Series | None = None) -> pd.DataFrame:
-    """Per experiment, metric and baseline: the structured predictor's mean, the baseline's,
-    their paired difference with its bootstrap interval over the experiment's units."""
-    from feeder.learn.evaluate import paired_bootstrap, verdict
-
+    """Per experiment, model, metric and baseline: the model's mean, the baseline's, their paired
+    difference with its bootstrap interval over the experiment's units. The models are the
+    structured predictor scored seed by seed (``structured``, its seed SD beside it) and, where the
+    run has several seeds, their PMFs averaged (``structured_ensemble``: the shipped answer)."""
     out = []
     for experiment in UNITS:
         if experiment not in set(long.experiment):
             continue
-        for metric, sign in METRICS:
-            model = unit_scores(long, experiment, STRUCTURED, metric)
-            seeds = long[(long.experiment == experiment) & (long.predictor == STRUCTURED)]
-            present = set(long[long.experiment == experiment].predictor)
-            baselines = [ANALYTIC, PRIOR, MEAN] + [b for b in (GATED, COMPOSED, M3, DROPS) if b in present]
-            if metric == "ok_abs_err":
-                baselines = [ANALYTIC, MEAN]
-            series = {b: unit_scores(long, experiment, b, metric) for b in baselines}
-            if m3_parts is not None and experiment == "unseen_groupkfold" and metric == "cw1":
-                series[M3] = m3_parts
-            for b, base in series.items():
-                both = pd.concat([model, base], axis=1, keys=["m", "b"]).dropna()
-                if both.empty:
-                    continue
-                mean, lo, hi = paired_bootstrap(
-                    (both.m - both.b).to_numpy(), bootstrap["resamples"], bootstrap["level"], bootstrap["seed"]
-                )
-                sd = np.nan
-                if metric != "ok_abs_err" and seeds.seed.nunique() > 1:
-                    per_seed = seeds[seeds.kept].groupby("seed")[metric].mean()
-                    sd = float(per_seed.std(ddof=1))
-                out.append(
-                    {
-                        "experiment": experiment,
-                        "unit": UNITS[experiment],
-                        "metric": metric,
-                        "baseline": b,
-                        "n": len(both),
-                        "structured": float(both.m.mean()),
-                        "structured_seed_sd": sd,
-                        "baseline_value": float(both.b.mean()),
-                        "diff": mean,
-                        "diff_low": lo,
-                        "diff_high": hi,
-                        "level": float(bootstrap["level"]),
-                        "verdict": verdict(lo, hi, sign),
-                    }
-                )
+        present = set(long[long.experiment == experiment].predictor)
+        for name in [m for m in (STRUCTURED, ENSEMBLE) if m in present]:
+            for metric, sign in METRICS:
+                out += _comparisons(long, experiment, name, metric, sign, present, bootstrap, m3_parts)
     return pd.DataFrame(out)
+
+
+def _comparisons(long, experiment, name, metric, sign, present, bootstrap, m3_parts) -> list[dict]:
+    from feeder.learn.evaluate import paired_bootstrap, verdict
+
+    model = unit_scores(long, experiment, name, metric)
+    seeds = long[(long.experiment == experiment) & (long.predictor == name)]
+    baselines = [ANALYTIC, PRIOR, MEAN] + [b for b in (GATED, COMPOSED, M3, DROPS) if b in present]
+    if metric == "ok_abs_err":
+        baselines = [ANALYTIC, MEAN]
+    series = {b: unit_scores(long, experiment, b, metric) for b in baselines}
+    if m3_parts is not None and experiment == "unseen_groupkfold" and metric == "cw1":
+        series[M3] = m3_parts
+    out = []
+    for b, base in series.items():
+        both = pd.concat([model, base], axis=1, keys=["m", "b"]).dropna()
+        if both.empty:
+            continue
+        mean, lo, hi = paired_bootstrap(
+            (both.m - both.b).to_numpy(), bootstrap["resamples"], bootstrap["level"], bootstrap["seed"]
+        )
+        sd = np.nan
+        if metric != "ok_abs_err" and seeds.seed.nunique() > 1:
+            per_seed = seeds[seeds.kept].groupby("seed")[metric].mean()
+            sd = float(per_seed.std(ddof=1))
+        out.append(
+            {
+                "experiment": experiment,
+                "unit": UNITS[experiment],
+                "model": name,
+                "metric": metric,
+                "baseline": b,
+                "n": len(both),
+                "structured": float(both.m.mean()),
+                "structured_seed_sd": sd,
+                "baseline_value": float(both.b.mean()),
+                "diff": mean,
+                "diff_low": lo,
+                "diff_high": hi,
+                "level": float(bootstrap["level"]),
+                "verdict": verdict(lo, hi, sign),
+            }
+        )
+    return out
 
 
 def m3_part_scores(path) -> pd.Series:

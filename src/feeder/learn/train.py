@@ -312,6 +312,27 @@ def train(cfg) -> dict:
 # ----------------------------------------------------------------------------------------------
 # CLI (Hydra)
 # ----------------------------------------------------------------------------------------------
+def check_overrides(argv: list[str]) -> None:
+    """The arguments of ``feeder train`` that are neither options (``--help``, ``-m``, ``--cfg job``
+    …) nor option values, parsed as Hydra overrides first: a bad one is a one-line
+    :class:`FeederError` (Hydra's own command line prints its traceback for it)."""
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+    from hydra.errors import OverrideParseException
+
+    takes_value = {"--cfg", "-c", "--package", "-p", "--config-path", "-cp", "--config-name", "-cn"}
+    takes_value |= {"--config-dir", "-cd", "--info", "-i", "--experimental-rerun"}
+    words = [a for i, a in enumerate(argv) if not a.startswith("-") and (i == 0 or argv[i - 1] not in takes_value)]
+    parser = OverridesParser.create()
+    for word in words:
+        try:
+            parser.parse_overrides([word])
+        except OverrideParseException:
+            raise FeederError(
+                f"{word!r} is not an override of the form key=value (e.g. model=m3); "
+                "`feeder train --help` lists the groups and settings"
+            ) from None
+
+
 def main(argv: list[str]) -> int:
     """Run Hydra's command line on ``argv`` (overrides, ``-m`` for multiruns, ``--cfg job`` …)."""
     import hydra
@@ -327,6 +348,7 @@ def main(argv: list[str]) -> int:
             return
         print(json.dumps(metrics, sort_keys=True))
 
+    check_overrides(argv)
     saved = sys.argv
     sys.argv = ["feeder-train", *argv]
     try:
