@@ -447,6 +447,34 @@ def test_fits_run_at_once_give_the_same_rows_and_choices_in_the_same_order():
             run_protocol(_toy_library(), cfg, prior, workers=bad)
 
 
+def test_a_learning_curve_trains_on_fewer_parts_and_keeps_validation_and_baselines():
+    """protocol.fit_part_fraction < 1: the network of a fit trains on fewer parts; its validation
+    parts, its scored rows' neighbours and every baseline stay as at 1."""
+    pytest.importorskip("torch")
+    from omegaconf import OmegaConf
+
+    from feeder.config import compose_config
+    from feeder.learn.prior import grids
+    from feeder.learn.structured_protocol import fit_part_fraction, run_protocol, unused_parts
+
+    prior = grids(compose_config("train")["prior"])
+    whole = run_protocol(_toy_library(), compose_config("structured", [*TOY_PROTOCOL, "protocol.fits=[main]"]), prior)
+    half_cfg = compose_config("structured", [*TOY_PROTOCOL, "protocol.fits=[main]", "protocol.fit_part_fraction=0.5"])
+    half = run_protocol(_toy_library(), half_cfg, prior)
+    a, b = whole[1].set_index("fit"), half[1].set_index("fit")
+    assert (a.unused_parts == 0).all() and (b.unused_parts > 0).all()
+    assert (b.val_rows == a.val_rows).all() and (b.fit_rows < a.fit_rows).all()
+    base = lambda long: long[long.predictor != "structured"].query("predictor != 'structured_ensemble'")  # noqa: E731
+    pd.testing.assert_frame_equal(base(whole[0]).reset_index(drop=True), base(half[0]).reset_index(drop=True))
+    parts = [f"p{i}" for i in range(10)]
+    assert unused_parts(parts, 1.0, 3) == set() and unused_parts(parts, 0.5, 3) >= unused_parts(parts, 0.75, 3)
+    assert len(unused_parts(parts, 0.5, 3)) == 5
+    for bad in (0, -0.5, 1.5, "half"):
+        with pytest.raises(FeederError, match="protocol.fit_part_fraction"):
+            fit_part_fraction(OmegaConf.create({"protocol": {"fit_part_fraction": bad}}))
+    assert fit_part_fraction(OmegaConf.create({"protocol": {}})) == 1.0
+
+
 # ----------------------------------------------------------------------------------------------
 # The part's own neighbouring labels
 # ----------------------------------------------------------------------------------------------

@@ -97,6 +97,9 @@ def fit_protocol(arrays: dict, train: np.ndarray, cfg, key: str, known: bool = T
     base = int(cfg.seed)
     val_parts = pick_parts(arrays["part"][train], float(cfg.protocol.val_part_fraction), derived_seed(base, key), "val")
     is_val = np.isin(arrays["part"], list(val_parts))
+    pool = train  # the scored rows' neighbours: every training row, whatever the network trains on
+    unused = unused_parts(arrays["part"][train & ~is_val], fit_part_fraction(cfg), derived_seed(base, key))
+    train = train & ~np.isin(arrays["part"], list(unused))
     kept = arrays["kept"]
     fit_rows = np.flatnonzero(train & kept & ~is_val)
     val_rows = np.flatnonzero(train & kept & is_val)
@@ -122,7 +125,7 @@ def fit_protocol(arrays: dict, train: np.ndarray, cfg, key: str, known: bool = T
     mu, sd = x[fit_ok].mean(axis=0), x[fit_ok].std(axis=0)
     sd = np.where(sd > 0, sd, 1.0)
     scaled, scaled_val = dict(a_fit, x=(x - mu) / sd), dict(a_val, x=(a_val["x"] - mu) / sd)
-    a_eval = inputs(train)
+    a_eval = inputs(pool)
     scaled_eval = dict(a_eval, x=(a_eval["x"] - mu) / sd)
     mean_pmf = arrays["pmf"][fit_rows].mean(axis=0)
     net, tr = _settings(cfg)
@@ -170,6 +173,7 @@ def fit_protocol(arrays: dict, train: np.ndarray, cfg, key: str, known: bool = T
         "hidden": int(hp.hidden),
         "weight_decay": float(hp.weight_decay),
         "train_parts": int(len(set(arrays["part"][train]))),
+        "unused_parts": len(unused),
         "val_parts": len(val_parts),
         "fit_rows": int(fit_rows.size),
         "val_rows": int(val_rows.size),
@@ -191,11 +195,34 @@ def fit_protocol(arrays: dict, train: np.ndarray, cfg, key: str, known: bool = T
         "scaled": scaled_eval,
         "mean_pmf": mean_pmf,
         "choice": choice,
-        "train": train,
+        "train": pool,
         "x_mean": mu,
         "x_sd": sd,
         "settings": net(hp),
     }
+
+
+def fit_part_fraction(cfg) -> float:
+    """``protocol.fit_part_fraction`` (default 1): the share of a fit's non-validation parts its
+    network trains on; the rest train nothing and stay its scored rows' neighbours. Below 1 it
+    draws a learning curve on the same validation parts. A one-line FeederError outside (0, 1]."""
+    value = cfg.protocol.get("fit_part_fraction", 1.0)
+    try:
+        fraction = float(value)
+    except (TypeError, ValueError):
+        raise FeederError(f"protocol.fit_part_fraction: {value!r} is not a number in (0, 1]") from None
+    if not 0.0 < fraction <= 1.0:
+        raise FeederError(f"protocol.fit_part_fraction: {value!r} is not a number in (0, 1]")
+    return fraction
+
+
+def unused_parts(parts, fraction: float, seed: int) -> set[str]:
+    """The parts a fit leaves out of training at ``fraction`` (:func:`fit_part_fraction`): none at
+    1, else the first ``1 - fraction`` of them in the seeded ranking of
+    :func:`feeder.learn.splits.pick_parts`, so a smaller fraction leaves out a superset."""
+    if fraction >= 1.0:
+        return set()
+    return pick_parts(parts, 1.0 - fraction, seed, "unused")
 
 
 def neighbour_count(cfg, key: str = "neighbours") -> int:
@@ -571,6 +598,7 @@ def main(argv: list[str]) -> int:
     check_workers(cfg.train.workers)  # before the data and the candidates, not after
     # bad settings: a one-line error before any work
     neighbour_options(cfg), drop_count(cfg), drop_count(cfg, "drop_candidates"), composed_on(cfg), fit_kinds(cfg)
+    fit_part_fraction(cfg)
     prior_grids = grids(compose_config("train")["prior"])
     import torch
 
