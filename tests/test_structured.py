@@ -447,6 +447,66 @@ def test_fits_run_at_once_give_the_same_rows_and_choices_in_the_same_order():
             run_protocol(_toy_library(), cfg, prior, workers=bad)
 
 
+def test_the_error_by_neighbour_distance_by_hand():
+    """Rows at 5, 15 and 15 deg from their nearest label of the same types, one with only a label of
+    its downstream fence type, one with none at all (left out); seeds averaged where scored so."""
+    from feeder.learn.structured_protocol import check_edges, error_by_distance
+
+    key = [("test", 0, "a", "c1"), ("test", 0, "a", "c2"), ("fences", 0, "b", "c3"), ("test", 1, "b", "c4")]
+    key += [("fences", 0, "c", "c5")]
+    rows = []
+    for (experiment, repeat, part, cid), cw1 in zip(key, [1.0, 3.0, 5.0, 20.0, 50.0], strict=True):
+        base = {"experiment": experiment, "repeat": repeat, "part": part, "config_id": cid, "kept": True}
+        rows.append({**base, "predictor": "structured_ensemble", "seed": -1, "cw1": cw1})
+        rows.append({**base, "predictor": "structured", "seed": 0, "cw1": cw1 + 100.0})  # not the one used
+    rows.append({**rows[0], "experiment": "unseen_groupkfold"})  # not a Main fit's row
+    long = pd.DataFrame(rows)
+    distances = pd.DataFrame(
+        [(*k, d, c) for k, d, c in zip(key, [5.0, 15.0, 15.0, np.inf, np.inf], [True, True, False, True, False])],
+        columns=["experiment", "repeat", "part", "config_id", "neighbour_deg", "cross"],
+    )
+    t = error_by_distance(long, distances, [0, 10, 20])
+    assert t.low_deg.tolist() == [0.0, 10.0, np.inf] and t.rows.tolist() == [1, 2, 1]
+    assert t.mean_circular_w1_deg.tolist() == [1.0, 4.0, 20.0] and set(t.model) == {"structured_ensemble"}
+    assert t.p90_circular_w1_deg[1] == pytest.approx(3.0 + 0.9 * 2.0)
+    seeds = error_by_distance(long[long.predictor == "structured"], distances, [0, 10, 20])
+    assert seeds.mean_circular_w1_deg.tolist() == [101.0, 104.0, 120.0]  # no averaged rows: the seeds'
+    for bad in ([], [5, 10], [0, 10, 10], [0, float("inf")], "x"):
+        with pytest.raises(FeederError, match="answer_errors.edges_deg"):
+            check_edges(bad)
+
+
+def test_neighbour_distances_follow_the_main_fits_training_rows():
+    from feeder.config import compose_config
+    from feeder.learn.structured_protocol import neighbour_distances, protocol_jobs
+
+    cfg = compose_config("structured", TOY_PROTOCOL)
+    a = _toy_library()
+    d = neighbour_distances(a, cfg)
+    jobs = [j for j in protocol_jobs(a, cfg)[0] if j[0] == "main"]
+    assert len(d) == sum(int(m.sum()) for j in jobs for m in j[4].values())
+    test0 = d[(d.experiment == "test") & (d.repeat == 0)].set_index("part")
+    # repeat 0's Test rows are each part's straight30_none: nearest label straight35 (5 deg), but
+    # p0's straight35 jammed (no label): straight45, 15 deg
+    assert (test0.config_id == "straight30_none").all()
+    assert test0.neighbour_deg.to_dict() == {p: (15.0 if p == "p0" else 5.0) for p in test0.index}
+    assert not test0.cross.any()  # no other combination with a straight downstream fence
+    fences = d[d.experiment == "fences"].set_index("config_id")
+    # a Fences part has no training row: no neighbour of either kind
+    assert np.isinf(fences.neighbour_deg).all() and not fences.cross.any()
+
+
+def test_from_rows_refuses_what_is_not_a_run_s_rows(tmp_path):
+    from feeder.learn.structured_protocol import main
+
+    with pytest.raises(FeederError, match="no such file"):
+        main(["--from-rows", str(tmp_path / "none.csv"), "--out-dir", str(tmp_path)])
+    pd.DataFrame({"part": ["a"]}).to_csv(tmp_path / "x.csv", index=False)
+    with pytest.raises(FeederError, match="not a structured_rows.csv"):
+        main(["--from-rows", str(tmp_path / "x.csv"), "--out-dir", str(tmp_path)])
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["x.csv"]  # nothing written
+
+
 def test_a_learning_curve_trains_on_fewer_parts_and_keeps_validation_and_baselines():
     """protocol.fit_part_fraction < 1: the network of a fit trains on fewer parts; its validation
     parts, its scored rows' neighbours and every baseline stay as at 1."""

@@ -494,6 +494,10 @@ def test_export_study_refuses_bad_input_in_one_line_and_writes_nothing(tmp_path)
     good = ["--configurations", str(tmp_path / "configurations.csv")]
     for extra, message in [
         (["--structured-table", str(tmp_path / "neighbour.csv")], "--structured-table is the evidence of --structured"),
+        (
+            ["--structured-errors", str(tmp_path / "neighbour.csv")],
+            "--structured-errors is the evidence of --structured",
+        ),
         (["--structured", str(tmp_path / "none.npz")], "none.npz is missing"),
     ]:
         proc = _cli(*base, *good, *extra)
@@ -539,3 +543,48 @@ def test_the_card_quotes_one_model_of_the_structured_table():
     ]
     old = pd.DataFrame(rows[:2]).drop(columns="model")  # a table written before the model column
     assert [q["structured"] for q in structured_evidence(old)] == [7.0, 7.0]
+
+
+def test_a_structured_answer_says_how_far_it_may_be_off_at_its_distance(tmp_path):
+    """The card's error bins by neighbour distance (structured_by_distance.csv): the answer quotes
+    the bin of its nearest label of the same fence types, or the bin of none where it reads only a
+    label of its downstream fence type; a card without them says nothing."""
+    table = pd.DataFrame(
+        {
+            "low_deg": [0.0, 10.0, 20.0, np.inf],
+            "high_deg": [10.0, 20.0, 180.0, np.inf],
+            "model": "structured_ensemble",
+            "rows": [4, 0, 7, 9],
+            "mean_circular_w1_deg": [2.5, np.nan, 12.0, 14.0],
+            "median_circular_w1_deg": [1.5, np.nan, 7.0, 10.0],
+            "p90_circular_w1_deg": [6.0, np.nan, 30.0, 31.0],
+        }
+    )
+    bins = S.structured_error_bins(table)
+    assert [b["rows"] for b in bins] == [4, 7, 9]  # the empty bin is left out
+    assert bins[-1]["low_deg"] is None and json.loads(json.dumps(bins, allow_nan=False)) == bins  # JSON-safe
+    assert S.error_bin(bins, 0.0)["rows"] == 4 and S.error_bin(bins, 9.99)["rows"] == 4
+    assert S.error_bin(bins, 15.0) is None and S.error_bin(bins, 20.0)["rows"] == 7
+    assert S.error_bin(bins, 180.0) is None and S.error_bin(bins, float("inf"))["rows"] == 9
+    assert S.distance_words(bins[0]) == "0 to 10 deg away" and S.distance_words(bins[2]) == "none of its fence types"
+    with pytest.raises(FeederError, match="no column rows"):
+        S.structured_error_bins(table.drop(columns="rows"))
+
+    stl = tmp_path / "p.stl"
+    stl.write_bytes((Path(__file__).resolve().parents[1] / "parts" / "rect-a3.stl").read_bytes())
+    lib = _library(stl)
+    lib.structured = _Shipped()
+    lib.card = {**lib.card, "structured": {"by_distance": bins}}
+    model = S.StudyModel(360, 1.0, SCENE, lib)
+    model.bind(stl, ["straight85_none", "straight20_curved30", "straight35_none", "straight45_none"])
+    assert model.sources()[:3] == ["structured"] * 3
+    assert model.describe(0).endswith(  # 25 deg from straight60
+        "; on the protocol's 7 held-out rows whose nearest label of their fence types lay 20 to 180 deg away it lay "
+        "circular W1 12.0 deg from the simulator on average (median 7.0, 90th percentile 30.0); "
+        "--simulate BUDGET asks the simulator"
+    )
+    assert "9 held-out rows with no label of their fence types it lay circular W1 14.0 deg" in model.describe(1)
+    assert "4 held-out rows whose nearest label of their fence types lay 0 to 10 deg away" in model.describe(2)
+    assert "held-out" not in model.describe(3)  # 15 deg: a bin without scored rows says nothing
+    lib.card = {k: v for k, v in lib.card.items() if k != "structured"}  # an older card
+    assert "held-out" not in model.describe(0)

@@ -225,6 +225,7 @@ STRUCTURED_OVERRIDES = config["structured"]["hydra_overrides"]
 # folder, committed for the default study (feeder structured, run by hand: about 40 minutes, not in the
 # DAG); an input only where it is (checked when the workflow is read)
 STRUCTURED_TABLE = f"{RESULTS}/tables/structured_protocol.csv"
+STRUCTURED_ERRORS = f"{RESULTS}/tables/structured_by_distance.csv"  # written beside it by the same command
 
 
 rule fit_structured:
@@ -248,7 +249,9 @@ rule fit_structured:
     conda:
         "../envs/feeder.yaml"
     params:
-        settings=resolved_yaml("structured", STRUCTURED_OVERRIDES, drop=("neighbour", "analytic_scenes")),
+        settings=resolved_yaml(
+            "structured", STRUCTURED_OVERRIDES, drop=("neighbour", "analytic_scenes", "answer_errors")
+        ),
         overrides=" ".join(shlex.quote(o) for o in STRUCTURED_OVERRIDES),
     shell:
         "feeder fit-structured --dataset {input.dataset} --sim-dir $(dirname $(dirname {input.sims[0]}))"
@@ -269,6 +272,7 @@ rule export_study:
         neighbour=f"{RESULTS}/tables/neighbour.csv",
         structured=f"{RESULTS}/models/structured/structured.npz",
         structured_table=lambda wildcards: [STRUCTURED_TABLE] if os.path.isfile(STRUCTURED_TABLE) else [],
+        structured_errors=lambda wildcards: [STRUCTURED_ERRORS] if os.path.isfile(STRUCTURED_ERRORS) else [],
         label_errors=[f"{RESULTS}/tables/label_error_estimate.csv"] if AUDIT else [],
     output:
         directory(f"{EXPORT_DIR}/study"),
@@ -280,16 +284,21 @@ rule export_study:
         "../envs/feeder.yaml"
     params:
         settings=resolved_yaml(
-            "structured", drop=("seed", "seeds", "candidates", "model", "train", "search", "protocol")
+            "structured",
+            drop=("seed", "seeds", "candidates", "model", "train", "search", "protocol", "answer_errors"),
         ),
         evidence=lambda wildcards, input: (
             f"--structured-table {input.structured_table}" if input.structured_table else ""
+        ),
+        errors=lambda wildcards, input: (
+            f"--structured-errors {input.structured_errors}" if input.structured_errors else ""
         ),
         label_errors=lambda wildcards, input: f"--label-errors {input.label_errors}" if input.label_errors else "",
     shell:
         "feeder export-study --configurations {input.configurations} --sim-dir $(dirname $(dirname {input.sims[0]}))"
         " --parts-dir $(dirname {input.parts[0]}) --dataset {input.dataset} --neighbour-table {input.neighbour}"
-        " --structured {input.structured} {params.evidence} {params.label_errors} --out {output} > {log} 2>&1"
+        " --structured {input.structured} {params.evidence} {params.errors} {params.label_errors} --out {output}"
+        " > {log} 2>&1"
 
 
 rule prediction_figure_data:

@@ -265,6 +265,26 @@ def cached_candidates(cache_path, key: str, push_raw, compute, n_variants: int, 
     return cands
 
 
+def split_arrays(data: dict) -> dict:
+    """Of every configuration of ``data`` (:func:`feeder.labels.dataset.load_dataset`), kept ones
+    first, then those excluded as jammed (the order of :func:`structured_arrays`): ``part``,
+    ``config_id``, ``split``, ``kept`` and ``group_fold`` (an excluded part no kept row has gets a
+    fold from its id's hash). What the protocol's splits need, without the candidates."""
+    parts = [*map(str, data["part"]), *map(str, data["excluded_part"])]
+    n_kept = len(data["part"])
+    fold_of = {str(p): int(f) for p, f in zip(data["part"], data["group_fold"], strict=True)}
+    n_folds = int(np.max(data["group_fold"])) + 1
+    return {
+        "part": np.array(parts),
+        "config_id": np.array([*map(str, data["config_id"]), *map(str, data["excluded_config_id"])]),
+        "split": np.array([*map(str, data["split"]), *map(str, data["excluded_split"])]),
+        "kept": np.arange(len(parts)) < n_kept,
+        "group_fold": np.array(
+            [fold_of.get(p, int(hashlib.sha256(p.encode()).hexdigest(), 16) % n_folds) for p in parts]
+        ),
+    }
+
+
 def structured_arrays(data: dict, cfg, sim_dir, parts_dir, features_dir, cache_path=None, progress=None) -> dict:
     """The arrays of the module doc for ``data`` (:func:`feeder.labels.dataset.load_dataset`),
     with the candidate settings ``cfg.candidates`` of ``config/hydra/structured.yaml``."""
@@ -279,7 +299,6 @@ def structured_arrays(data: dict, cfg, sim_dir, parts_dir, features_dir, cache_p
     n_kept = len(data["part"])
     parts = [*map(str, data["part"]), *map(str, data["excluded_part"])]
     cids = [*map(str, data["config_id"]), *map(str, data["excluded_config_id"])]
-    splits = [*map(str, data["split"]), *map(str, data["excluded_split"])]
     frames_of = _frames(data, sorted(set(parts)), features_dir)
     frames = [frames_of[p] for p in parts]
     variants = variants_from_config(cfg.candidates.variants)
@@ -307,16 +326,9 @@ def structured_arrays(data: dict, cfg, sim_dir, parts_dir, features_dir, cache_p
     n = len(parts)
     pmf = np.zeros((n, bins))
     pmf[:n_kept] = data["pmf"]
-    fold_of = {str(p): int(f) for p, f in zip(data["part"], data["group_fold"], strict=True)}
-    n_folds = int(np.max(data["group_fold"])) + 1
-    group_fold = np.array([fold_of.get(p, int(hashlib.sha256(p.encode()).hexdigest(), 16) % n_folds) for p in parts])
     return {
-        "part": np.array(parts),
-        "config_id": np.array(cids),
-        "split": np.array(splits),
-        "kept": np.arange(n) < n_kept,
+        **split_arrays(data),
         "frame_deg": np.array(frames, dtype=np.float64),
-        "group_fold": group_fold,
         "ok": ok,
         **inputs,
         "pmf": pmf,

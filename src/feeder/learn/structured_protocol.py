@@ -549,6 +549,90 @@ def _comparisons(long, experiment, name, metric, sign, present, bootstrap, m3_pa
     return out
 
 
+def neighbour_distances(arrays: dict, cfg) -> pd.DataFrame:
+    """For every row a Main fit scores (Test and Fences of each repeat): the angle distance
+    (degrees, ``|Δθ1| + |Δθ2|``) of the nearest kept label of the same part and fence types among
+    the fit's training rows, as the shipped answer measures it
+    (:func:`feeder.learn.study.nearest_configuration`); inf where there is none. ``cross``: whether
+    one of the part's training labels has the row's downstream (Location 1) fence type in another
+    combination, the other neighbour the shipped answer needs (else it answers otherwise)."""
+    from feeder.learn.structured_data import fence_key
+    from feeder.learn.study import nearest_configuration
+
+    out = []
+    for kind, _key, index, train, scored in protocol_jobs(arrays, cfg)[0]:
+        if kind != "main":
+            continue
+        pool = train & arrays["kept"]
+        for experiment, mask in scored.items():
+            for i in np.flatnonzero(mask):
+                mine = np.flatnonzero(pool & (arrays["part"] == arrays["part"][i]))
+                ids = [str(c) for c in arrays["config_id"][mine]]
+                _, dist = nearest_configuration(arrays["config_id"][i], ids)
+                types = fence_key(arrays["config_id"][i])[0]
+                cross = types[0] != "none" and any(
+                    fence_key(c)[0][0] == types[0] and fence_key(c)[0] != types for c in ids
+                )
+                out.append(
+                    {
+                        "experiment": experiment,
+                        "repeat": int(index),
+                        "part": str(arrays["part"][i]),
+                        "config_id": str(arrays["config_id"][i]),
+                        "neighbour_deg": dist,
+                        "cross": bool(cross),
+                    }
+                )
+    return pd.DataFrame(out, columns=["experiment", "repeat", "part", "config_id", "neighbour_deg", "cross"])
+
+
+def check_edges(edges) -> list[float]:
+    """``answer_errors.edges_deg``: increasing finite angles from 0; a one-line FeederError otherwise."""
+    try:
+        out = [float(e) for e in edges]
+    except (TypeError, ValueError):
+        raise FeederError(f"answer_errors.edges_deg: a list of angles in degrees, got {edges!r}") from None
+    if len(out) < 2 or out[0] != 0.0 or not np.all(np.isfinite(out)) or np.any(np.diff(out) <= 0):
+        raise FeederError(f"answer_errors.edges_deg: increasing finite angles from 0, got {edges!r}")
+    return out
+
+
+def error_by_distance(long: pd.DataFrame, distances: pd.DataFrame, edges) -> pd.DataFrame:
+    """The structured predictor's circular W1 on the Main fits' scored rows (Test and Fences, kept,
+    each row of each repeat once: its seeds' averaged PMF where the run scored it, else the mean over
+    seeds) by the distance to its nearest label of the same fence types (:func:`neighbour_distances`),
+    in the bins ``[edges[i], edges[i+1])`` and one more for no such label but one of the downstream
+    fence type (``low_deg`` inf; rows with neither are left out, the shipped answer is not this
+    predictor's there): the
+    error an answer of the shipped predictor may carry at that distance; ``rows`` counts each scored
+    row of each repeat (pure)."""
+    edges = check_edges(edges)
+    model = ENSEMBLE if (long.predictor == ENSEMBLE).any() else STRUCTURED
+    key = ["experiment", "repeat", "part", "config_id"]
+    d = long[(long.predictor == model) & long.kept & long.experiment.isin(["test", "fences"])]
+    d = d.groupby(key, as_index=False).cw1.mean().merge(distances, on=key, how="inner")
+    bins = [(lo, hi) for lo, hi in zip(edges[:-1], edges[1:], strict=True)] + [(np.inf, np.inf)]
+    out = []
+    for lo, hi in bins:
+        if np.isinf(lo):
+            inside = np.isinf(d.neighbour_deg) & d.cross.astype(bool)
+        else:
+            inside = (d.neighbour_deg >= lo) & (d.neighbour_deg < hi)
+        w = d[inside].cw1
+        out.append(
+            {
+                "low_deg": lo,
+                "high_deg": hi,
+                "model": model,
+                "rows": int(w.size),
+                "mean_circular_w1_deg": float(w.mean()) if w.size else np.nan,
+                "median_circular_w1_deg": float(w.median()) if w.size else np.nan,
+                "p90_circular_w1_deg": float(w.quantile(0.9)) if w.size else np.nan,
+            }
+        )
+    return pd.DataFrame(out)
+
+
 def m3_part_scores(path) -> pd.Series:
     """Model 3's per-part circular W1 from a GroupKFold table (``results/tables/groupkfold_m3.csv``)."""
     t = pd.read_csv(path)
@@ -582,8 +666,28 @@ def _parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--m3-groupkfold", type=Path, default=None, help="Model 3's GroupKFold table (per-part cW1)")
     p.add_argument("--m3-model", type=Path, nargs="*", default=None, help="Model 3's seed folders (Test, Fences)")
+    p.add_argument(
+        "--from-rows",
+        type=Path,
+        default=None,
+        help="a run's structured_rows.csv: fit nothing, write the comparisons and the error by neighbour distance "
+        "from it (default: run the protocol)",
+    )
     p.add_argument("overrides", nargs="*", help="Hydra overrides of config/hydra/structured.yaml")
     return p
+
+
+def write_tables(out_dir: Path, long: pd.DataFrame, table: pd.DataFrame, by_distance: pd.DataFrame) -> None:
+    """The comparisons (``structured_protocol.csv`` / ``.md``) and the error by neighbour distance
+    (``structured_by_distance.csv``), each written atomically."""
+    from feeder import io
+
+    io.write_csv(out_dir / "structured_protocol.csv", table)
+    io.write_text(
+        out_dir / "structured_protocol.md",
+        io.markdown_table(table, "Structured predictor against the baselines (issue #39; 95 % paired bootstrap)"),
+    )
+    io.write_csv(out_dir / "structured_by_distance.csv", by_distance)
 
 
 def main(argv: list[str]) -> int:
@@ -595,6 +699,22 @@ def main(argv: list[str]) -> int:
 
     args = _parser().parse_args(argv)
     cfg = compose_config("structured", args.overrides)
+    edges = check_edges(cfg.answer_errors.edges_deg)
+    if args.from_rows is not None:  # the tables of a run's rows: its splits from the dataset, no fit
+        from feeder.learn.structured_data import split_arrays
+
+        if not args.from_rows.is_file():
+            raise FeederError(f"--from-rows {args.from_rows}: no such file")
+        long = pd.read_csv(args.from_rows)
+        missing = {"experiment", "repeat", "part", "config_id", "kept", "predictor", "seed", "cw1"} - set(long.columns)
+        if missing:
+            raise FeederError(f"--from-rows {args.from_rows}: not a structured_rows.csv (no {sorted(missing)})")
+        m3_parts = m3_part_scores(args.m3_groupkfold) if args.m3_groupkfold else None
+        table = comparison_table(long, dict(cfg.protocol.bootstrap), m3_parts)
+        by_distance = error_by_distance(long, neighbour_distances(split_arrays(load_dataset(args.dataset)), cfg), edges)
+        write_tables(args.out_dir, long, table, by_distance)
+        print(by_distance.to_string(index=False))
+        return 0
     check_workers(cfg.train.workers)  # before the data and the candidates, not after
     # bad settings: a one-line error before any work
     neighbour_options(cfg), drop_count(cfg), drop_count(cfg, "drop_candidates"), composed_on(cfg), fit_kinds(cfg)
@@ -620,10 +740,6 @@ def main(argv: list[str]) -> int:
     table = comparison_table(long, dict(cfg.protocol.bootstrap), m3_parts)
     io.write_csv(args.out_dir / "structured_rows.csv", long)
     io.write_csv(args.out_dir / "structured_choices.csv", choices)
-    io.write_csv(args.out_dir / "structured_protocol.csv", table)
-    io.write_text(
-        args.out_dir / "structured_protocol.md",
-        io.markdown_table(table, "Structured predictor against the baselines (issue #39; 95 % paired bootstrap)"),
-    )
+    write_tables(args.out_dir, long, table, error_by_distance(long, neighbour_distances(arrays, cfg), edges))
     print(table.to_string(index=False))
     return 0

@@ -300,6 +300,44 @@ def neighbour_evidence(table: pd.DataFrame) -> dict:
     return {k: (r[k].item() if hasattr(r[k], "item") else r[k]) for k in keys}
 
 
+ERROR_BIN_KEYS = (
+    "low_deg",
+    "high_deg",
+    "model",
+    "rows",
+    "mean_circular_w1_deg",
+    "median_circular_w1_deg",
+    "p90_circular_w1_deg",
+)
+
+
+def structured_error_bins(table: pd.DataFrame) -> list[dict]:
+    """The rows of ``structured_by_distance.csv`` (:func:`feeder.learn.structured_protocol.error_by_distance`)
+    the card keeps: the bins with scored rows, as plain values (inf: no label of the fence types)."""
+    missing = set(ERROR_BIN_KEYS) - set(table.columns)
+    if missing:
+        raise FeederError(f"export-study: the structured error table has no column {', '.join(sorted(missing))}")
+    hit = table[table.rows > 0]
+    out = [{k: (r[k].item() if hasattr(r[k], "item") else r[k]) for k in ERROR_BIN_KEYS} for _, r in hit.iterrows()]
+    for b in out:  # JSON has no infinity: no label of the fence types is a bin without bounds
+        b["low_deg"], b["high_deg"] = (None, None) if np.isinf(float(b["low_deg"])) else (b["low_deg"], b["high_deg"])
+    return out
+
+
+def _bound(value) -> float:
+    return float("inf") if value is None else float(value)
+
+
+def error_bin(bins: list[dict], dist: float) -> dict | None:
+    """The bin of :func:`structured_error_bins` holding angle distance ``dist`` (inf: the bin of no
+    label of the fence types), or None (pure)."""
+    for b in bins:
+        lo, hi = _bound(b["low_deg"]), _bound(b["high_deg"])
+        if (np.isinf(dist) and np.isinf(lo)) or (lo <= dist < hi):
+            return b
+    return None
+
+
 def structured_evidence(table: pd.DataFrame) -> list[dict]:
     """The rows of ``results/tables/structured_protocol.csv`` the card quotes: the structured
     predictor against the analytic PMF and the gated neighbour by circular W1 on Test and Fences."""
@@ -338,10 +376,13 @@ def export_study(
     structured_table=None,
     label_errors=None,
     steep_deg: float | None = None,
+    structured_errors=None,
 ) -> dict:
     """Write ``out`` (``labels.npz``, ``card.json``, ``MODEL_CARD.md`` and, given ``structured``, the
     shipped structured predictor of :mod:`feeder.learn.structured_shipped` with the evidence of
-    ``structured_table``; given ``label_errors``, each label's audit estimate; given ``steep_deg``,
+    ``structured_table`` and, given ``structured_errors`` (``structured_by_distance.csv``), its error
+    by the distance to the part's nearest label (:func:`structured_error_bins`); given
+    ``label_errors``, each label's audit estimate; given ``steep_deg``,
     the analytic PMF's error on the labels by kind of scene, :func:`analytic_by_scene`) atomically;
     returns the card."""
     with np.load(dataset_path, allow_pickle=False) as z:
@@ -390,6 +431,7 @@ def export_study(
             "neighbours": model.meta["neighbours"],
             "cross_neighbours": model.meta["cross_neighbours"],
             "evidence": [] if structured_table is None else structured_evidence(pd.read_csv(structured_table)),
+            "by_distance": [] if structured_errors is None else structured_error_bins(pd.read_csv(structured_errors)),
         }
     _write_folder(Path(out), arrays, card, shipped)
     return card
@@ -509,7 +551,29 @@ def _card_new_angle(card: dict) -> list[str]:
                 f"| {e['diff']:+.2f} [{e['diff_low']:.2f}, {e['diff_high']:.2f}] |"
             )
         lines.append("")
+    if st.get("by_distance"):
+        lines += [
+            "Its error by how far the part's nearest label of the same fence types lies (|d theta1| + |d theta2|; "
+            "`results/tables/structured_by_distance.csv`: the protocol's Test and Fences rows of its three Main "
+            "splits, circular W1 in degrees). `feeder predict` prints the row of its answer:",
+            "",
+            "| nearest label | scored rows | mean | median | 90th percentile |",
+            "|---|---|---|---|---|",
+        ]
+        for b in st["by_distance"]:
+            lines.append(
+                f"| {distance_words(b)} | {b['rows']} | {b['mean_circular_w1_deg']:.1f} | "
+                f"{b['median_circular_w1_deg']:.1f} | {b['p90_circular_w1_deg']:.1f} |"
+            )
+        lines.append("")
     return lines
+
+
+def distance_words(b: dict) -> str:
+    """A bin of :func:`structured_error_bins` for a person (pure)."""
+    if np.isinf(_bound(b["low_deg"])):
+        return "none of its fence types"
+    return f"{float(b['low_deg']):g} to {float(b['high_deg']):g} deg away"
 
 
 def study_dir() -> Path:
@@ -618,7 +682,10 @@ class StudyModel(AnalyticModel):
                 if i >= 0
                 else "; none of its fence types, only of its downstream fence"
             )
-            return f"the structured predictor from the part's labelled configurations{near} (docs/structured.md)"
+            return (
+                f"the structured predictor from the part's labelled configurations{near} (docs/structured.md)"
+                f"{self._structured_error(dist)}"
+            )
         if source == NEIGHBOUR:
             return (
                 f"the study's label of the nearest simulated angle {self.library.config_id[i]} "
@@ -642,6 +709,24 @@ class StudyModel(AnalyticModel):
             f"; on the study's {k['configurations']} labelled configurations of this kind ({k['scene']}) it lay "
             f"circular W1 {k['mean_circular_w1_deg']:.1f} deg from the simulator on average (median "
             f"{k['median_circular_w1_deg']:.1f}, 90th percentile {k['p90_circular_w1_deg']:.1f}); "
+            "--simulate BUDGET asks the simulator"
+        )
+
+    def _structured_error(self, dist: float) -> str:
+        """``; ...`` with the structured predictor's error on the protocol's scored rows whose nearest
+        label of the same fence types lay as far (the card's :func:`structured_error_bins`), or ''."""
+        b = error_bin((self.library.card.get("structured") or {}).get("by_distance") or [], dist)
+        if b is None:
+            return ""
+        where = (
+            "with no label of their fence types"
+            if np.isinf(_bound(b["low_deg"]))
+            else (f"whose nearest label of their fence types lay {distance_words(b)}")
+        )
+        return (
+            f"; on the protocol's {b['rows']} held-out rows {where} it lay circular W1 "
+            f"{b['mean_circular_w1_deg']:.1f} deg from the simulator on average (median "
+            f"{b['median_circular_w1_deg']:.1f}, 90th percentile {b['p90_circular_w1_deg']:.1f}); "
             "--simulate BUDGET asks the simulator"
         )
 
@@ -812,6 +897,11 @@ def main(argv: list[str]) -> int:
         "--structured-table", type=Path, help="results/tables/structured_protocol.csv: its evidence, quoted by the card"
     )
     parser.add_argument(
+        "--structured-errors",
+        type=Path,
+        help="results/tables/structured_by_distance.csv: its error by neighbour distance, quoted and printed",
+    )
+    parser.add_argument(
         "--label-errors",
         type=Path,
         help="results/tables/label_error_estimate.csv: each label's error estimate, printed with it",
@@ -825,14 +915,16 @@ def main(argv: list[str]) -> int:
     settings = compose_config("structured", args.overrides)
     gates = check_gates(settings["neighbour"]["gates_deg"])
     steep_deg = check_steep_deg(settings["analytic_scenes"]["steep_deg"])
-    if args.structured_table is not None and args.structured is None:
-        raise FeederError("--structured-table is the evidence of --structured: give both")
+    for given in ("structured_table", "structured_errors"):
+        if getattr(args, given) is not None and args.structured is None:
+            raise FeederError(f"--{given.replace('_', '-')} is the evidence of --structured: give both")
     for path in (
         args.configurations,
         args.dataset,
         args.neighbour_table,
         args.structured,
         args.structured_table,
+        args.structured_errors,
         args.label_errors,
     ):
         if path is not None and not path.is_file():
@@ -853,6 +945,7 @@ def main(argv: list[str]) -> int:
         args.structured_table,
         args.label_errors,
         steep_deg,
+        args.structured_errors,
     )
     print(
         f"feeder export-study: {card['configurations']} configurations of {card['parts']} parts, "
