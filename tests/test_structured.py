@@ -507,6 +507,42 @@ def test_from_rows_refuses_what_is_not_a_run_s_rows(tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["x.csv"]  # nothing written
 
 
+def test_cross_only_copies_train_fit_rows_again_without_their_own_combination():
+    """model.cross_only_copies: a fit row with a neighbour of its own type combination and a cross
+    neighbour also trains as a copy without the former; hide_same drops exactly those neighbours."""
+    pytest.importorskip("torch")
+    from omegaconf import OmegaConf
+
+    from feeder.config import compose_config
+    from feeder.learn.prior import grids
+    from feeder.learn.structured_data import neighbour_rows, stack_rows
+    from feeder.learn.structured_protocol import cross_only_copies, run_protocol
+
+    a = _toy_library()
+    a["config_id"] = np.where(a["config_id"] == "curved20_straight30", "straight20_curved30", a["config_id"])
+    idx, dist = neighbour_rows(a, a["kept"], 2, 1)
+    hid, hdist = neighbour_rows(a, a["kept"], 2, 1, hide_same=True)
+    assert (hid[:, :2] == -1).all() and np.isinf(hdist[:, :2]).all()
+    np.testing.assert_array_equal(hid[:, 2:], idx[:, 2:])  # the cross neighbour stays
+    assert (idx[:, :2] >= 0).any() and (idx[:, 2:] >= 0).any()
+    stacked = stack_rows({"part": a["part"], "x": a["x"], "bins": 360}, {"part": a["part"], "x": -a["x"], "bins": 7})
+    assert stacked["x"].shape[0] == 2 * len(a["part"]) and stacked["bins"] == 360
+    np.testing.assert_array_equal(stacked["x"][len(a["part"]) :], -a["x"])
+    with pytest.raises(FeederError, match="different configurations"):
+        stack_rows({"part": a["part"]}, {"part": a["part"][:3]})
+    prior = grids(compose_config("train")["prior"])
+    base = [*TOY_PROTOCOL, "protocol.fits=[main]"]
+    off = run_protocol(a, compose_config("structured", base), prior)
+    on = run_protocol(a, compose_config("structured", [*base, "model.cross_only_copies=true"]), prior)
+    assert (off[1].cross_only_copies == 0).all() and (on[1].cross_only_copies > 0).all()
+    assert (on[1].cross_only_copies < on[1].fit_rows).all()
+    baselines = lambda long: long[~long.predictor.str.startswith("structured")].reset_index(drop=True)  # noqa: E731
+    pd.testing.assert_frame_equal(baselines(off[0]), baselines(on[0]))
+    for bad in ("yes", 1):
+        with pytest.raises(FeederError, match="model.cross_only_copies"):
+            cross_only_copies(OmegaConf.create({"model": {"cross_only_copies": bad}}))
+
+
 def test_a_learning_curve_trains_on_fewer_parts_and_keeps_validation_and_baselines():
     """protocol.fit_part_fraction < 1: the network of a fit trains on fewer parts; its validation
     parts, its scored rows' neighbours and every baseline stay as at 1."""

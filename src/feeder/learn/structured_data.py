@@ -405,13 +405,19 @@ def nearest_cross_rows(parts, config_ids, pool, rows, k: int) -> tuple[np.ndarra
     return idx, dist
 
 
-def neighbour_rows(arrays: dict, pool, k: int, cross: int = 0) -> tuple[np.ndarray, np.ndarray]:
+def neighbour_rows(
+    arrays: dict, pool, k: int, cross: int = 0, hide_same: bool = False
+) -> tuple[np.ndarray, np.ndarray]:
     """Every row's ``k`` nearest kept rows of ``pool`` of its part and fence types
     (:func:`nearest_rows`), then its ``cross`` nearest under the same downstream fence
-    (:func:`nearest_cross_rows`): (indices (N, k + cross), −1 where missing; distances)."""
+    (:func:`nearest_cross_rows`): (indices (N, k + cross), −1 where missing; distances).
+    ``hide_same``: the first ``k`` missing for every row, as for a configuration of a type
+    combination the part has no label of (the Fences rows)."""
     pool = np.asarray(pool, dtype=bool) & np.asarray(arrays["kept"], dtype=bool)
     rows = np.arange(len(arrays["part"]))
     idx, dist = nearest_rows(arrays["part"], arrays["config_id"], pool, rows, k)
+    if hide_same:
+        idx, dist = np.full_like(idx, -1), np.full_like(dist, np.inf)
     if int(cross) > 0:  # then the nearest of other type combinations under the same downstream fence
         c_idx, c_dist = nearest_cross_rows(arrays["part"], arrays["config_id"], pool, rows, cross)
         idx, dist = np.concatenate([idx, c_idx], axis=1), np.concatenate([dist, c_dist], axis=1)
@@ -482,7 +488,7 @@ def label_miss(pmf, analytic) -> np.ndarray:
 
 
 def neighbour_block(
-    arrays: dict, pool, k: int, near_deg: float, cross: int = 0, miss=None
+    arrays: dict, pool, k: int, near_deg: float, cross: int = 0, miss=None, hide_same: bool = False
 ) -> tuple[np.ndarray, np.ndarray]:
     """Every row's ``k`` nearest labelled rows of ``pool`` (kept rows of the same part and fence
     types, :func:`nearest_rows`), then its ``cross`` nearest under the same downstream fence in
@@ -497,12 +503,12 @@ def neighbour_block(
     (over 90°) and whether there are any. A missing neighbour's PMF is the
     row's analytic PMF, so its component changes nothing. No label of the row itself is read.
     ``miss``: each pool row's :func:`label_miss`, when known (then only the neighbours' analytic
-    PMFs are read: the others may be anything)."""
+    PMFs are read: the others may be anything). ``hide_same``: :func:`neighbour_rows`'."""
     from feeder.labels.metrics import circular_w1
 
     pool = np.asarray(pool, dtype=bool) & np.asarray(arrays["kept"], dtype=bool)
     n = len(arrays["part"])
-    idx, dist = neighbour_rows(arrays, pool, k, cross)
+    idx, dist = neighbour_rows(arrays, pool, k, cross, hide_same)
     k = idx.shape[1]
     analytic, pmf = np.asarray(arrays["analytic"], np.float64), np.asarray(arrays["pmf"], np.float64)
     a_cdf = np.cumsum(analytic, axis=1)
@@ -615,6 +621,25 @@ def neighbour_candidates(arrays: dict, pmfs, idx, top: int, merge_deg: float, wi
     )
 
 
+def stack_rows(first: dict, second: dict) -> dict:
+    """The per-row arrays of two versions of the same configurations (the same keys, ``N`` rows
+    each) one after the other: row ``i`` of ``second`` becomes row ``N + i``; what is not a per-row
+    array (a setting) is ``first``'s. A one-line FeederError where they do not match."""
+    n = len(first["part"])
+    if set(first) != set(second) or len(second["part"]) != n:
+        raise FeederError("stack_rows: two versions of different configurations")
+    out = {}
+    for key, a in first.items():
+        b = second[key]
+        if isinstance(a, np.ndarray) and a.ndim and a.shape[0] == n:
+            if not isinstance(b, np.ndarray) or b.shape[1:] != a.shape[1:]:
+                raise FeederError(f"stack_rows: {key} differs in shape")
+            out[key] = np.concatenate([a, b], axis=0)
+        else:
+            out[key] = a
+    return out
+
+
 def with_neighbours(
     arrays: dict,
     pool,
@@ -625,6 +650,7 @@ def with_neighbours(
     candidates: int = 0,
     merge_deg: float | None = None,
     window_deg: float | None = None,
+    hide_same: bool = False,
 ) -> dict:
     """``arrays`` with the neighbour inputs of :func:`neighbour_block` appended to ``x`` and their
     PMFs as ``neighbour_pmf`` (unchanged when ``k`` and ``cross`` are 0). With ``basins`` > 0 each
@@ -632,17 +658,18 @@ def with_neighbours(
     their inputs are appended too, and ``neighbour_offset`` holds their starting logit offsets.
     With ``candidates`` > 0 the modes of each neighbour's largest basins join the row's candidates
     (:func:`neighbour_candidates`, with ``merge_deg`` and ``window_deg``: the settings of
-    ``candidates`` in ``config/hydra/structured.yaml``, needed then)."""
+    ``candidates`` in ``config/hydra/structured.yaml``, needed then). ``hide_same``: every row as if
+    its part had no label of its type combination (:func:`neighbour_rows`)."""
     if int(k) + int(cross) <= 0:
         return arrays
     if not near_deg > 0:
         raise FeederError(f"model.neighbour_near_deg must be > 0, got {near_deg}")
     if isinstance(basins, bool) or int(basins) != basins or basins < 0:
         raise FeederError(f"model.neighbour_basins must be an integer >= 0, got {basins!r}")
-    feats, pmfs = neighbour_block(arrays, pool, int(k), float(near_deg), int(cross))
+    feats, pmfs = neighbour_block(arrays, pool, int(k), float(near_deg), int(cross), hide_same=hide_same)
     out = dict(arrays, x=np.concatenate([arrays["x"], feats], axis=1), neighbour_pmf=pmfs)
     if int(basins) > 0 or int(candidates) > 0:
-        idx, _ = neighbour_rows(arrays, pool, int(k), int(cross))
+        idx, _ = neighbour_rows(arrays, pool, int(k), int(cross), hide_same)
     if int(candidates) > 0:
         if merge_deg is None or window_deg is None:
             raise FeederError("neighbour candidates need candidates.merge_deg and candidates.window_deg")

@@ -92,7 +92,7 @@ def fit_protocol(arrays: dict, train: np.ndarray, cfg, key: str, known: bool = T
     its part's other validation rows as neighbours; otherwise (unseen parts) validation rows see
     none, as the scored parts will not, and the choice and early stopping mirror that."""
     from feeder.learn.structured import fit
-    from feeder.learn.structured_data import with_composed, with_drops, with_neighbours
+    from feeder.learn.structured_data import neighbour_rows, stack_rows, with_composed, with_drops, with_neighbours
 
     base = int(cfg.seed)
     val_parts = pick_parts(arrays["part"][train], float(cfg.protocol.val_part_fraction), derived_seed(base, key), "val")
@@ -111,8 +111,8 @@ def fit_protocol(arrays: dict, train: np.ndarray, cfg, key: str, known: bool = T
     near = float(cfg.model.neighbour_near_deg)
     nb_opts = neighbour_options(cfg)
 
-    def inputs(pool):  # the part's neighbours in pool, their composition, then the row's own drops (when read)
-        a = with_neighbours(arrays, pool, k, near, cross, **nb_opts)
+    def inputs(pool, hide_same=False):  # the part's neighbours in pool, their composition, the row's own drops
+        a = with_neighbours(arrays, pool, k, near, cross, **nb_opts, hide_same=hide_same)
         if composed_on(cfg):
             a = with_composed(a, pool, near, float(cfg.model.get("composed_start_logit", 0.0)))
         if "drop_pmf" not in arrays:
@@ -127,6 +127,16 @@ def fit_protocol(arrays: dict, train: np.ndarray, cfg, key: str, known: bool = T
     scaled, scaled_val = dict(a_fit, x=(x - mu) / sd), dict(a_val, x=(a_val["x"] - mu) / sd)
     a_eval = inputs(pool)
     scaled_eval = dict(a_eval, x=(a_eval["x"] - mu) / sd)
+    # model.cross_only_copies: each fit row with labels of its own type combination and of its
+    # downstream fence type in another trains twice, once as if it had only the latter (a Fences row)
+    train_rows, copies = fit_rows, np.zeros(0, dtype=np.int64)
+    if cross_only_copies(cfg) and known and k > 0 and cross > 0:
+        idx, _ = neighbour_rows(arrays, train & ~is_val, k, cross)
+        both = (idx[:, :k] >= 0).any(axis=1) & (idx[:, k:] >= 0).any(axis=1)
+        copies = fit_rows[both[fit_rows]]
+        a_hidden = inputs(train & ~is_val, hide_same=True)
+        scaled = stack_rows(scaled, dict(a_hidden, x=(a_hidden["x"] - mu) / sd))
+        train_rows = np.concatenate([fit_rows, copies + len(arrays["part"])])
     mean_pmf = arrays["pmf"][fit_rows].mean(axis=0)
     net, tr = _settings(cfg)
     ok_train = tr(float(cfg.train.ok_weight_decay))
@@ -135,7 +145,7 @@ def fit_protocol(arrays: dict, train: np.ndarray, cfg, key: str, known: bool = T
         seed = derived_seed(base, key, "seed", 0)
         f = fit(
             scaled,
-            fit_rows,
+            train_rows,
             val_rows,
             fit_ok,
             val_ok,
@@ -155,7 +165,7 @@ def fit_protocol(arrays: dict, train: np.ndarray, cfg, key: str, known: bool = T
         fits.append(
             fit(
                 scaled,
-                fit_rows,
+                train_rows,
                 val_rows,
                 fit_ok,
                 val_ok,
@@ -177,6 +187,7 @@ def fit_protocol(arrays: dict, train: np.ndarray, cfg, key: str, known: bool = T
         "val_parts": len(val_parts),
         "fit_rows": int(fit_rows.size),
         "val_rows": int(val_rows.size),
+        "cross_only_copies": int(copies.size),
         **{f"search{i}_val_cw1": float(t[0]) for i, t in enumerate(sorted(tried, key=lambda t: t[1]))},
         "val_cw1": float(np.mean([f.val_cw1 for f in fits])),
         "val_ok_mae": float(np.mean([f.val_ok_mae for f in fits])),
@@ -200,6 +211,14 @@ def fit_protocol(arrays: dict, train: np.ndarray, cfg, key: str, known: bool = T
         "x_sd": sd,
         "settings": net(hp),
     }
+
+
+def cross_only_copies(cfg) -> bool:
+    """``model.cross_only_copies`` (default false) as a bool; a one-line FeederError otherwise."""
+    value = cfg.model.get("cross_only_copies", False)
+    if not isinstance(value, bool):
+        raise FeederError(f"model.cross_only_copies must be true or false, got {value!r}")
+    return value
 
 
 def fit_part_fraction(cfg) -> float:
@@ -718,7 +737,7 @@ def main(argv: list[str]) -> int:
     check_workers(cfg.train.workers)  # before the data and the candidates, not after
     # bad settings: a one-line error before any work
     neighbour_options(cfg), drop_count(cfg), drop_count(cfg, "drop_candidates"), composed_on(cfg), fit_kinds(cfg)
-    fit_part_fraction(cfg)
+    fit_part_fraction(cfg), cross_only_copies(cfg)
     prior_grids = grids(compose_config("train")["prior"])
     import torch
 
