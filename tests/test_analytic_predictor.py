@@ -194,6 +194,21 @@ def test_recommend_breaks_ties_by_how_often_the_analytic_pmf_is_right_there_and_
     assert R.analytic_note(ranked.drop(columns="analytic_w1_deg")) == ""
 
 
+def test_recommend_shows_how_far_a_structured_answer_may_be_off():
+    sharp = np.zeros(360)
+    sharp[0] = 1.0
+    model = _StudyLike([sharp, sharp, sharp], ["structured", "structured", "simulated"], [np.nan] * 3)
+    model.structured_error_deg = lambda: np.array([2.8, 12.9, np.nan])
+    ranked = R.rank(model, np.zeros(45), None, ["straight30_none", "straight75_none", "straight40_none"], 0.0, 5.0, 1)
+    assert ranked.structured_w1_deg.tolist()[:2] == [2.8, 12.9] and np.isnan(ranked.structured_w1_deg.iloc[2])
+    note = R.structured_note(ranked)
+    assert note.startswith("note: 2 of these answers are the structured predictor, which lay 3-13 deg")
+    assert R.structured_note(ranked.iloc[[0]]).startswith(
+        "note: 1 of these answers are the structured predictor, which lay 3 deg"
+    )
+    assert R.structured_note(ranked.iloc[[2]]) == "" and R.structured_note(ranked.drop(columns="answer")) == ""
+
+
 def test_tipping_ratio_by_hand():
     from feeder.config import load_study_config, study_root
     from feeder.learn.predict import tipping_ratio

@@ -586,5 +586,6 @@ def test_a_structured_answer_says_how_far_it_may_be_off_at_its_distance(tmp_path
     assert "9 held-out rows with no label of their fence types it lay circular W1 14.0 deg" in model.describe(1)
     assert "4 held-out rows whose nearest label of their fence types lay 0 to 10 deg away" in model.describe(2)
     assert "held-out" not in model.describe(3)  # 15 deg: a bin without scored rows says nothing
+    np.testing.assert_array_equal(model.structured_error_deg(), [12.0, 14.0, 2.5, np.nan])  # recommend's column
     lib.card = {k: v for k, v in lib.card.items() if k != "structured"}  # an older card
-    assert "held-out" not in model.describe(0)
+    assert "held-out" not in model.describe(0) and np.isnan(model.structured_error_deg()).all()

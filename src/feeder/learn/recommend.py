@@ -128,6 +128,10 @@ def rank(
         key = "probability_overall"  # a configuration that always jams does not top the ranking
     if hasattr(model, "sources"):  # the study's predictor: where each answer comes from
         frame["answer"] = model.sources()
+    if hasattr(model, "structured_error_deg"):
+        # how far the structured predictor lay from the simulator on held-out rows as far from
+        # their nearest label as each structured answer is (the card's table)
+        frame["structured_w1_deg"] = model.structured_error_deg()
     if hasattr(model, "analytic_error_deg"):
         # how far the analytic PMF lay from the study's labels in each analytic answer's kind of
         # scene; among equal probabilities, the answer of a kind it gets right more often ranks first
@@ -290,10 +294,27 @@ def main(argv: list[str]) -> int:
     )
     table = ranked.head(shown).rename(columns={"probability": "predicted", "simulated_probability": "simulated"})
     print(table.to_string(index=False, float_format=lambda v: f"{v:.3f}", na_rep="-"), file=human)
-    note = analytic_note(ranked.head(shown))
-    if note:
-        print(note, file=human)
+    for note in (structured_note(ranked.head(shown)), analytic_note(ranked.head(shown))):
+        if note:
+            print(note, file=human)
     return 0
+
+
+def structured_note(shown: pd.DataFrame) -> str:
+    """A line for the printed table when some of its answers are the structured predictor: how far
+    it lay from the simulator on held-out rows as far from their nearest label (column
+    ``structured_w1_deg``), '' otherwise."""
+    if "structured_w1_deg" not in shown or "answer" not in shown:
+        return ""
+    err = shown.structured_w1_deg[shown.answer == "structured"].dropna()
+    if err.empty:
+        return ""
+    spread = f"{err.min():.0f}" if round(err.min()) == round(err.max()) else f"{err.min():.0f}-{err.max():.0f}"
+    return (
+        f"note: {err.size} of these answers are the structured predictor, which lay {spread} deg (mean circular "
+        "W1, column structured_w1_deg) from the simulator on held-out rows as far from their nearest label; "
+        "--verify K simulates the top K"
+    )
 
 
 def analytic_note(shown: pd.DataFrame) -> str:

@@ -751,6 +751,19 @@ class StudyModel(AnalyticModel):
                 out[row] = float(k["mean_circular_w1_deg"])
         return out
 
+    def structured_error_deg(self) -> np.ndarray:
+        """Per bound configuration answered by the structured predictor, the mean circular W1
+        (degrees) of the protocol's held-out rows whose nearest label of their fence types lay as far
+        (the card's :func:`structured_error_bins`); NaN for the other answers and where the card has
+        no such bin."""
+        bins = (self.library.card.get("structured") or {}).get("by_distance") or []
+        out = np.full(len(self._answers()), np.nan)
+        for row, (source, _, dist) in enumerate(self._answers()):
+            b = error_bin(bins, dist) if source == STRUCTURED else None
+            if b is not None:
+                out[row] = float(b["mean_circular_w1_deg"])
+        return out
+
     def _label_error(self, i: int) -> str:
         """``; ...`` with library row ``i``'s audit estimate, or '' without one."""
         w1, sup = self.library.est_circular_w1_deg, self.library.est_sup_cdf
