@@ -476,6 +476,26 @@ def test_the_error_by_neighbour_distance_by_hand():
             check_edges(bad)
 
 
+def test_two_runs_are_paired_on_the_units_both_scored():
+    from feeder.learn.structured_protocol import paired_runs
+
+    def rows(values):
+        return pd.DataFrame(
+            [
+                {"experiment": "test", "repeat": 0, "part": p, "config_id": c, "kept": True, "predictor": "structured"}
+                | {"seed": s, "cw1": v, "ok_pred": 1.0, "ok_true": 1.0}
+                for (p, c, s), v in values.items()
+            ]
+        )
+
+    run = rows({("a", "c1", 0): 4.0, ("a", "c1", 1): 6.0, ("b", "c2", 0): 3.0, ("d", "c9", 0): 99.0})
+    base = rows({("a", "c1", 0): 2.0, ("b", "c2", 0): 3.0})
+    pair = paired_runs(run, base, "test", "structured", {"resamples": 200, "level": 0.95, "seed": 0})
+    assert pair["n"] == 2 and pair["run"] == 4.0 and pair["base"] == 2.5  # d/c9 is not in base: left out
+    assert pair["diff"] == pytest.approx(1.5) and pair["diff_low"] == 0.0 and pair["diff_high"] == 3.0
+    assert paired_runs(run, base, "fences", "structured", {"resamples": 10, "level": 0.95, "seed": 0}) is None
+
+
 def test_neighbour_distances_follow_the_main_fits_training_rows():
     from feeder.config import compose_config
     from feeder.learn.structured_protocol import neighbour_distances, protocol_jobs

@@ -30,10 +30,9 @@ import numpy as np
 import pandas as pd
 
 from feeder import io
-from feeder.learn.evaluate import paired_bootstrap
-from feeder.learn.structured_protocol import ENSEMBLE, STRUCTURED, unit_scores
+from feeder.learn.structured_protocol import ENSEMBLE, STRUCTURED, paired_runs
 
-RESAMPLES, LEVEL, SEED = 10000, 0.95, 0
+BOOTSTRAP = {"resamples": 10000, "level": 0.95, "seed": 0}
 SETS = ("test", "fences")
 
 
@@ -67,12 +66,9 @@ def curve(runs) -> pd.DataFrame:
             )
         for experiment in SETS:
             for model in (STRUCTURED, ENSEMBLE):
-                mine = unit_scores(rows, experiment, model, "cw1")
-                theirs = unit_scores(top[2], experiment, model, "cw1")
-                both = pd.concat([mine, theirs], axis=1, keys=["m", "t"]).dropna()
-                if both.empty:
+                pair = paired_runs(rows, top[2], experiment, model, BOOTSTRAP)
+                if pair is None:
                     continue
-                diff, lo, hi = paired_bootstrap((both.m - both.t).to_numpy(), RESAMPLES, LEVEL, SEED)
                 out.append(
                     {
                         "fraction": fraction,
@@ -81,11 +77,11 @@ def curve(runs) -> pd.DataFrame:
                         "model": model,
                         "train_parts": int((choices.train_parts - choices.val_parts).mean()),
                         "fit_rows": int(round(choices.fit_rows.mean())),
-                        "n": len(both),
-                        "cw1": float(both.m.mean()),
-                        "diff_from_largest": diff,
-                        "diff_low": lo,
-                        "diff_high": hi,
+                        "n": pair["n"],
+                        "cw1": pair["run"],
+                        "diff_from_largest": pair["diff"],
+                        "diff_low": pair["diff_low"],
+                        "diff_high": pair["diff_high"],
                     }
                 )
     return pd.DataFrame(out)

@@ -21,35 +21,18 @@ from pathlib import Path
 import pandas as pd
 
 from feeder import io
-from feeder.learn.evaluate import paired_bootstrap
-from feeder.learn.structured_protocol import ENSEMBLE, STRUCTURED, UNITS, unit_scores
+from feeder.learn.structured_protocol import ENSEMBLE, STRUCTURED, UNITS, paired_runs
 
-RESAMPLES, LEVEL, SEED = 10000, 0.95, 0
+BOOTSTRAP = {"resamples": 10000, "level": 0.95, "seed": 0}
 
 
 def paired(run: pd.DataFrame, base: pd.DataFrame) -> pd.DataFrame:
     out = []
     for experiment in UNITS:
         for model in (STRUCTURED, ENSEMBLE):
-            mine = unit_scores(run, experiment, model, "cw1")
-            theirs = unit_scores(base, experiment, model, "cw1")
-            both = pd.concat([mine, theirs], axis=1, keys=["run", "base"]).dropna()
-            if both.empty:
-                continue
-            diff, lo, hi = paired_bootstrap((both.run - both.base).to_numpy(), RESAMPLES, LEVEL, SEED)
-            out.append(
-                {
-                    "what": experiment,
-                    "model": model,
-                    "unit": UNITS[experiment],
-                    "n": len(both),
-                    "run": float(both.run.mean()),
-                    "base": float(both.base.mean()),
-                    "diff": diff,
-                    "diff_low": lo,
-                    "diff_high": hi,
-                }
-            )
+            pair = paired_runs(run, base, experiment, model, BOOTSTRAP)
+            if pair is not None:
+                out.append({"what": experiment, "model": model, "unit": UNITS[experiment], **pair})
     return pd.DataFrame(out)
 
 

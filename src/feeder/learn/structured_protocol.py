@@ -508,6 +508,30 @@ def unit_scores(long: pd.DataFrame, experiment: str, predictor: str, metric: str
     return per_config
 
 
+def paired_runs(run: pd.DataFrame, base: pd.DataFrame, experiment: str, model: str, bootstrap: dict) -> dict | None:
+    """Two runs' rows (``structured_rows.csv``) paired on ``experiment``'s units both scored with
+    ``model``: ``n``, each run's mean circular W1 (``run``, ``base``) and the paired difference
+    run − base with its bootstrap interval (``diff``, ``diff_low``, ``diff_high``); None where they
+    share no unit."""
+    from feeder.learn.evaluate import paired_bootstrap
+
+    mine, theirs = unit_scores(run, experiment, model, "cw1"), unit_scores(base, experiment, model, "cw1")
+    both = pd.concat([mine, theirs], axis=1, keys=["run", "base"]).dropna()
+    if both.empty:
+        return None
+    diff, lo, hi = paired_bootstrap(
+        (both.run - both.base).to_numpy(), bootstrap["resamples"], bootstrap["level"], bootstrap["seed"]
+    )
+    return {
+        "n": len(both),
+        "run": float(both.run.mean()),
+        "base": float(both.base.mean()),
+        "diff": diff,
+        "diff_low": lo,
+        "diff_high": hi,
+    }
+
+
 def comparison_table(long: pd.DataFrame, bootstrap: dict, m3_parts: pd.Series | None = None) -> pd.DataFrame:
     """Per experiment, model, metric and baseline: the model's mean, the baseline's, their paired
     difference with its bootstrap interval over the experiment's units. The models are the
