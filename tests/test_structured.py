@@ -514,6 +514,11 @@ def test_neighbour_distances_follow_the_main_fits_training_rows():
     fences = d[d.experiment == "fences"].set_index("config_id")
     # a Fences part has no training row: no neighbour of either kind
     assert np.isinf(fences.neighbour_deg).all() and not fences.cross.any()
+    # a part with a label of the same downstream fence type in another combination has a cross neighbour
+    a["config_id"] = np.where(a["config_id"] == "curved20_straight30", "straight20_curved30", a["config_id"])
+    d = neighbour_distances(a, cfg)
+    test0 = d[(d.experiment == "test") & (d.repeat == 0)].set_index("part")
+    assert test0.cross.all()  # every part's straight20_curved30 is a training row
 
 
 def test_from_rows_refuses_what_is_not_a_run_s_rows(tmp_path):
@@ -555,6 +560,24 @@ def test_cross_only_copies_train_fit_rows_again_without_their_own_combination():
     off = run_protocol(a, compose_config("structured", base), prior)
     on = run_protocol(a, compose_config("structured", [*base, "model.cross_only_copies=true"]), prior)
     assert (off[1].cross_only_copies == 0).all() and (on[1].cross_only_copies > 0).all()
+    # what the network trains on: each copy is its row with the same-combination neighbours missing
+    from feeder.learn.structured_data import NEIGHBOUR_FEATURES
+    from feeder.learn.structured_protocol import fit_protocol, protocol_jobs
+
+    on_cfg = compose_config("structured", [*base, "model.cross_only_copies=true"])
+    _, key, _, train, _ = protocol_jobs(a, on_cfg)[0][0]
+    f = fit_protocol(a, train, on_cfg, key)
+    n, rows, x = len(a["part"]), f["train_rows"], f["train_inputs"]["x"] * f["x_sd"] + f["x_mean"]
+    copies, originals = rows[rows >= n], rows[rows >= n] - n
+    width = len(NEIGHBOUR_FEATURES)
+    first = x.shape[1] - (width * 3 + 2)  # the neighbour block: 2 same-combination, 1 cross, then 2 part inputs
+    has = [first + width * j for j in range(3)]
+    assert copies.size and (x[originals][:, has[0]] == 1).all()  # the rows copied have a same-combination label
+    np.testing.assert_allclose(x[copies][:, has[:2]], 0.0, atol=1e-9)  # hidden in the copies
+    np.testing.assert_allclose(x[copies][:, has[2]], x[originals][:, has[2]])  # the cross neighbour kept
+    np.testing.assert_allclose(
+        f["train_inputs"]["neighbour_pmf"][copies][:, 2], f["train_inputs"]["neighbour_pmf"][originals][:, 2]
+    )
     assert (on[1].cross_only_copies < on[1].fit_rows).all()
     baselines = lambda long: long[~long.predictor.str.startswith("structured")].reset_index(drop=True)  # noqa: E731
     pd.testing.assert_frame_equal(baselines(off[0]), baselines(on[0]))
@@ -582,6 +605,17 @@ def test_a_learning_curve_trains_on_fewer_parts_and_keeps_validation_and_baselin
     assert (b.val_rows == a.val_rows).all() and (b.fit_rows < a.fit_rows).all()
     base = lambda long: long[long.predictor != "structured"].query("predictor != 'structured_ensemble'")  # noqa: E731
     pd.testing.assert_frame_equal(base(whole[0]).reset_index(drop=True), base(half[0]).reset_index(drop=True))
+    # the scored rows' inputs (their neighbours among every training row) are the same, unscaled
+    from feeder.learn.structured_protocol import fit_protocol, protocol_jobs
+
+    lib = _toy_library()
+    whole_cfg = compose_config("structured", [*TOY_PROTOCOL, "protocol.fits=[main]"])
+    _, key, _, train, _ = protocol_jobs(lib, whole_cfg)[0][0]
+    f1, f2 = fit_protocol(lib, train, whole_cfg, key), fit_protocol(lib, train, half_cfg, key)
+    raw = lambda f: f["scaled"]["x"] * f["x_sd"] + f["x_mean"]  # noqa: E731
+    np.testing.assert_allclose(raw(f1), raw(f2), atol=1e-9)
+    np.testing.assert_array_equal(f1["scaled"]["neighbour_pmf"], f2["scaled"]["neighbour_pmf"])
+    assert f2["train_rows"].size < f1["train_rows"].size
     parts = [f"p{i}" for i in range(10)]
     assert unused_parts(parts, 1.0, 3) == set() and unused_parts(parts, 0.5, 3) >= unused_parts(parts, 0.75, 3)
     assert len(unused_parts(parts, 0.5, 3)) == 5

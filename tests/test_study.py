@@ -565,7 +565,8 @@ def test_a_structured_answer_says_how_far_it_may_be_off_at_its_distance(tmp_path
     assert bins[-1]["low_deg"] is None and json.loads(json.dumps(bins, allow_nan=False)) == bins  # JSON-safe
     assert S.error_bin(bins, 0.0)["rows"] == 4 and S.error_bin(bins, 9.99)["rows"] == 4
     assert S.error_bin(bins, 15.0) is None and S.error_bin(bins, 20.0)["rows"] == 7
-    assert S.error_bin(bins, 180.0) is None and S.error_bin(bins, float("inf"))["rows"] == 9
+    assert S.error_bin(bins, 180.0)["rows"] == 7  # the last bin is closed: 180 is the most a 0-90 grid has
+    assert S.error_bin(bins, 180.5) is None and S.error_bin(bins, float("inf"))["rows"] == 9
     assert S.distance_words(bins[0]) == "0 to 10 deg away" and S.distance_words(bins[2]) == "none of its fence types"
     with pytest.raises(FeederError, match="no column rows"):
         S.structured_error_bins(table.drop(columns="rows"))

@@ -546,7 +546,7 @@ def worse_than_analytic(card: dict) -> str | None:
     )
     return (
         f"on the study's tables this model lies further from the simulator than the untrained analytic push PMF "
-        f"(circular W1: {said}); the default (no --model) answers a new part with that PMF"
+        f"(circular W1: {said}); --model study or --model analytic answers a new part with that PMF"
     )
 
 

@@ -128,7 +128,7 @@ def rank(
         key = "probability_overall"  # a configuration that always jams does not top the ranking
     if hasattr(model, "sources"):  # the study's predictor: where each answer comes from
         frame["answer"] = model.sources()
-    if hasattr(model, "structured_error_deg"):
+    if hasattr(model, "structured_error_deg") and "structured" in frame.get("answer", pd.Series(dtype=str)).values:
         # how far the structured predictor lay from the simulator on held-out rows as far from
         # their nearest label as each structured answer is (the card's table)
         frame["structured_w1_deg"] = model.structured_error_deg()
@@ -306,14 +306,16 @@ def structured_note(shown: pd.DataFrame) -> str:
     ``structured_w1_deg``), '' otherwise."""
     if "structured_w1_deg" not in shown or "answer" not in shown:
         return ""
-    err = shown.structured_w1_deg[shown.answer == "structured"].dropna()
+    mine = shown.structured_w1_deg[shown.answer == "structured"]
+    err = mine.dropna()
     if err.empty:
         return ""
     spread = f"{err.min():.0f}" if round(err.min()) == round(err.max()) else f"{err.min():.0f}-{err.max():.0f}"
+    unknown = f" ({mine.size - err.size} at a distance no held-out row had)" if mine.size > err.size else ""
     return (
-        f"note: {err.size} of these answers are the structured predictor, which lay {spread} deg (mean circular "
-        "W1, column structured_w1_deg) from the simulator on held-out rows as far from their nearest label; "
-        "--verify K simulates the top K"
+        f"note: {mine.size} of these answers are the structured predictor, which lay {spread} deg{unknown} (mean "
+        "circular W1, column structured_w1_deg) from the simulator on held-out rows as far from their nearest "
+        "label; --verify K simulates the top K"
     )
 
 

@@ -252,8 +252,10 @@ def cached_candidates(cache_path, key: str, push_raw, compute, n_variants: int, 
 
     cands = read_candidates_cache(cache_path, key) if cache_path is not None else None
     if cands is not None and not agrees(cands):
+        said = f"candidates: the cache {cache_path} disagrees with the dataset's push block; recomputing it"
+        log.warning(said)
         if progress is not None:
-            progress(f"candidates: the cache {cache_path} disagrees with the dataset's push block; recomputing it")
+            progress(said)
         cands = None
     if cands is None:
         log.info("computing candidates")

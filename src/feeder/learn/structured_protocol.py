@@ -207,6 +207,8 @@ def fit_protocol(arrays: dict, train: np.ndarray, cfg, key: str, known: bool = T
         "mean_pmf": mean_pmf,
         "choice": choice,
         "train": pool,
+        "train_inputs": scaled,  # what the networks trained on (with cross-only copies: stacked after the rows)
+        "train_rows": train_rows,
         "x_mean": mu,
         "x_sd": sd,
         "settings": net(hp),
@@ -644,23 +646,30 @@ def error_by_distance(long: pd.DataFrame, distances: pd.DataFrame, edges) -> pd.
     """The structured predictor's circular W1 on the Main fits' scored rows (Test and Fences, kept,
     each row of each repeat once: its seeds' averaged PMF where the run scored it, else the mean over
     seeds) by the distance to its nearest label of the same fence types (:func:`neighbour_distances`),
-    in the bins ``[edges[i], edges[i+1])`` and one more for no such label but one of the downstream
-    fence type (``low_deg`` inf; rows with neither are left out, the shipped answer is not this
-    predictor's there): the
+    in the bins ``[edges[i], edges[i+1])`` (the last one closed) and one more for no such label but
+    one of the downstream fence type (``low_deg`` inf; rows with neither are left out, the shipped
+    answer is not this predictor's there): the
     error an answer of the shipped predictor may carry at that distance; ``rows`` counts each scored
-    row of each repeat (pure)."""
+    row of each repeat. A scored row without a distance (``distances`` from other settings than the
+    run's) is a one-line FeederError (pure)."""
     edges = check_edges(edges)
     model = ENSEMBLE if (long.predictor == ENSEMBLE).any() else STRUCTURED
     key = ["experiment", "repeat", "part", "config_id"]
     d = long[(long.predictor == model) & long.kept & long.experiment.isin(["test", "fences"])]
-    d = d.groupby(key, as_index=False).cw1.mean().merge(distances, on=key, how="inner")
+    d = d.groupby(key, as_index=False).cw1.mean().merge(distances, on=key, how="left", validate="one_to_one")
+    if d.neighbour_deg.isna().any():
+        first = d[d.neighbour_deg.isna()].iloc[0]
+        raise FeederError(
+            f"{int(d.neighbour_deg.isna().sum())} scored rows have no neighbour distance (e.g. {first.experiment} "
+            f"repeat {first.repeat} {first.part} {first.config_id}): the settings (seed, protocol) are not the run's"
+        )
     bins = [(lo, hi) for lo, hi in zip(edges[:-1], edges[1:], strict=True)] + [(np.inf, np.inf)]
     out = []
     for lo, hi in bins:
         if np.isinf(lo):
             inside = np.isinf(d.neighbour_deg) & d.cross.astype(bool)
-        else:
-            inside = (d.neighbour_deg >= lo) & (d.neighbour_deg < hi)
+        else:  # the last bin is closed: its upper edge (180: the most |dtheta1| + |dtheta2| of 0-90 grids) is in
+            inside = (d.neighbour_deg >= lo) & ((d.neighbour_deg < hi) | ((d.neighbour_deg == hi) & (hi == edges[-1])))
         w = d[inside].cw1
         out.append(
             {

@@ -331,9 +331,10 @@ def _bound(value) -> float:
 def error_bin(bins: list[dict], dist: float) -> dict | None:
     """The bin of :func:`structured_error_bins` holding angle distance ``dist`` (inf: the bin of no
     label of the fence types), or None (pure)."""
+    top = max((_bound(b["high_deg"]) for b in bins if b["high_deg"] is not None), default=None)
     for b in bins:
         lo, hi = _bound(b["low_deg"]), _bound(b["high_deg"])
-        if (np.isinf(dist) and np.isinf(lo)) or (lo <= dist < hi):
+        if (np.isinf(dist) and np.isinf(lo)) or (lo <= dist < hi) or (dist == hi == top):  # the last bin is closed
             return b
     return None
 
@@ -554,8 +555,9 @@ def _card_new_angle(card: dict) -> list[str]:
     if st.get("by_distance"):
         lines += [
             "Its error by how far the part's nearest label of the same fence types lies (|d theta1| + |d theta2|; "
-            "`results/tables/structured_by_distance.csv`: the protocol's Test and Fences rows of its three Main "
-            "splits, circular W1 in degrees). `feeder predict` prints the row of its answer:",
+            "`results/tables/structured_by_distance.csv`: the protocol's Test and Fences rows of its Main splits, "
+            "each row of each split once, circular W1 in degrees of its seeds' averaged PMF, as shipped; the "
+            "evidence above scores the seeds one by one). `feeder predict` prints the row of its answer:",
             "",
             "| nearest label | scored rows | mean | median | 90th percentile |",
             "|---|---|---|---|---|",
