@@ -532,6 +532,58 @@ def test_from_rows_refuses_what_is_not_a_run_s_rows(tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["x.csv"]  # nothing written
 
 
+def test_from_rows_writes_the_tables_of_a_run_s_rows(tmp_path):
+    """--from-rows: the comparisons and the error by neighbour distance from rows alone; rows of
+    other settings than the run's (another seed draws other splits) stop it in one line."""
+    from factories import make_regression_dataset
+
+    from feeder.config import compose_config
+    from feeder.labels.dataset import load_dataset
+    from feeder.learn.structured_data import split_arrays
+    from feeder.learn.structured_protocol import main, neighbour_distances
+
+    make_regression_dataset(tmp_path / "ds.npz")
+    a = split_arrays(load_dataset(tmp_path / "ds.npz"))
+    d = neighbour_distances(a, compose_config("structured", []))
+    kept = dict(zip(zip(a["part"], a["config_id"]), a["kept"], strict=True))
+    rows = []
+    for i, r in enumerate(d.itertuples()):
+        base = {"experiment": r.experiment, "repeat": r.repeat, "part": r.part, "config_id": r.config_id}
+        base |= {"kept": kept[(r.part, r.config_id)], "ok_true": 1.0, "ok_pred": 1.0, "r2": 0.5}
+        rows.append({**base, "predictor": "structured", "seed": 0, "cw1": float(i % 7)})
+        rows.append({**base, "predictor": "analytic_pmf", "seed": -1, "cw1": float(i % 7) + 1.0})
+    pd.DataFrame(rows).to_csv(tmp_path / "rows.csv", index=False)
+    out = tmp_path / "out"
+    assert (
+        main(["--from-rows", str(tmp_path / "rows.csv"), "--dataset", str(tmp_path / "ds.npz"), "--out-dir", str(out)])
+        == 0
+    )
+    assert sorted(p.name for p in out.iterdir()) == [
+        "structured_by_distance.csv",
+        "structured_protocol.csv",
+        "structured_protocol.md",
+    ]
+    table = pd.read_csv(out / "structured_protocol.csv")
+    assert set(table.baseline) == {"analytic_pmf"}
+    np.testing.assert_allclose(table[table.metric == "cw1"]["diff"], -1.0)
+    by = pd.read_csv(out / "structured_by_distance.csv")
+    counted = (np.isfinite(d.neighbour_deg) | d.cross) & d.apply(lambda r: kept[(r.part, r.config_id)], axis=1)
+    assert by.rows.sum() == counted.sum() and by.rows.sum() > 0
+    with pytest.raises(FeederError, match="have no neighbour distance"):
+        main(
+            [
+                "--from-rows",
+                str(tmp_path / "rows.csv"),
+                "--dataset",
+                str(tmp_path / "ds.npz"),
+                "--out-dir",
+                str(tmp_path / "o2"),
+                "seed=1",
+            ]
+        )
+    assert not (tmp_path / "o2").exists()
+
+
 def test_cross_only_copies_train_fit_rows_again_without_their_own_combination():
     """model.cross_only_copies: a fit row with a neighbour of its own type combination and a cross
     neighbour also trains as a copy without the former; hide_same drops exactly those neighbours."""

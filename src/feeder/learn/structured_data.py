@@ -272,14 +272,18 @@ def split_arrays(data: dict) -> dict:
     first, then those excluded as jammed (the order of :func:`structured_arrays`): ``part``,
     ``config_id``, ``split``, ``kept`` and ``group_fold`` (an excluded part no kept row has gets a
     fold from its id's hash). What the protocol's splits need, without the candidates."""
-    parts = [*map(str, data["part"]), *map(str, data["excluded_part"])]
+
+    def both(key):  # the kept rows', then the excluded ones' (none in a dataset without that block)
+        return [*map(str, data[key]), *map(str, data[f"excluded_{key}"] if f"excluded_{key}" in data else [])]
+
+    parts = both("part")
     n_kept = len(data["part"])
     fold_of = {str(p): int(f) for p, f in zip(data["part"], data["group_fold"], strict=True)}
     n_folds = int(np.max(data["group_fold"])) + 1
     return {
         "part": np.array(parts),
-        "config_id": np.array([*map(str, data["config_id"]), *map(str, data["excluded_config_id"])]),
-        "split": np.array([*map(str, data["split"]), *map(str, data["excluded_split"])]),
+        "config_id": np.array(both("config_id")),
+        "split": np.array(both("split")),
         "kept": np.arange(len(parts)) < n_kept,
         "group_fold": np.array(
             [fold_of.get(p, int(hashlib.sha256(p.encode()).hexdigest(), 16) % n_folds) for p in parts]
