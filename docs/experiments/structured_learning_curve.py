@@ -17,7 +17,7 @@ gained per doubling of the training parts, ``<out>`` with ``_slopes`` before its
 figure of both against the rows trained on:
 
     python docs/experiments/structured_learning_curve.py results/tables/structured_learning_curve.csv \
-        results/figures/structured_learning_curve.png \
+        docs/figures/structured_learning_curve.png \
         0.5 CHOICES_50.csv ROWS_50.csv 0.75 CHOICES_75.csv ROWS_75.csv 1 CHOICES.csv ROWS.csv
 """
 

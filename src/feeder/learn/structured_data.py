@@ -360,6 +360,22 @@ def fence_key(config_id: str) -> tuple[tuple[str, str], tuple[float, float]]:
     return (a.type, b.type), (float(a.angle), float(b.angle))
 
 
+def nearest_configuration(config_id: str, pool: list[str]) -> tuple[int, float]:
+    """The position in ``pool`` of the configuration of ``config_id``'s fence types nearest to it by
+    ``|Δθ1| + |Δθ2|`` (ties to the earlier one; :func:`feeder.learn.neighbour.neighbour_index`'s rule)
+    and that distance in degrees; ``(-1, inf)`` when no configuration of ``pool`` has its types."""
+    types, angles = fence_key(config_id)
+    best, dist = -1, float("inf")
+    for k, other in enumerate(pool):
+        t, a = fence_key(other)
+        if t != types:
+            continue
+        d = float(np.abs(np.subtract(a, angles)).sum())
+        if d < dist:
+            best, dist = k, d
+    return best, dist
+
+
 def nearest_rows(parts, config_ids, pool, rows, k: int) -> tuple[np.ndarray, np.ndarray]:
     """For each of ``rows``: the ``k`` nearest rows of ``pool`` (a boolean mask) of the same part
     and fence-type combination by ``|Δθ1| + |Δθ2|`` (degrees), nearest first, ties to the lower

@@ -598,11 +598,10 @@ def neighbour_distances(arrays: dict, cfg) -> pd.DataFrame:
     """For every row a Main fit scores (Test and Fences of each repeat): the angle distance
     (degrees, ``|Δθ1| + |Δθ2|``) of the nearest kept label of the same part and fence types among
     the fit's training rows, as the shipped answer measures it
-    (:func:`feeder.learn.study.nearest_configuration`); inf where there is none. ``cross``: whether
+    (:func:`feeder.learn.structured_data.nearest_configuration`); inf where there is none. ``cross``: whether
     one of the part's training labels has the row's downstream (Location 1) fence type in another
     combination, the other neighbour the shipped answer needs (else it answers otherwise)."""
-    from feeder.learn.structured_data import fence_key
-    from feeder.learn.study import nearest_configuration
+    from feeder.learn.structured_data import fence_key, nearest_configuration
 
     out = []
     for kind, _key, index, train, scored in protocol_jobs(arrays, cfg)[0]:

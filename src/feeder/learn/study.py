@@ -37,6 +37,7 @@ import pandas as pd
 
 from feeder.errors import FeederError
 from feeder.learn.analytic import AnalyticModel, AnalyticSpec
+from feeder.learn.structured_data import nearest_configuration
 from feeder.learn.structured_shipped import SHIPPED_FILE, scene_digest
 
 STUDY_MODEL = "study"  # the --model value that names this predictor (the default)
@@ -63,24 +64,6 @@ def file_digest(path) -> str:
         for block in iter(lambda: f.read(1 << 20), b""):
             h.update(block)
     return h.hexdigest()
-
-
-def nearest_configuration(config_id: str, pool: list[str]) -> tuple[int, float]:
-    """The position in ``pool`` of the configuration of ``config_id``'s fence types nearest to it by
-    ``|Δθ1| + |Δθ2|`` (ties to the earlier one; :func:`feeder.learn.neighbour.neighbour_index`'s rule)
-    and that distance in degrees; ``(-1, inf)`` when no configuration of ``pool`` has its types."""
-    from feeder.learn.structured_data import fence_key
-
-    types, angles = fence_key(config_id)
-    best, dist = -1, float("inf")
-    for k, other in enumerate(pool):
-        t, a = fence_key(other)
-        if t != types:
-            continue
-        d = float(np.abs(np.subtract(a, angles)).sum())
-        if d < dist:
-            best, dist = k, d
-    return best, dist
 
 
 def check_gates(gates) -> list[float]:
