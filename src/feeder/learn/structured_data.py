@@ -437,9 +437,10 @@ def neighbour_rows(
     combination the part has no label of (the Fences rows)."""
     pool = np.asarray(pool, dtype=bool) & np.asarray(arrays["kept"], dtype=bool)
     rows = np.arange(len(arrays["part"]))
-    idx, dist = nearest_rows(arrays["part"], arrays["config_id"], pool, rows, k)
     if hide_same:
-        idx, dist = np.full_like(idx, -1), np.full_like(dist, np.inf)
+        idx, dist = np.full((rows.size, int(k)), -1, dtype=np.int64), np.full((rows.size, int(k)), np.inf)
+    else:
+        idx, dist = nearest_rows(arrays["part"], arrays["config_id"], pool, rows, k)
     if int(cross) > 0:  # then the nearest of other type combinations under the same downstream fence
         c_idx, c_dist = nearest_cross_rows(arrays["part"], arrays["config_id"], pool, rows, cross)
         idx, dist = np.concatenate([idx, c_idx], axis=1), np.concatenate([dist, c_dist], axis=1)

@@ -515,23 +515,25 @@ def paired_runs(run: pd.DataFrame, base: pd.DataFrame, experiment: str, model: s
     ``model``: ``n``, each run's mean circular W1 (``run``, ``base``) and the paired difference
     run − base with its bootstrap interval (``diff``, ``diff_low``, ``diff_high``); None where they
     share no unit."""
+    pair = _paired(unit_scores(run, experiment, model, "cw1"), unit_scores(base, experiment, model, "cw1"), bootstrap)
+    if pair is None:
+        return None
+    n, run_mean, base_mean, diff, lo, hi = pair
+    return {"n": n, "run": run_mean, "base": base_mean, "diff": diff, "diff_low": lo, "diff_high": hi}
+
+
+def _paired(model: pd.Series, base: pd.Series, bootstrap: dict) -> tuple | None:
+    """Two per-unit score series on the units both have: (n, their means, the mean difference
+    model − base and its bootstrap interval); None where they share no unit."""
     from feeder.learn.evaluate import paired_bootstrap
 
-    mine, theirs = unit_scores(run, experiment, model, "cw1"), unit_scores(base, experiment, model, "cw1")
-    both = pd.concat([mine, theirs], axis=1, keys=["run", "base"]).dropna()
+    both = pd.concat([model, base], axis=1, keys=["m", "b"]).dropna()
     if both.empty:
         return None
     diff, lo, hi = paired_bootstrap(
-        (both.run - both.base).to_numpy(), bootstrap["resamples"], bootstrap["level"], bootstrap["seed"]
+        (both.m - both.b).to_numpy(), bootstrap["resamples"], bootstrap["level"], bootstrap["seed"]
     )
-    return {
-        "n": len(both),
-        "run": float(both.run.mean()),
-        "base": float(both.base.mean()),
-        "diff": diff,
-        "diff_low": lo,
-        "diff_high": hi,
-    }
+    return len(both), float(both.m.mean()), float(both.b.mean()), diff, lo, hi
 
 
 def comparison_table(long: pd.DataFrame, bootstrap: dict, m3_parts: pd.Series | None = None) -> pd.DataFrame:
@@ -551,7 +553,7 @@ def comparison_table(long: pd.DataFrame, bootstrap: dict, m3_parts: pd.Series | 
 
 
 def _comparisons(long, experiment, name, metric, sign, present, bootstrap, m3_parts) -> list[dict]:
-    from feeder.learn.evaluate import paired_bootstrap, verdict
+    from feeder.learn.evaluate import verdict
 
     model = unit_scores(long, experiment, name, metric)
     seeds = long[(long.experiment == experiment) & (long.predictor == name)]
@@ -563,12 +565,10 @@ def _comparisons(long, experiment, name, metric, sign, present, bootstrap, m3_pa
         series[M3] = m3_parts
     out = []
     for b, base in series.items():
-        both = pd.concat([model, base], axis=1, keys=["m", "b"]).dropna()
-        if both.empty:
+        pair = _paired(model, base, bootstrap)
+        if pair is None:
             continue
-        mean, lo, hi = paired_bootstrap(
-            (both.m - both.b).to_numpy(), bootstrap["resamples"], bootstrap["level"], bootstrap["seed"]
-        )
+        n, model_mean, base_mean, mean, lo, hi = pair
         sd = np.nan
         if metric != "ok_abs_err" and seeds.seed.nunique() > 1:
             per_seed = seeds[seeds.kept].groupby("seed")[metric].mean()
@@ -580,10 +580,10 @@ def _comparisons(long, experiment, name, metric, sign, present, bootstrap, m3_pa
                 "model": name,
                 "metric": metric,
                 "baseline": b,
-                "n": len(both),
-                "structured": float(both.m.mean()),
+                "n": n,
+                "structured": model_mean,
                 "structured_seed_sd": sd,
-                "baseline_value": float(both.b.mean()),
+                "baseline_value": base_mean,
                 "diff": mean,
                 "diff_low": lo,
                 "diff_high": hi,
@@ -597,11 +597,12 @@ def _comparisons(long, experiment, name, metric, sign, present, bootstrap, m3_pa
 def neighbour_distances(arrays: dict, cfg) -> pd.DataFrame:
     """For every row a Main fit scores (Test and Fences of each repeat): the angle distance
     (degrees, ``|Δθ1| + |Δθ2|``) of the nearest kept label of the same part and fence types among
-    the fit's training rows, as the shipped answer measures it
-    (:func:`feeder.learn.structured_data.nearest_configuration`); inf where there is none. ``cross``: whether
-    one of the part's training labels has the row's downstream (Location 1) fence type in another
-    combination, the other neighbour the shipped answer needs (else it answers otherwise)."""
-    from feeder.learn.structured_data import fence_key, nearest_configuration
+    the fit's training rows (:func:`feeder.learn.structured_data.nearest_rows`, the rule of the
+    shipped answer's :func:`~feeder.learn.structured_data.nearest_configuration`); inf where there is
+    none. ``cross``: whether the part has a training label of the row's downstream (Location 1) fence
+    type in another combination (:func:`~feeder.learn.structured_data.nearest_cross_rows`), the other
+    neighbour the shipped answer needs (else it answers otherwise)."""
+    from feeder.learn.structured_data import nearest_cross_rows, nearest_rows
 
     out = []
     for kind, _key, index, train, scored in protocol_jobs(arrays, cfg)[0]:
@@ -609,25 +610,23 @@ def neighbour_distances(arrays: dict, cfg) -> pd.DataFrame:
             continue
         pool = train & arrays["kept"]
         for experiment, mask in scored.items():
-            for i in np.flatnonzero(mask):
-                mine = np.flatnonzero(pool & (arrays["part"] == arrays["part"][i]))
-                ids = [str(c) for c in arrays["config_id"][mine]]
-                _, dist = nearest_configuration(arrays["config_id"][i], ids)
-                types = fence_key(arrays["config_id"][i])[0]
-                cross = types[0] != "none" and any(
-                    fence_key(c)[0][0] == types[0] and fence_key(c)[0] != types for c in ids
-                )
-                out.append(
+            rows = np.flatnonzero(mask)
+            _, dist = nearest_rows(arrays["part"], arrays["config_id"], pool, rows, 1)
+            cross, _ = nearest_cross_rows(arrays["part"], arrays["config_id"], pool, rows, 1)
+            out.append(
+                pd.DataFrame(
                     {
                         "experiment": experiment,
                         "repeat": int(index),
-                        "part": str(arrays["part"][i]),
-                        "config_id": str(arrays["config_id"][i]),
-                        "neighbour_deg": dist,
-                        "cross": bool(cross),
+                        "part": arrays["part"][rows].astype(str),
+                        "config_id": arrays["config_id"][rows].astype(str),
+                        "neighbour_deg": dist[:, 0],
+                        "cross": cross[:, 0] >= 0,
                     }
                 )
-    return pd.DataFrame(out, columns=["experiment", "repeat", "part", "config_id", "neighbour_deg", "cross"])
+            )
+    columns = ["experiment", "repeat", "part", "config_id", "neighbour_deg", "cross"]
+    return pd.concat(out, ignore_index=True)[columns] if out else pd.DataFrame(columns=columns)
 
 
 def check_edges(edges) -> list[float]:
@@ -728,7 +727,7 @@ def _parser() -> argparse.ArgumentParser:
     return p
 
 
-def write_tables(out_dir: Path, long: pd.DataFrame, table: pd.DataFrame, by_distance: pd.DataFrame) -> None:
+def write_tables(out_dir: Path, table: pd.DataFrame, by_distance: pd.DataFrame) -> None:
     """The comparisons (``structured_protocol.csv`` / ``.md``) and the error by neighbour distance
     (``structured_by_distance.csv``), each written atomically."""
     from feeder import io
@@ -763,7 +762,7 @@ def main(argv: list[str]) -> int:
         m3_parts = m3_part_scores(args.m3_groupkfold) if args.m3_groupkfold else None
         table = comparison_table(long, dict(cfg.protocol.bootstrap), m3_parts)
         by_distance = error_by_distance(long, neighbour_distances(split_arrays(load_dataset(args.dataset)), cfg), edges)
-        write_tables(args.out_dir, long, table, by_distance)
+        write_tables(args.out_dir, table, by_distance)
         print(by_distance.to_string(index=False))
         return 0
     check_workers(cfg.train.workers)  # before the data and the candidates, not after
@@ -791,6 +790,6 @@ def main(argv: list[str]) -> int:
     table = comparison_table(long, dict(cfg.protocol.bootstrap), m3_parts)
     io.write_csv(args.out_dir / "structured_rows.csv", long)
     io.write_csv(args.out_dir / "structured_choices.csv", choices)
-    write_tables(args.out_dir, long, table, error_by_distance(long, neighbour_distances(arrays, cfg), edges))
+    write_tables(args.out_dir, table, error_by_distance(long, neighbour_distances(arrays, cfg), edges))
     print(table.to_string(index=False))
     return 0
