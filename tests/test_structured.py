@@ -264,6 +264,33 @@ def test_training_learns_which_candidate_the_inputs_choose(kind):
     assert fitted.steps > 0
 
 
+@pytest.mark.parametrize("kind", ["candidates", "variants"])
+def test_a_refit_on_the_fit_rows_for_the_kept_steps_is_the_early_stopped_network(kind):
+    """structured.refit trains from the same initial weights with the same optimiser: on the same
+    rows, for the steps early stopping kept, it reproduces the early-stopped networks exactly; on
+    more rows it is another network; a negative step count is refused."""
+    torch = pytest.importorskip("torch")
+    from feeder.learn.structured import NetSettings, TrainSettings, fit, predict, refit
+
+    a = _toy_arrays(n=40)
+    rows, mean = np.arange(40), a["pmf"][:30].mean(axis=0)
+    net, t = NetSettings(8, 4.0, 0.5, 1.5, 6.0, kind), TrainSettings(0.03, 0.0, 300, 10, 100)
+    early = fit(a, rows[:30], rows[30:], rows[:30], rows[30:], mean, net, t, seed=1)
+    assert early.steps > 0
+    again = refit(a, rows[:30], rows[:30], mean, net, t, 1, early.steps, early.ok_steps)
+    assert (again.steps, again.ok_steps) == (early.steps, early.ok_steps) and math.isnan(again.val_cw1)
+    for mine, theirs in ((again.net, early.net), (again.ok_net, early.ok_net)):
+        for (name, p), q in zip(mine.state_dict().items(), theirs.state_dict().values(), strict=True):
+            assert torch.equal(p, q), name
+    np.testing.assert_array_equal(predict(again, a, rows, mean)[0], predict(early, a, rows, mean)[0])
+    more = refit(a, rows, rows, mean, net, t, 1, early.steps, early.ok_steps)
+    assert not np.array_equal(predict(more, a, rows, mean)[0], predict(early, a, rows, mean)[0])
+    with pytest.raises(FeederError, match="step counts"):
+        refit(a, rows, rows, mean, net, t, 1, -1, 0)
+    with pytest.raises(FeederError, match="rows to train on"):
+        refit(a, rows[:0], rows, mean, net, t, 1, 10, 10)
+
+
 def test_settings_are_checked():
     from feeder.learn.structured import NetSettings
 
@@ -636,6 +663,47 @@ def test_cross_only_copies_train_fit_rows_again_without_their_own_combination():
     for bad in ("yes", 1):
         with pytest.raises(FeederError, match="model.cross_only_copies"):
             cross_only_copies(OmegaConf.create({"model": {"cross_only_copies": bad}}))
+
+
+def test_a_refit_trains_each_seed_on_the_validation_parts_too_and_keeps_the_baselines():
+    """train.refit: the choice and each seed's step counts are early stopping's; the networks then
+    train on every training row (validation parts included), whose inputs see every training row;
+    every baseline stays; a bad value or a refit with cross-only copies is refused."""
+    pytest.importorskip("torch")
+    from omegaconf import OmegaConf
+
+    from feeder.config import compose_config
+    from feeder.learn.prior import grids
+    from feeder.learn.structured_protocol import fit_protocol, protocol_jobs, refit_on, run_protocol
+
+    prior = grids(compose_config("train")["prior"])
+    base = [*TOY_PROTOCOL, "protocol.fits=[main]"]
+    off_cfg, on_cfg = compose_config("structured", base), compose_config("structured", [*base, "train.refit=true"])
+    off, on = run_protocol(_toy_library(), off_cfg, prior), run_protocol(_toy_library(), on_cfg, prior)
+    a, b = off[1].set_index("fit"), on[1].set_index("fit")
+    assert (a.refit_rows == 0).all() and (b.refit_rows == b.fit_rows + b.val_rows).all()
+    for col in ("kind", "hidden", "steps", "ok_steps", "val_cw1"):
+        assert (a[col] == b[col]).all(), col  # the choice is early stopping's, as without the refit
+    baselines = lambda long: long[~long.predictor.str.startswith("structured")].reset_index(drop=True)  # noqa: E731
+    pd.testing.assert_frame_equal(baselines(off[0]), baselines(on[0]))
+    mine = lambda long: long[long.predictor == "structured"].cw1.to_numpy()  # noqa: E731
+    assert not np.allclose(mine(off[0]), mine(on[0]))
+    lib = _toy_library()
+    _, key, _, train, _ = protocol_jobs(lib, on_cfg)[0][0]
+    f = fit_protocol(lib, train, on_cfg, key)
+    np.testing.assert_array_equal(f["train_rows"], np.flatnonzero(train & lib["kept"]))
+    x = f["train_inputs"]["x"][np.flatnonzero(train)]
+    np.testing.assert_allclose(x.mean(axis=0), 0.0, atol=1e-9)  # scaled on the rows it trains on
+    np.testing.assert_allclose(f["mean_pmf"], lib["pmf"][train & lib["kept"]].mean(axis=0))
+    assert all(math.isnan(s.val_cw1) for s in f["fits"])
+    for bad in ("yes", 1):
+        with pytest.raises(FeederError, match="train.refit"):
+            refit_on(OmegaConf.create({"train": {"refit": bad}, "model": {}}))
+    with pytest.raises(FeederError, match="cannot be combined"):
+        fit_protocol(
+            lib, train, compose_config("structured", [*base, "train.refit=true", "model.cross_only_copies=true"]), key
+        )
+    assert refit_on(OmegaConf.create({"train": {}, "model": {}})) is False
 
 
 def test_a_learning_curve_trains_on_fewer_parts_and_keeps_validation_and_baselines():

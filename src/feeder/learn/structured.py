@@ -455,6 +455,58 @@ def _early_stopped(module, loss_fn, val_fn, t: TrainSettings, seed: int):
     return best_step, best
 
 
+def _trained(module, loss_fn, t: TrainSettings, seed: int, steps: int) -> None:
+    """Train ``module`` full batch with Adam on ``loss_fn()`` for exactly ``steps`` steps: the
+    optimiser of :func:`_early_stopped` without a validation set (a refit for a step count that
+    early stopping chose)."""
+    torch = _torch()
+    torch.manual_seed(int(seed))
+    opt = torch.optim.Adam(module.parameters(), lr=t.lr, weight_decay=t.weight_decay)
+    for _ in range(int(steps)):
+        opt.zero_grad()
+        loss_fn().backward()
+        opt.step()
+
+
+def refit(
+    arrays: dict,
+    rows,
+    ok_rows,
+    mean_pmf,
+    net: NetSettings,
+    t: TrainSettings,
+    seed: int,
+    steps: int,
+    ok_steps: int,
+    ok_train=None,
+) -> Fitted:
+    """Train both networks as :func:`fit` does, from the same ``seed``'s initial weights, on the
+    kept rows ``rows`` (the PMF network) and ``ok_rows`` (the ok network) for the given step
+    counts, with no validation rows: early stopping on a fit's validation parts chose the counts,
+    and the refit trains on those parts too. Its validation scores are NaN (nothing is held out)."""
+    torch = _torch()
+    ok_train = t if ok_train is None else ok_train
+    rows, ok_rows = np.asarray(rows), np.asarray(ok_rows)
+    if rows.size == 0 or ok_rows.size == 0:
+        raise FeederError("a structured refit needs rows to train on")
+    if int(steps) < 0 or int(ok_steps) < 0:
+        raise FeederError(f"a structured refit needs step counts >= 0, got {steps} and {ok_steps}")
+    df = row_diffuse(arrays, rows, mean_pmf)
+    torch.manual_seed(int(seed))
+    pmf_net, ok_net = make_nets(
+        arrays["x"].shape[1], arrays["cf"].shape[2], df.shape[1], net, arrays["masses"].shape[2]
+    )
+    pmf_net, ok_net = pmf_net.float(), ok_net.float()
+    b = Batch.of(arrays, rows, df, net.start)
+    cdf = torch.as_tensor(arrays["cdf"][rows], dtype=torch.float32)
+    _trained(pmf_net, lambda: circular_w1_loss(pmf_net(*b.args()), cdf), t, seed, steps)
+    f32 = lambda a: torch.as_tensor(np.asarray(a), dtype=torch.float32)  # noqa: E731
+    xo, bo, yo = f32(arrays["x"][ok_rows]), f32(ok_logit(arrays["analytic_ok"][ok_rows])), f32(arrays["ok"][ok_rows])
+    bce = torch.nn.functional.binary_cross_entropy_with_logits
+    _trained(ok_net, lambda: bce(ok_net(xo, bo), yo), ok_train, seed + 1, ok_steps)
+    return Fitted(pmf_net, ok_net, int(steps), int(ok_steps), float("nan"), float("nan"), net.start)
+
+
 def fit(
     arrays: dict,
     fit_rows,

@@ -92,8 +92,9 @@ def fit_protocol(arrays: dict, train: np.ndarray, cfg, key: str, known: bool = T
     its part's other validation rows as neighbours; otherwise (unseen parts) validation rows see
     none, as the scored parts will not, and the choice and early stopping mirror that."""
     from feeder.learn.structured import fit
-    from feeder.learn.structured_data import neighbour_rows, stack_rows, with_composed, with_drops, with_neighbours
+    from feeder.learn.structured_data import neighbour_rows, stack_rows
 
+    refit_on(cfg)  # bad settings: an error before any training
     base = int(cfg.seed)
     val_parts = pick_parts(arrays["part"][train], float(cfg.protocol.val_part_fraction), derived_seed(base, key), "val")
     is_val = np.isin(arrays["part"], list(val_parts))
@@ -108,16 +109,10 @@ def fit_protocol(arrays: dict, train: np.ndarray, cfg, key: str, known: bool = T
     # the part's neighbouring labels: a fit row sees the other fit rows, a validation row the other
     # rows of its own (validation) part, a scored row every training row (as a user's known part)
     k, cross = neighbour_count(cfg), neighbour_count(cfg, "cross_neighbours")
-    near = float(cfg.model.neighbour_near_deg)
     nb_opts = neighbour_options(cfg)
 
-    def inputs(pool, hide_same=False):  # the part's neighbours in pool, their composition, the row's own drops
-        a = with_neighbours(arrays, pool, k, near, cross, **nb_opts, hide_same=hide_same)
-        if composed_on(cfg):
-            a = with_composed(a, pool, near, float(cfg.model.get("composed_start_logit", 0.0)))
-        if "drop_pmf" not in arrays:
-            return a
-        return with_drops(a, drop_count(cfg, "drop_candidates"), nb_opts["merge_deg"], nb_opts["window_deg"])
+    def inputs(pool, hide_same=False):
+        return pool_inputs(arrays, pool, cfg, hide_same)
 
     a_fit = inputs(train & ~is_val)
     a_val = inputs(train & is_val & bool(known))
@@ -177,6 +172,14 @@ def fit_protocol(arrays: dict, train: np.ndarray, cfg, key: str, known: bool = T
                 scaled_val,
             )
         )
+    # train.refit: each seed trained again on the fit and validation rows for the steps early
+    # stopping chose it, from the same initial weights (the validation parts then train too)
+    n_refit, early = 0, fits
+    if refit_on(cfg):
+        r = _refitted(arrays, train, fits, inputs, net(hp), tr(hp.weight_decay), ok_train, base, key)
+        fits, scaled, train_rows, mean_pmf, mu, sd = r["fits"], r["scaled"], r["rows"], r["mean_pmf"], r["mu"], r["sd"]
+        a_eval = inputs(pool)
+        scaled_eval, n_refit = dict(a_eval, x=(a_eval["x"] - mu) / sd), int(train_rows.size)
     choice = {
         "fit": key,
         "kind": str(hp.get("kind", "candidates")),
@@ -188,11 +191,12 @@ def fit_protocol(arrays: dict, train: np.ndarray, cfg, key: str, known: bool = T
         "fit_rows": int(fit_rows.size),
         "val_rows": int(val_rows.size),
         "cross_only_copies": int(copies.size),
+        "refit_rows": n_refit,
         **{f"search{i}_val_cw1": float(t[0]) for i, t in enumerate(sorted(tried, key=lambda t: t[1]))},
-        "val_cw1": float(np.mean([f.val_cw1 for f in fits])),
-        "val_ok_mae": float(np.mean([f.val_ok_mae for f in fits])),
-        "steps": float(np.mean([f.steps for f in fits])),
-        "ok_steps": float(np.mean([f.ok_steps for f in fits])),
+        "val_cw1": float(np.mean([f.val_cw1 for f in early])),
+        "val_ok_mae": float(np.mean([f.val_ok_mae for f in early])),
+        "steps": float(np.mean([f.steps for f in early])),
+        "ok_steps": float(np.mean([f.ok_steps for f in early])),
         "neighbours": k,
         "cross_neighbours": cross,
         "neighbour_basins": int(nb_opts["basins"]),
@@ -213,6 +217,59 @@ def fit_protocol(arrays: dict, train: np.ndarray, cfg, key: str, known: bool = T
         "x_sd": sd,
         "settings": net(hp),
     }
+
+
+def pool_inputs(arrays: dict, pool, cfg, hide_same: bool = False) -> dict:
+    """``arrays`` with every row's inputs from the labels of the rows ``pool`` (a boolean mask):
+    the part's neighbours there (``hide_same``: none of its own fence-type combination, as a
+    Fences row), their composition (``model.composed``) and the row's own drops (when ``arrays``
+    holds them)."""
+    from feeder.learn.structured_data import with_composed, with_drops, with_neighbours
+
+    k, cross = neighbour_count(cfg), neighbour_count(cfg, "cross_neighbours")
+    near, nb_opts = float(cfg.model.neighbour_near_deg), neighbour_options(cfg)
+    a = with_neighbours(arrays, pool, k, near, cross, **nb_opts, hide_same=hide_same)
+    if composed_on(cfg):
+        a = with_composed(a, pool, near, float(cfg.model.get("composed_start_logit", 0.0)))
+    if "drop_pmf" not in arrays:
+        return a
+    return with_drops(a, drop_count(cfg, "drop_candidates"), nb_opts["merge_deg"], nb_opts["window_deg"])
+
+
+def _refitted(arrays: dict, train, fits, inputs, net, t, ok_train, base: int, key: str) -> dict:
+    """``fits`` (early-stopped, one per seed) trained again by :func:`feeder.learn.structured.refit`
+    on every kept row of ``train`` (the ok head on every row), each for its own step counts and
+    from its own seed. The inputs (``inputs(pool)``), their scaling and the training-mean PMF are
+    recomputed on those rows: every row sees the others as neighbours, as a scored row does.
+    Returns the refitted seeds (``fits``), their scaled inputs and kept rows (``scaled``,
+    ``rows``), ``mean_pmf`` and the scaling ``mu``, ``sd``."""
+    from feeder.learn.structured import refit
+
+    rows = np.flatnonzero(train & arrays["kept"])
+    ok_rows = np.flatnonzero(train)
+    a = inputs(train)
+    mu, sd = a["x"][ok_rows].mean(axis=0), a["x"][ok_rows].std(axis=0)
+    sd = np.where(sd > 0, sd, 1.0)
+    scaled = dict(a, x=(a["x"] - mu) / sd)
+    mean_pmf = arrays["pmf"][rows].mean(axis=0)
+    refits = [
+        refit(
+            scaled, rows, ok_rows, mean_pmf, net, t, derived_seed(base, key, "seed", s), f.steps, f.ok_steps, ok_train
+        )
+        for s, f in enumerate(fits)
+    ]
+    return {"fits": refits, "scaled": scaled, "rows": rows, "mean_pmf": mean_pmf, "mu": mu, "sd": sd}
+
+
+def refit_on(cfg) -> bool:
+    """``train.refit`` (default false) as a bool; a one-line FeederError if it is no bool or is
+    combined with ``model.cross_only_copies`` (a refit trains no copies)."""
+    value = cfg.train.get("refit", False)
+    if not isinstance(value, bool):
+        raise FeederError(f"train.refit must be true or false, got {value!r}")
+    if value and cross_only_copies(cfg):
+        raise FeederError("train.refit and model.cross_only_copies cannot be combined")
+    return value
 
 
 def cross_only_copies(cfg) -> bool:
@@ -768,7 +825,7 @@ def main(argv: list[str]) -> int:
     check_workers(cfg.train.workers)  # before the data and the candidates, not after
     # bad settings: a one-line error before any work
     neighbour_options(cfg), drop_count(cfg), drop_count(cfg, "drop_candidates"), composed_on(cfg), fit_kinds(cfg)
-    fit_part_fraction(cfg), cross_only_copies(cfg)
+    fit_part_fraction(cfg), cross_only_copies(cfg), refit_on(cfg)
     prior_grids = grids(compose_config("train")["prior"])
     import torch
 
