@@ -174,7 +174,7 @@ def fit_protocol(arrays: dict, train: np.ndarray, cfg, key: str, known: bool = T
         )
     # train.refit: each seed trained again on the fit and validation rows for the steps early
     # stopping chose it, from the same initial weights (the validation parts then train too)
-    n_refit, early = 0, fits
+    n_refit, early = 0, {"fits": fits, "x_mean": mu, "x_sd": sd, "mean_pmf": mean_pmf}
     if refit_on(cfg):
         r = _refitted(arrays, train, fits, inputs, net(hp), tr(hp.weight_decay), ok_train, base, key)
         fits, scaled, train_rows, mean_pmf, mu, sd = r["fits"], r["scaled"], r["rows"], r["mean_pmf"], r["mu"], r["sd"]
@@ -193,10 +193,10 @@ def fit_protocol(arrays: dict, train: np.ndarray, cfg, key: str, known: bool = T
         "cross_only_copies": int(copies.size),
         "refit_rows": n_refit,
         **{f"search{i}_val_cw1": float(t[0]) for i, t in enumerate(sorted(tried, key=lambda t: t[1]))},
-        "val_cw1": float(np.mean([f.val_cw1 for f in early])),
-        "val_ok_mae": float(np.mean([f.val_ok_mae for f in early])),
-        "steps": float(np.mean([f.steps for f in early])),
-        "ok_steps": float(np.mean([f.ok_steps for f in early])),
+        "val_cw1": float(np.mean([f.val_cw1 for f in early["fits"]])),
+        "val_ok_mae": float(np.mean([f.val_ok_mae for f in early["fits"]])),
+        "steps": float(np.mean([f.steps for f in early["fits"]])),
+        "ok_steps": float(np.mean([f.ok_steps for f in early["fits"]])),
         "neighbours": k,
         "cross_neighbours": cross,
         "neighbour_basins": int(nb_opts["basins"]),
@@ -216,6 +216,7 @@ def fit_protocol(arrays: dict, train: np.ndarray, cfg, key: str, known: bool = T
         "x_mean": mu,
         "x_sd": sd,
         "settings": net(hp),
+        "early": early,  # the early-stopped seeds and their scaling and mean PMF (the same as above without a refit)
     }
 
 

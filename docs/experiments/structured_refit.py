@@ -1,0 +1,137 @@
+"""Should each fit train again on its validation parts after early stopping? (issue #39)
+
+``train.refit: true`` trains each early-stopped seed again on the fit and validation rows together,
+for the steps early stopping kept it, from the same initial weights. The protocol's validation
+parts are then spent, and Test and Fences are what we report, so neither can decide it. This
+check decides it on the training rows of the protocol's Main fits alone:
+
+- in each Main fit, its own validation parts (the 20 % the real fit validates on) are held out;
+- on the rest the protocol's fit runs as usual (its own validation parts inside them, the search,
+  three seeds), with and without the refit (the same early-stopped seeds: ``fit_protocol``'s
+  ``early``);
+- the held-out parts are scored as the protocol scores a validation row of a known part: each
+  row reads its part's other held-out rows (as a Test row reads its part's labels: written
+  with ``experiment`` ``test``), and once more with the labels of its own fence-type combination
+  hidden (as a Fences row: ``fences``). No row of the reported Test or Fences sets is read; the
+  rows file's ``held_out`` column says so.
+
+Rule, fixed before the run (2026-11-28): the default becomes ``train.refit: true`` if and only if
+the refit's mean circular W1 (seeds scored one by one, as the protocol) is lower than without it
+on both scorings, over the three Main fits' held-out rows. The 95 % paired bootstrap intervals
+over configurations are reported beside it; the rule is the point estimate, as the protocol's own
+search chooses.
+
+    python docs/experiments/structured_refit.py results/datasets/dataset.npz results/sim \\
+        results/features OUT_DIR [overrides]
+
+(run it with ``OPENBLAS_CORETYPE=Haswell`` where the processor has AVX-512: it imports numpy
+before feeder, which otherwise sets that; docs/testing.md; ``train.workers`` fits at once) writes
+``OUT_DIR/structured_refit_rows.csv`` (one row per held-out configuration, arm, scoring and seed)
+and ``structured_refit.csv`` (the paired comparisons), and prints the latter.
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from feeder import io
+from feeder.config import compose_config
+from feeder.labels.dataset import load_dataset
+from feeder.learn.prior import grids
+from feeder.learn.splits import derived_seed, pick_parts
+from feeder.learn.structured_data import structured_arrays
+from feeder.learn.structured_protocol import (
+    ENSEMBLE,
+    STRUCTURED,
+    fit_protocol,
+    paired_runs,
+    pool_inputs,
+    protocol_jobs,
+    score_rows,
+)
+
+SCORINGS = {"test": False, "fences": True}  # scored as a row of this set: hide its own fence-type combination?
+HELD_OUT = "validation parts of the Main fit"
+
+
+def check_job(job: tuple, arrays: dict, cfg, prior_grids) -> pd.DataFrame:
+    """One Main fit of the protocol: its validation parts held out, the fit on the rest with and
+    without the refit, the held-out rows scored both ways."""
+    import torch
+
+    torch.set_num_threads(int(cfg.train.threads))
+    _, key, index, train, _ = job
+    held_parts = pick_parts(
+        arrays["part"][train], float(cfg.protocol.val_part_fraction), derived_seed(int(cfg.seed), key), "val"
+    )
+    held = train & np.isin(arrays["part"], list(held_parts))
+    inner = train & ~held
+    print(f"{key}: {len(held_parts)} parts held out ({int((held & arrays['kept']).sum())} kept rows)", flush=True)
+    f = fit_protocol(arrays, inner, cfg, f"{key}:refit-check", known=True)
+    idx, out = np.flatnonzero(held), []
+    for scoring, hide in SCORINGS.items():
+        a = pool_inputs(arrays, held, cfg, hide_same=hide)
+        for arm, fitted in (("early", f["early"]), ("refit", f)):
+            scaled = dict(a, x=(a["x"] - fitted["x_mean"]) / fitted["x_sd"])
+            fake = {"fits": fitted["fits"], "scaled": scaled, "mean_pmf": fitted["mean_pmf"], "train": inner}
+            rows = pd.DataFrame(score_rows(arrays, fake, idx, scoring, index, prior_grids))
+            rows = rows[rows.predictor.isin([STRUCTURED, ENSEMBLE])]
+            out.append(rows.assign(arm=arm, held_out=HELD_OUT))
+    print(f"{key}: done ({f['choice']['kind']}, hidden {f['choice']['hidden']})", flush=True)
+    return pd.concat(out, ignore_index=True)
+
+
+_SHARED: dict = {}
+
+
+def _forked(job: tuple) -> pd.DataFrame:
+    return check_job(job, **_SHARED)
+
+
+def check_rows(arrays: dict, cfg, prior_grids) -> pd.DataFrame:
+    """Every Main fit's check (``train.workers`` at once, in forked processes)."""
+    from multiprocessing import get_context
+
+    jobs = [job for job in protocol_jobs(arrays, cfg)[0] if job[0] == "main"]
+    _SHARED.update(arrays=arrays, cfg=cfg, prior_grids=prior_grids)
+    with get_context("fork").Pool(min(int(cfg.train.workers), len(jobs))) as pool:
+        return pd.concat(pool.map(_forked, jobs), ignore_index=True)
+
+
+def comparisons(rows: pd.DataFrame, bootstrap: dict) -> pd.DataFrame:
+    out = []
+    for scoring in SCORINGS:
+        for model in (STRUCTURED, ENSEMBLE):
+            refit, early = rows[rows.arm == "refit"], rows[rows.arm == "early"]
+            pair = paired_runs(refit, early, scoring, model, bootstrap)
+            out.append({"held_out": HELD_OUT, "scored_as": scoring, "model": model, **pair})
+    return pd.DataFrame(out)
+
+
+def main(argv: list[str]) -> int:
+    if len(argv) < 4:
+        raise SystemExit(__doc__)
+    dataset, sim_dir, features_dir, out_dir = (Path(a) for a in argv[:4])
+    overrides = [*argv[4:], "protocol.fits=[main]", "train.refit=true"]
+    cfg = compose_config("structured", overrides)
+    import torch
+
+    torch.set_num_threads(int(cfg.train.threads))
+    data = load_dataset(dataset)
+    cache = dataset.with_name("structured_candidates.npz")
+    arrays = structured_arrays(data, cfg, sim_dir, Path("parts"), features_dir, cache, print)
+    rows = check_rows(arrays, cfg, grids(compose_config("train")["prior"]))
+    out_dir.mkdir(parents=True, exist_ok=True)
+    io.write_csv(out_dir / "structured_refit_rows.csv", rows)
+    table = comparisons(rows, dict(cfg.protocol.bootstrap))
+    io.write_csv(out_dir / "structured_refit.csv", table)
+    print(table.to_string(index=False))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))
