@@ -209,6 +209,33 @@ def test_recommend_shows_how_far_a_structured_answer_may_be_off():
     assert R.structured_note(ranked.iloc[[2]]) == "" and R.structured_note(ranked.drop(columns="answer")) == ""
 
 
+def test_recommend_shows_how_far_a_simulated_label_may_be_off():
+    """The study's own labels carry their audit's upper estimate as a column and a note; a label
+    without an audit says so; a table without such answers says nothing."""
+    sharp = np.zeros(360)
+    sharp[0] = 1.0
+    ids = ["straight30_none", "straight75_none", "straight40_none", "straight50_none"]
+    model = _StudyLike([sharp] * 4, ["simulated", "simulated", "analytic", "simulated"], [np.nan, np.nan, 9.1, np.nan])
+    model.label_error_deg = lambda: np.array([0.8, 2.4, np.nan, np.nan])
+    ranked = R.rank(model, np.zeros(45), None, ids, 0.0, 5.0, 1)
+    by_id = ranked.set_index("config_id").label_w1_deg
+    assert by_id["straight30_none"] == 0.8 and by_id["straight75_none"] == 2.4
+    assert np.isnan(by_id["straight40_none"]) and np.isnan(by_id["straight50_none"])
+    note = R.label_note(ranked)
+    assert note.startswith("note: 3 of these answers are the study's simulated labels (1 not audited)")
+    assert "within circular W1 0.8-2.4 deg" in note
+    first = ranked[ranked.config_id == "straight30_none"]
+    assert R.label_note(first) == (
+        "note: 1 of these answers are the study's simulated labels; their audits put them within circular W1 "
+        "0.8 deg of the simulator's exact label (upper estimates, column label_w1_deg)"
+    )
+    assert R.label_note(ranked[ranked.config_id == "straight50_none"]) == ""  # no audit: nothing to quote
+    assert R.label_note(ranked[ranked.answer == "analytic"]) == ""
+    model = _StudyLike([sharp] * 2, ["analytic", "analytic"], [9.1, 9.1])
+    model.label_error_deg = lambda: np.array([np.nan, np.nan])
+    assert "label_w1_deg" not in R.rank(model, np.zeros(45), None, ids[:2], 0.0, 5.0, 1)  # no label answered
+
+
 def test_tipping_ratio_by_hand():
     from feeder.config import load_study_config, study_root
     from feeder.learn.predict import tipping_ratio

@@ -337,10 +337,18 @@ def test_each_label_carries_its_audit_estimate_into_the_answer(tmp_path, part_st
         "within circular W1 3.0 deg and sup|dCDF| 0.040 of the simulator's exact label (upper estimates, feeder audit)"
     )
     assert model.describe(1) == "the study's simulated label of curved40_none"  # no label, no estimate
+    np.testing.assert_array_equal(model.label_error_deg(), [3.0, np.nan])  # recommend's column
+    model.bind(part_stl, ["straight30_none", "straight45_none"])  # a label, then no label: another answer
+    assert model.sources()[1] != "simulated"
+    np.testing.assert_array_equal(model.label_error_deg(), [2.5, np.nan])
     # an export without the table: the answer says nothing of an estimate
     S.export_study(*args, tmp_path / "neighbour.csv", [0, 20], tmp_path / "plain")
     plain = S.load_library(tmp_path / "plain")
     assert plain.est_circular_w1_deg is None and "label_errors" not in plain.card
+    bare = S.StudyModel(360, 1.0, SCENE, plain)
+    bare.library.part_digests = np.array([S.file_digest(part_stl)])
+    bare.bind(part_stl, ["straight40_none"])
+    assert bare.sources() == ["simulated"] and np.isnan(bare.label_error_deg()).all()
     table.iloc[1:].to_csv(tmp_path / "short.csv", index=False)
     with pytest.raises(FeederError, match="no row for p straight30_none"):
         S.export_study(*args, tmp_path / "neighbour.csv", [0, 20], tmp_path / "x", label_errors=tmp_path / "short.csv")

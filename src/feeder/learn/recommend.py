@@ -132,6 +132,9 @@ def rank(
         # how far the structured predictor lay from the simulator on held-out rows as far from
         # their nearest label as each structured answer is (the card's table)
         frame["structured_w1_deg"] = model.structured_error_deg()
+    if hasattr(model, "label_error_deg") and "simulated" in frame.get("answer", pd.Series(dtype=str)).values:
+        # how far each of the study's own labels may lie from the simulator's exact label (its audit)
+        frame["label_w1_deg"] = model.label_error_deg()
     if hasattr(model, "analytic_error_deg"):
         # how far the analytic PMF lay from the study's labels in each analytic answer's kind of
         # scene; among equal probabilities, the answer of a kind it gets right more often ranks first
@@ -294,10 +297,32 @@ def main(argv: list[str]) -> int:
     )
     table = ranked.head(shown).rename(columns={"probability": "predicted", "simulated_probability": "simulated"})
     print(table.to_string(index=False, float_format=lambda v: f"{v:.3f}", na_rep="-"), file=human)
-    for note in (structured_note(ranked.head(shown)), analytic_note(ranked.head(shown))):
+    for note in (
+        label_note(ranked.head(shown)),
+        structured_note(ranked.head(shown)),
+        analytic_note(ranked.head(shown)),
+    ):
         if note:
             print(note, file=human)
     return 0
+
+
+def label_note(shown: pd.DataFrame) -> str:
+    """A line for the printed table when some of its answers are the study's own simulated labels
+    with an audit: the largest of their audits' upper estimates (column ``label_w1_deg``), ''
+    otherwise."""
+    if "label_w1_deg" not in shown or "answer" not in shown:
+        return ""
+    mine = shown.label_w1_deg[shown.answer == "simulated"]
+    err = mine.dropna()
+    if err.empty:
+        return ""
+    unaudited = f" ({mine.size - err.size} not audited)" if mine.size > err.size else ""
+    spread = f"{err.min():.1f}" if round(err.min(), 1) == round(err.max(), 1) else f"{err.min():.1f}-{err.max():.1f}"
+    return (
+        f"note: {mine.size} of these answers are the study's simulated labels{unaudited}; their audits put them "
+        f"within circular W1 {spread} deg of the simulator's exact label (upper estimates, column label_w1_deg)"
+    )
 
 
 def structured_note(shown: pd.DataFrame) -> str:

@@ -749,6 +749,17 @@ class StudyModel(AnalyticModel):
                 out[row] = float(b["mean_circular_w1_deg"])
         return out
 
+    def label_error_deg(self) -> np.ndarray:
+        """Per bound configuration answered by the study's own simulated label, its audit's upper
+        estimate of that label's circular W1 from the simulator's exact label (degrees, ``feeder
+        audit``); NaN for the other answers and for labels the study did not audit."""
+        w1 = self.library.est_circular_w1_deg
+        out = np.full(len(self._answers()), np.nan)
+        for row, (source, i, _) in enumerate(self._answers()):
+            if source == SIMULATED and w1 is not None and np.isfinite(w1[i]):
+                out[row] = float(w1[i])
+        return out
+
     def _label_error(self, i: int) -> str:
         """``; ...`` with library row ``i``'s audit estimate, or '' without one."""
         w1, sup = self.library.est_circular_w1_deg, self.library.est_sup_cdf
