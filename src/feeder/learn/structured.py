@@ -455,6 +455,14 @@ def _early_stopped(module, loss_fn, val_fn, t: TrainSettings, seed: int):
     return best_step, best
 
 
+def _seeded_nets(arrays: dict, n_diffuse: int, net: NetSettings, seed: int):
+    """The untrained (PMF, ok) networks for ``arrays``' inputs, their weights drawn from ``seed``."""
+    torch = _torch()
+    torch.manual_seed(int(seed))
+    pmf_net, ok_net = make_nets(arrays["x"].shape[1], arrays["cf"].shape[2], n_diffuse, net, arrays["masses"].shape[2])
+    return pmf_net.float(), ok_net.float()
+
+
 def _trained(module, loss_fn, t: TrainSettings, seed: int, steps: int) -> None:
     """Train ``module`` full batch with Adam on ``loss_fn()`` for exactly ``steps`` steps: the
     optimiser of :func:`_early_stopped` without a validation set (a refit for a step count that
@@ -492,11 +500,7 @@ def refit(
     if int(steps) < 0 or int(ok_steps) < 0:
         raise FeederError(f"a structured refit needs step counts >= 0, got {steps} and {ok_steps}")
     df = row_diffuse(arrays, rows, mean_pmf)
-    torch.manual_seed(int(seed))
-    pmf_net, ok_net = make_nets(
-        arrays["x"].shape[1], arrays["cf"].shape[2], df.shape[1], net, arrays["masses"].shape[2]
-    )
-    pmf_net, ok_net = pmf_net.float(), ok_net.float()
+    pmf_net, ok_net = _seeded_nets(arrays, df.shape[1], net, seed)
     b = Batch.of(arrays, rows, df, net.start)
     cdf = torch.as_tensor(arrays["cdf"][rows], dtype=torch.float32)
     _trained(pmf_net, lambda: circular_w1_loss(pmf_net(*b.args()), cdf), t, seed, steps)
@@ -533,11 +537,7 @@ def fit(
         raise FeederError("the structured predictor needs fit and validation rows")
     va = arrays if val_arrays is None else val_arrays
     df = row_diffuse(arrays, fit_rows, mean_pmf)
-    torch.manual_seed(int(seed))
-    pmf_net, ok_net = make_nets(
-        arrays["x"].shape[1], arrays["cf"].shape[2], df.shape[1], net, arrays["masses"].shape[2]
-    )
-    pmf_net, ok_net = pmf_net.float(), ok_net.float()
+    pmf_net, ok_net = _seeded_nets(arrays, df.shape[1], net, seed)
     bf = Batch.of(arrays, fit_rows, df, net.start)
     bv = Batch.of(va, val_rows, row_diffuse(va, val_rows, mean_pmf), net.start)
     cdf_f = torch.as_tensor(arrays["cdf"][fit_rows], dtype=torch.float32)
