@@ -210,30 +210,59 @@ def test_recommend_shows_how_far_a_structured_answer_may_be_off():
 
 
 def test_recommend_shows_how_far_a_simulated_label_may_be_off():
-    """The study's own labels carry their audit's upper estimate as a column and a note; a label
-    without an audit says so; a table without such answers says nothing."""
+    """The study's own labels carry their audit's upper estimate as a column and a note (the
+    largest shown, how many have none, that these are bounds); labels without an audit say that they
+    have none; a table without labels says nothing."""
     sharp = np.zeros(360)
     sharp[0] = 1.0
     ids = ["straight30_none", "straight75_none", "straight40_none", "straight50_none"]
     model = _StudyLike([sharp] * 4, ["simulated", "simulated", "analytic", "simulated"], [np.nan, np.nan, 9.1, np.nan])
     model.label_error_deg = lambda: np.array([0.8, 2.4, np.nan, np.nan])
     ranked = R.rank(model, np.zeros(45), None, ids, 0.0, 5.0, 1)
-    by_id = ranked.set_index("config_id").label_w1_deg
+    by_id = ranked.set_index("config_id").label_w1_upper_deg
     assert by_id["straight30_none"] == 0.8 and by_id["straight75_none"] == 2.4
     assert np.isnan(by_id["straight40_none"]) and np.isnan(by_id["straight50_none"])
     note = R.label_note(ranked)
-    assert note.startswith("note: 3 of these answers are the study's simulated labels (1 not audited)")
-    assert "within circular W1 0.8-2.4 deg" in note
+    assert note.startswith("note: 3 of these answers are the study's simulated labels; their audits bound")
+    assert "at most 2.4 deg here (1 without one) (upper bounds" in note and "not comparable" in note
     first = ranked[ranked.config_id == "straight30_none"]
-    assert R.label_note(first) == (
-        "note: 1 of these answers are the study's simulated labels; their audits put them within circular W1 "
-        "0.8 deg of the simulator's exact label (upper estimates, column label_w1_deg)"
+    assert R.label_note(first).startswith(
+        "note: 1 of these answers is the study's simulated label; their audits bound each one's circular W1 from "
+        "the simulator's exact label, at most 0.8 deg here (upper bounds"
     )
-    assert R.label_note(ranked[ranked.config_id == "straight50_none"]) == ""  # no audit: nothing to quote
+    assert R.label_note(ranked[ranked.config_id == "straight50_none"]) == (
+        "note: 1 of these answers is the study's simulated label, without an audit estimate of their error; "
+        "--verify K simulates the top K"
+    )
     assert R.label_note(ranked[ranked.answer == "analytic"]) == ""
+    assert R.label_note(ranked.drop(columns="label_w1_upper_deg")) == ""
     model = _StudyLike([sharp] * 2, ["analytic", "analytic"], [9.1, 9.1])
     model.label_error_deg = lambda: np.array([np.nan, np.nan])
-    assert "label_w1_deg" not in R.rank(model, np.zeros(45), None, ids[:2], 0.0, 5.0, 1)  # no label answered
+    assert "label_w1_upper_deg" not in R.rank(model, np.zeros(45), None, ids[:2], 0.0, 5.0, 1)  # no label answered
+
+
+def test_recommend_prints_only_the_error_columns_of_the_answers_it_shows(tmp_path, capsys):
+    """The study's predictor for a library part: the CSV keeps every error column; the printed
+    table leaves out those blank in every row it shows, and each note goes with its answers."""
+    part = REPO / "parts" / "lshape-a.stl"
+    configs = "none_curved30,none_curved80"  # a structured answer, and the study's audited label
+    out = tmp_path / "r.csv"
+    base = ["--part", str(part), "--target", "0", "--tolerance", "10", "--configs", configs, "--out", str(out)]
+    assert R.main([*base, "--top", "2"]) == 0
+    ranked = pd.read_csv(out)
+    assert set(ranked.answer) == {"structured", "simulated"}
+    assert {"structured_w1_deg", "label_w1_upper_deg", "analytic_w1_deg"} <= set(ranked.columns)
+    header = capsys.readouterr().out.splitlines()
+    table = next(line for line in header if line.lstrip().startswith("config_id"))
+    assert "structured_w1_deg" in table and "label_w1_upper_deg" in table and "analytic_w1_deg" not in table
+    assert any(line.startswith("note: 1 of these answers is the study's simulated label;") for line in header)
+    assert R.main([*base, "--top", "1"]) == 0
+    said = capsys.readouterr().out.splitlines()
+    table = next(line for line in said if line.lstrip().startswith("config_id"))
+    first = pd.read_csv(out).answer.iloc[0]
+    mine, other = ("structured_w1_deg", "label_w1_upper_deg")[:: 1 if first == "structured" else -1]
+    assert mine in table and other not in table
+    assert any("simulated label" in line for line in said) == (first == "simulated")
 
 
 def test_tipping_ratio_by_hand():

@@ -276,7 +276,7 @@ def test_a_refit_on_the_fit_rows_for_the_kept_steps_is_the_early_stopped_network
     rows, mean = np.arange(40), a["pmf"][:30].mean(axis=0)
     net, t = NetSettings(8, 4.0, 0.5, 1.5, 6.0, kind), TrainSettings(0.03, 0.0, 300, 10, 100)
     early = fit(a, rows[:30], rows[30:], rows[:30], rows[30:], mean, net, t, seed=1)
-    assert early.steps > 0
+    assert early.steps > 0 and early.ok_steps > 0  # else the equality below proves nothing
     again = refit(a, rows[:30], rows[:30], mean, net, t, 1, early.steps, early.ok_steps)
     assert (again.steps, again.ok_steps) == (early.steps, early.ok_steps) and math.isnan(again.val_cw1)
     for mine, theirs in ((again.net, early.net), (again.ok_net, early.ok_net)):
@@ -669,7 +669,7 @@ def test_a_refit_trains_each_seed_on_the_validation_parts_too_and_keeps_the_base
     """train.refit: the choice and each seed's step counts are early stopping's; the networks then
     train on every training row (validation parts included), whose inputs see every training row;
     every baseline stays; a bad value or a refit with cross-only copies is refused."""
-    pytest.importorskip("torch")
+    torch = pytest.importorskip("torch")
     from omegaconf import OmegaConf
 
     from feeder.config import compose_config
@@ -682,7 +682,7 @@ def test_a_refit_trains_each_seed_on_the_validation_parts_too_and_keeps_the_base
     off, on = run_protocol(_toy_library(), off_cfg, prior), run_protocol(_toy_library(), on_cfg, prior)
     a, b = off[1].set_index("fit"), on[1].set_index("fit")
     assert (a.refit_rows == 0).all() and (b.refit_rows == b.fit_rows + b.val_rows).all()
-    for col in ("kind", "hidden", "steps", "ok_steps", "val_cw1"):
+    for col in ("kind", "hidden", "steps", "ok_steps", "val_cw1", "val_ok_mae"):
         assert (a[col] == b[col]).all(), col  # the choice is early stopping's, as without the refit
     baselines = lambda long: long[~long.predictor.str.startswith("structured")].reset_index(drop=True)  # noqa: E731
     pd.testing.assert_frame_equal(baselines(off[0]), baselines(on[0]))
@@ -696,6 +696,14 @@ def test_a_refit_trains_each_seed_on_the_validation_parts_too_and_keeps_the_base
     np.testing.assert_allclose(x.mean(axis=0), 0.0, atol=1e-9)  # scaled on the rows it trains on
     np.testing.assert_allclose(f["mean_pmf"], lib["pmf"][train & lib["kept"]].mean(axis=0))
     assert all(math.isnan(s.val_cw1) for s in f["fits"])
+    # the early-stopped seeds a refit starts from are the fit without it, and each refit trains for its own seed's steps
+    off_fit = fit_protocol(lib, train, off_cfg, key)
+    for mine, theirs in zip(f["early"]["fits"], off_fit["fits"], strict=True):
+        for (name, p), q in zip(mine.net.state_dict().items(), theirs.net.state_dict().values(), strict=True):
+            assert torch.equal(p, q), name
+    for k in ("x_mean", "x_sd", "mean_pmf"):
+        np.testing.assert_array_equal(f["early"][k], off_fit[k])
+    assert [(s.steps, s.ok_steps) for s in f["fits"]] == [(s.steps, s.ok_steps) for s in off_fit["fits"]]
     for bad in ("yes", 1):
         with pytest.raises(FeederError, match="train.refit"):
             refit_on(OmegaConf.create({"train": {"refit": bad}, "model": {}}))

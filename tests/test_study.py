@@ -598,3 +598,11 @@ def test_a_structured_answer_says_how_far_it_may_be_off_at_its_distance(tmp_path
     np.testing.assert_array_equal(model.structured_error_deg(), [12.0, 14.0, 2.5, np.nan])  # recommend's column
     lib.card = {k: v for k, v in lib.card.items() if k != "structured"}  # an older card
     assert "held-out" not in model.describe(0) and np.isnan(model.structured_error_deg()).all()
+
+
+def test_the_card_says_when_the_shipped_seeds_were_trained_again_on_every_row():
+    assert S._refit_words({"val_parts": 24}) == ""  # a file from before train.refit, or with it off
+    assert S._refit_words({"refit_rows": 0}) == ""
+    assert S._refit_words({"refit_rows": 1405}) == (
+        ", then trained again on all 1405 kept rows for the steps early stopping kept"
+    )

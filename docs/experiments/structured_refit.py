@@ -12,8 +12,11 @@ check decides it on the training rows of the protocol's Main fits alone:
 - the held-out parts are scored as the protocol scores a validation row of a known part: each
   row reads its part's other held-out rows (as a Test row reads its part's labels: written
   with ``experiment`` ``test``), and once more with the labels of its own fence-type combination
-  hidden (as a Fences row: ``fences``). No row of the reported Test or Fences sets is read; the
-  rows file's ``held_out`` column says so.
+  hidden (as a Fences row: ``fences``). No Fences row and no locked part is read, and no row is
+  scored by a fit whose Test set holds it; but the three Main repeats draw different Test sets,
+  so a held-out row may be a Test row of another repeat (as every fit of the protocol trains on
+  other repeats' Test rows). The rows file flags those (``in_a_test_set``), and the comparisons
+  are also given without them.
 
 Rule, fixed before the run (2026-11-28): the default becomes ``train.refit: true`` if and only if
 the refit's mean circular W1 (seeds scored one by one, as the protocol) is lower than without it
@@ -27,7 +30,8 @@ search chooses.
 (run it with ``OPENBLAS_CORETYPE=Haswell`` where the processor has AVX-512: it imports numpy
 before feeder, which otherwise sets that; docs/testing.md; ``train.workers`` fits at once) writes
 ``OUT_DIR/structured_refit_rows.csv`` (one row per held-out configuration, arm, scoring and seed)
-and ``structured_refit.csv`` (the paired comparisons), and prints the latter.
+and ``structured_refit.csv`` (the paired comparisons), and prints the latter. With
+``--from-rows ROWS.csv DATASET OUT_DIR`` it writes both again from a run's rows, fitting nothing.
 """
 
 from __future__ import annotations
@@ -43,7 +47,7 @@ from feeder.config import compose_config
 from feeder.labels.dataset import load_dataset
 from feeder.learn.prior import grids
 from feeder.learn.splits import derived_seed, pick_parts
-from feeder.learn.structured_data import structured_arrays
+from feeder.learn.structured_data import split_arrays, structured_arrays
 from feeder.learn.structured_protocol import (
     ENSEMBLE,
     STRUCTURED,
@@ -55,7 +59,6 @@ from feeder.learn.structured_protocol import (
 )
 
 SCORINGS = {"test": False, "fences": True}  # scored as a row of this set: hide its own fence-type combination?
-HELD_OUT = "validation parts of the Main fit"
 
 
 def check_job(job: tuple, arrays: dict, cfg, prior_grids) -> pd.DataFrame:
@@ -80,7 +83,7 @@ def check_job(job: tuple, arrays: dict, cfg, prior_grids) -> pd.DataFrame:
             fake = {"fits": fitted["fits"], "scaled": scaled, "mean_pmf": fitted["mean_pmf"], "train": inner}
             rows = pd.DataFrame(score_rows(arrays, fake, idx, scoring, index, prior_grids))
             rows = rows[rows.predictor.isin([STRUCTURED, ENSEMBLE])]
-            out.append(rows.assign(arm=arm, held_out=HELD_OUT))
+            out.append(rows.assign(arm=arm))
     print(f"{key}: done ({f['choice']['kind']}, hidden {f['choice']['hidden']})", flush=True)
     return pd.concat(out, ignore_index=True)
 
@@ -102,29 +105,49 @@ def check_rows(arrays: dict, cfg, prior_grids) -> pd.DataFrame:
         return pd.concat(pool.map(_forked, jobs), ignore_index=True)
 
 
+def with_test_flag(rows: pd.DataFrame, arrays: dict, cfg) -> pd.DataFrame:
+    """``rows`` with ``in_a_test_set``: whether the configuration is in the Test set of any Main
+    repeat (a held-out row is never in its own repeat's, but may be in another's)."""
+    tests = set()
+    for kind, _, _, _, scored in protocol_jobs(arrays, cfg)[0]:
+        if kind == "main":
+            idx = np.flatnonzero(scored["test"])
+            tests |= set(zip(arrays["part"][idx], arrays["config_id"][idx], strict=True))
+    keys = zip(rows.part.astype(str), rows.config_id.astype(str), strict=True)
+    return rows.drop(columns=["held_out"], errors="ignore").assign(in_a_test_set=[k in tests for k in keys])
+
+
 def comparisons(rows: pd.DataFrame, bootstrap: dict) -> pd.DataFrame:
+    """Refit against early-stopped, paired per configuration: over every held-out row, and over
+    those in no Main repeat's Test set."""
     out = []
-    for scoring in SCORINGS:
-        for model in (STRUCTURED, ENSEMBLE):
-            refit, early = rows[rows.arm == "refit"], rows[rows.arm == "early"]
-            pair = paired_runs(refit, early, scoring, model, bootstrap)
-            out.append({"held_out": HELD_OUT, "scored_as": scoring, "model": model, **pair})
+    for subset, mine in (("every held-out row", rows), ("in no Test set", rows[~rows.in_a_test_set])):
+        for scoring in SCORINGS:
+            for model in (STRUCTURED, ENSEMBLE):
+                refit, early = mine[mine.arm == "refit"], mine[mine.arm == "early"]
+                pair = paired_runs(refit, early, scoring, model, bootstrap)
+                out.append({"rows": subset, "scored_as": scoring, "model": model, **pair})
     return pd.DataFrame(out)
 
 
 def main(argv: list[str]) -> int:
     if len(argv) < 4:
         raise SystemExit(__doc__)
-    dataset, sim_dir, features_dir, out_dir = (Path(a) for a in argv[:4])
-    overrides = [*argv[4:], "protocol.fits=[main]", "train.refit=true"]
-    cfg = compose_config("structured", overrides)
-    import torch
+    if argv[0] == "--from-rows":  # the tables again from a run's rows, fitting nothing
+        rows_path, dataset, out_dir = (Path(a) for a in argv[1:4])
+        cfg = compose_config("structured", [*argv[4:], "protocol.fits=[main]", "train.refit=true"])
+        arrays, rows = split_arrays(load_dataset(dataset)), pd.read_csv(rows_path)
+    else:
+        dataset, sim_dir, features_dir, out_dir = (Path(a) for a in argv[:4])
+        cfg = compose_config("structured", [*argv[4:], "protocol.fits=[main]", "train.refit=true"])
+        import torch
 
-    torch.set_num_threads(int(cfg.train.threads))
-    data = load_dataset(dataset)
-    cache = dataset.with_name("structured_candidates.npz")
-    arrays = structured_arrays(data, cfg, sim_dir, Path("parts"), features_dir, cache, print)
-    rows = check_rows(arrays, cfg, grids(compose_config("train")["prior"]))
+        torch.set_num_threads(int(cfg.train.threads))
+        data = load_dataset(dataset)
+        cache = dataset.with_name("structured_candidates.npz")
+        arrays = structured_arrays(data, cfg, sim_dir, Path("parts"), features_dir, cache, print)
+        rows = check_rows(arrays, cfg, grids(compose_config("train")["prior"]))
+    rows = with_test_flag(rows, arrays, cfg)
     out_dir.mkdir(parents=True, exist_ok=True)
     io.write_csv(out_dir / "structured_refit_rows.csv", rows)
     table = comparisons(rows, dict(cfg.protocol.bootstrap))

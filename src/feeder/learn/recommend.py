@@ -45,6 +45,8 @@ from feeder.learn.simulated import status_counts, verify_part, verify_settings
 
 DEFAULT_TOP = 10  # configurations printed
 # --verify adds these; ``statuses``: the simulated drops by status ("ok 20, jammed 12")
+# how far each kind of answer may be off (rank); the printed table leaves out those blank in every row shown
+ERROR_COLUMNS = ("structured_w1_deg", "label_w1_upper_deg", "analytic_w1_deg")
 VERIFY_COLUMNS = ("simulated_probability", "ok_mass", "statuses", "simulations", "sim_cpu_s")
 
 
@@ -134,7 +136,7 @@ def rank(
         frame["structured_w1_deg"] = model.structured_error_deg()
     if hasattr(model, "label_error_deg") and "simulated" in frame.get("answer", pd.Series(dtype=str)).values:
         # how far each of the study's own labels may lie from the simulator's exact label (its audit)
-        frame["label_w1_deg"] = model.label_error_deg()
+        frame["label_w1_upper_deg"] = model.label_error_deg()
     if hasattr(model, "analytic_error_deg"):
         # how far the analytic PMF lay from the study's labels in each analytic answer's kind of
         # scene; among equal probabilities, the answer of a kind it gets right more often ranks first
@@ -296,6 +298,7 @@ def main(argv: list[str]) -> int:
         file=human,
     )
     table = ranked.head(shown).rename(columns={"probability": "predicted", "simulated_probability": "simulated"})
+    table = table.drop(columns=[c for c in ERROR_COLUMNS if c in table and table[c].isna().all()])  # none shown
     print(table.to_string(index=False, float_format=lambda v: f"{v:.3f}", na_rep="-"), file=human)
     for note in (
         label_note(ranked.head(shown)),
@@ -308,20 +311,24 @@ def main(argv: list[str]) -> int:
 
 
 def label_note(shown: pd.DataFrame) -> str:
-    """A line for the printed table when some of its answers are the study's own simulated labels
-    with an audit: the largest of their audits' upper estimates (column ``label_w1_deg``), ''
-    otherwise."""
-    if "label_w1_deg" not in shown or "answer" not in shown:
+    """A line for the printed table when some of its answers are the study's own simulated labels:
+    the largest of their audits' upper estimates of their error (column ``label_w1_upper_deg``),
+    how many have none, and that these bounds are no means; '' otherwise."""
+    if "label_w1_upper_deg" not in shown or "answer" not in shown:
         return ""
-    mine = shown.label_w1_deg[shown.answer == "simulated"]
+    mine = shown.label_w1_upper_deg[shown.answer == "simulated"]
+    if mine.empty:
+        return ""
     err = mine.dropna()
+    labels = f"{mine.size} of these answers {'is' if mine.size == 1 else 'are'} the study's simulated label"
+    labels += "" if mine.size == 1 else "s"
     if err.empty:
-        return ""
-    unaudited = f" ({mine.size - err.size} not audited)" if mine.size > err.size else ""
-    spread = f"{err.min():.1f}" if round(err.min(), 1) == round(err.max(), 1) else f"{err.min():.1f}-{err.max():.1f}"
+        return f"note: {labels}, without an audit estimate of their error; --verify K simulates the top K"
+    without = f" ({mine.size - err.size} without one)" if mine.size > err.size else ""
     return (
-        f"note: {mine.size} of these answers are the study's simulated labels{unaudited}; their audits put them "
-        f"within circular W1 {spread} deg of the simulator's exact label (upper estimates, column label_w1_deg)"
+        f"note: {labels}; their audits bound each one's circular W1 from the simulator's exact label, at most "
+        f"{err.max():.1f} deg here{without} (upper bounds from a few audit drops, often loose, not comparable with "
+        "the other columns' means; column label_w1_upper_deg); --verify K simulates the top K"
     )
 
 

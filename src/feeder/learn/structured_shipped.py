@@ -348,6 +348,7 @@ def main(argv: list[str]) -> int:
     choice = json.loads(str(out["meta"]))["choice"]
     say(
         f"{choice['kind']} (hidden {choice['hidden']}), validation circular W1 {choice['val_cw1']:.2f} deg "
-        f"({choice['val_parts']} validation part{'' if choice['val_parts'] == 1 else 's'}) -> {args.out}"
+        f"({choice['val_parts']} validation part{'' if choice['val_parts'] == 1 else 's'}"
+        f"{'; refit on ' + str(choice['refit_rows']) + ' rows' if choice.get('refit_rows') else ''}) -> {args.out}"
     )
     return 0

@@ -504,6 +504,12 @@ def _card_analytic_scenes(card: dict) -> list[str]:
     return lines
 
 
+def _refit_words(choice: dict) -> str:
+    """``, then ...`` when the shipped seeds were trained again on every row (``train.refit``)."""
+    n = int(choice.get("refit_rows", 0) or 0)
+    return f", then trained again on all {n} kept rows for the steps early stopping kept" if n else ""
+
+
 def _card_new_angle(card: dict) -> list[str]:
     """The card's lines on a simulated part at a configuration the study did not simulate."""
     gated = (
@@ -520,7 +526,7 @@ def _card_new_angle(card: dict) -> list[str]:
         f"type ({st['neighbours']} + {st['cross_neighbours']} neighbours), else {gated}. It was trained on every "
         f"configuration ({c['kind']}, hidden {c['hidden']}, weight decay {c['weight_decay']:g}, {st['seeds']} seeds, "
         f"PMFs averaged), early-stopped and chosen on {c['val_parts']} validation parts "
-        f"(circular W1 {c['val_cw1']:.2f} deg). Its ok mass is the analytic one.",
+        f"(circular W1 {c['val_cw1']:.2f} deg){_refit_words(c)}. Its ok mass is the analytic one.",
     ]
     if st["evidence"]:
         lines += [
@@ -756,7 +762,7 @@ class StudyModel(AnalyticModel):
         w1 = self.library.est_circular_w1_deg
         out = np.full(len(self._answers()), np.nan)
         for row, (source, i, _) in enumerate(self._answers()):
-            if source == SIMULATED and w1 is not None and np.isfinite(w1[i]):
+            if source == SIMULATED and self._label_error(i):  # the estimate describe() quotes
                 out[row] = float(w1[i])
         return out
 
