@@ -131,8 +131,9 @@ def test_train_vae_is_deterministic_and_table9(dataset):
 
 
 def test_training_reduces_cdf_error(dataset):
-    """A few dozen epochs must clearly beat the untrained network's CDF error on unseen rows."""
-    cfg = tiny_cfg(dataset, "train.epochs=40", "train.batch_size=8")
+    """Eighty epochs must clearly beat the untrained network's CDF error on unseen rows (at 40 the ratio was
+    0.516 on a 2-core Intel Xeon, 2026-11-28: the margin depends on the machine's float kernels)."""
+    cfg = tiny_cfg(dataset, "train.epochs=80", "train.batch_size=8")
     fit, data = vae.train_vae(cfg)
     mask = data["split"] == "fences"
     torch.manual_seed(cfg.seed)
