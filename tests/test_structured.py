@@ -665,6 +665,104 @@ def test_cross_only_copies_train_fit_rows_again_without_their_own_combination():
             cross_only_copies(OmegaConf.create({"model": {"cross_only_copies": bad}}))
 
 
+def test_cross_only_reads_no_label_of_a_rows_own_combination_anywhere():
+    """model.cross_only: in training, validation and scoring every row's same-combination
+    neighbours are missing and its cross neighbour is kept; the baselines stay; a bad value or the
+    combination with cross-only copies is refused."""
+    pytest.importorskip("torch")
+    from omegaconf import OmegaConf
+
+    from feeder.config import compose_config
+    from feeder.learn.prior import grids
+    from feeder.learn.structured_data import NEIGHBOUR_FEATURES
+    from feeder.learn.structured_protocol import cross_only, fit_protocol, pool_inputs, protocol_jobs, run_protocol
+
+    a = _toy_library()
+    a["config_id"] = np.where(a["config_id"] == "curved20_straight30", "straight20_curved30", a["config_id"])
+    base = [*TOY_PROTOCOL, "protocol.fits=[main]"]
+    off_cfg, on_cfg = compose_config("structured", base), compose_config("structured", [*base, "model.cross_only=true"])
+    width = len(NEIGHBOUR_FEATURES)
+
+    def has(x):  # the "has a label" inputs of the 2 same-combination neighbours and the cross one
+        first = x.shape[1] - (width * 3 + 2)
+        return x[:, [first + width * j for j in range(3)]]
+
+    pool = a["kept"].copy()
+    plain, hidden = pool_inputs(a, pool, off_cfg), pool_inputs(a, pool, on_cfg)
+    np.testing.assert_array_equal(pool_inputs(a, pool, off_cfg, hide_same=True)["x"], hidden["x"])
+    assert (has(plain["x"])[:, 0] == 1).any() and (has(hidden["x"])[:, :2] == 0).all()
+    np.testing.assert_array_equal(has(hidden["x"])[:, 2], has(plain["x"])[:, 2])  # the cross neighbour kept
+    assert (has(hidden["x"])[:, 2] == 1).any()
+    _, key, _, train, _ = protocol_jobs(a, on_cfg)[0][0]
+    f = fit_protocol(a, train, on_cfg, key)
+    for inputs in (f["train_inputs"], f["scaled"]):  # what it trains on, and what its scored rows read
+        x = inputs["x"] * f["x_sd"] + f["x_mean"]
+        np.testing.assert_allclose(has(x)[:, :2], 0.0, atol=1e-9)
+    assert f["choice"]["cross_only"] is True and fit_protocol(a, train, off_cfg, key)["choice"]["cross_only"] is False
+    prior = grids(compose_config("train")["prior"])
+    off, on = run_protocol(a, off_cfg, prior), run_protocol(a, on_cfg, prior)
+    baselines = lambda long: long[~long.predictor.str.startswith("structured")].reset_index(drop=True)  # noqa: E731
+    pd.testing.assert_frame_equal(baselines(off[0]), baselines(on[0]))
+    for bad in ("yes", 1):
+        with pytest.raises(FeederError, match="model.cross_only must be"):
+            cross_only(OmegaConf.create({"model": {"cross_only": bad}}))
+    with pytest.raises(FeederError, match="cannot be combined"):
+        fit_protocol(
+            a,
+            train,
+            compose_config("structured", [*base, "model.cross_only=true", "model.cross_only_copies=true"]),
+            key,
+        )
+    assert cross_only(OmegaConf.create({"model": {}})) is False
+
+
+def test_a_held_out_check_holds_out_the_fits_own_validation_parts_and_scores_them_both_ways():
+    """feeder.learn.structured_heldout: the held-out parts are those the Main fit validates on; the
+    fit on the rest never reads them; the held rows are scored as Test and as Fences rows (the
+    latter without their own combination's labels); the Test-set flag and the paired table."""
+    pytest.importorskip("torch")
+    from feeder.config import compose_config
+    from feeder.learn import structured_heldout as H
+    from feeder.learn.prior import grids
+    from feeder.learn.splits import derived_seed, pick_parts
+    from feeder.learn.structured_protocol import fit_protocol, protocol_jobs
+
+    a = _toy_library(n_parts=12)
+    a["config_id"] = np.where(a["config_id"] == "curved20_straight30", "straight20_curved30", a["config_id"])
+    cfg = compose_config("structured", [*TOY_PROTOCOL, "protocol.fits=[main]"])
+    prior = grids(compose_config("train")["prior"])
+    jobs = [j for j in protocol_jobs(a, cfg)[0] if j[0] == "main"]
+    _, key, index, train, scored = jobs[1]
+    held, inner, parts = H.held_out(a, train, cfg, key)
+    assert parts == set(pick_parts(a["part"][train], 0.2, derived_seed(39, key), "val")) and parts
+    assert not (held & inner).any() and ((held | inner) == train).all() and not (held & scored["test"]).any()
+    assert fit_protocol(a, train, cfg, key)["choice"]["val_parts"] == len(parts)
+    f = fit_protocol(a, inner, cfg, f"{key}:check")
+    as_test = H.score_held(a, cfg, f, held, inner, "test", index, prior)
+    as_fences = H.score_held(a, cfg, f, held, inner, "fences", index, prior)
+    idx = set(zip(a["part"][held], a["config_id"][held], strict=True))
+    for rows, name in ((as_test, "test"), (as_fences, "fences")):
+        assert set(zip(rows.part, rows.config_id, strict=True)) <= idx and (rows.experiment == name).all()
+        assert set(rows.predictor) == {H.STRUCTURED, H.ENSEMBLE}
+    assert not np.allclose(as_test.cw1.to_numpy(), as_fences.cw1.to_numpy())  # the hidden labels count
+    rows = pd.concat(
+        [
+            as_test.assign(arm="a"),
+            as_fences.assign(arm="a"),
+            as_test.assign(arm="b"),
+            as_fences.assign(arm="b", cw1=as_fences.cw1 + 1.0),
+        ]
+    )
+    rows = H.with_test_flag(rows, a, cfg)
+    other_tests = {
+        (p, c) for j in jobs for p, c in zip(a["part"][j[4]["test"]], a["config_id"][j[4]["test"]], strict=True)
+    }
+    assert list(rows.in_a_test_set) == [(p, c) in other_tests for p, c in zip(rows.part, rows.config_id, strict=True)]
+    table = H.arm_comparisons(rows, dict(cfg.protocol.bootstrap), "b", "a").set_index(["rows", "scored_as", "model"])
+    whole = table.loc[("every held-out row", "fences", H.STRUCTURED)]
+    assert whole["diff"] == pytest.approx(1.0) and table.loc[("every held-out row", "test", H.STRUCTURED)]["diff"] == 0
+
+
 def test_a_refit_trains_each_seed_on_the_validation_parts_too_and_keeps_the_baselines():
     """train.refit: the choice and each seed's step counts are early stopping's; the networks then
     train on every training row (validation parts included), whose inputs see every training row;

@@ -212,6 +212,8 @@ def test_fit_structured_ships_whole_label_neighbours_only():
         cfg = compose_config("structured", [f"model.{option}=3"])
         with pytest.raises(FeederError, match="neighbour_basins and neighbour_candidates: 0"):
             fit_shipped({"part": np.array(["a"])}, cfg, {})
+    with pytest.raises(FeederError, match="model.cross_only: false"):
+        fit_shipped({"part": np.array(["a"])}, compose_config("structured", ["model.cross_only=true"]), {})
 
 
 def test_the_candidates_key_names_a_missing_part_file(tmp_path):

@@ -39,26 +39,22 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-import numpy as np
 import pandas as pd
 
 from feeder import io
 from feeder.config import compose_config
 from feeder.labels.dataset import load_dataset
 from feeder.learn.prior import grids
-from feeder.learn.splits import derived_seed, pick_parts
 from feeder.learn.structured_data import split_arrays, structured_arrays
-from feeder.learn.structured_protocol import (
-    ENSEMBLE,
-    STRUCTURED,
-    fit_protocol,
-    paired_runs,
-    pool_inputs,
-    protocol_jobs,
-    score_rows,
+from feeder.learn.structured_heldout import (
+    SCORINGS,
+    arm_comparisons,
+    held_out,
+    run_main_checks,
+    score_held,
+    with_test_flag,
 )
-
-SCORINGS = {"test": False, "fences": True}  # scored as a row of this set: hide its own fence-type combination?
+from feeder.learn.structured_protocol import fit_protocol
 
 
 def check_job(job: tuple, arrays: dict, cfg, prior_grids) -> pd.DataFrame:
@@ -68,66 +64,15 @@ def check_job(job: tuple, arrays: dict, cfg, prior_grids) -> pd.DataFrame:
 
     torch.set_num_threads(int(cfg.train.threads))
     _, key, index, train, _ = job
-    held_parts = pick_parts(
-        arrays["part"][train], float(cfg.protocol.val_part_fraction), derived_seed(int(cfg.seed), key), "val"
-    )
-    held = train & np.isin(arrays["part"], list(held_parts))
-    inner = train & ~held
+    held, inner, held_parts = held_out(arrays, train, cfg, key)
     print(f"{key}: {len(held_parts)} parts held out ({int((held & arrays['kept']).sum())} kept rows)", flush=True)
     f = fit_protocol(arrays, inner, cfg, f"{key}:refit-check", known=True)
-    idx, out = np.flatnonzero(held), []
-    for scoring, hide in SCORINGS.items():
-        a = pool_inputs(arrays, held, cfg, hide_same=hide)
+    out = []
+    for scoring in SCORINGS:
         for arm, fitted in (("early", f["early"]), ("refit", f)):
-            scaled = dict(a, x=(a["x"] - fitted["x_mean"]) / fitted["x_sd"])
-            fake = {"fits": fitted["fits"], "scaled": scaled, "mean_pmf": fitted["mean_pmf"], "train": inner}
-            rows = pd.DataFrame(score_rows(arrays, fake, idx, scoring, index, prior_grids))
-            rows = rows[rows.predictor.isin([STRUCTURED, ENSEMBLE])]
-            out.append(rows.assign(arm=arm))
+            out.append(score_held(arrays, cfg, fitted, held, inner, scoring, index, prior_grids).assign(arm=arm))
     print(f"{key}: done ({f['choice']['kind']}, hidden {f['choice']['hidden']})", flush=True)
     return pd.concat(out, ignore_index=True)
-
-
-_SHARED: dict = {}
-
-
-def _forked(job: tuple) -> pd.DataFrame:
-    return check_job(job, **_SHARED)
-
-
-def check_rows(arrays: dict, cfg, prior_grids) -> pd.DataFrame:
-    """Every Main fit's check (``train.workers`` at once, in forked processes)."""
-    from multiprocessing import get_context
-
-    jobs = [job for job in protocol_jobs(arrays, cfg)[0] if job[0] == "main"]
-    _SHARED.update(arrays=arrays, cfg=cfg, prior_grids=prior_grids)
-    with get_context("fork").Pool(min(int(cfg.train.workers), len(jobs))) as pool:
-        return pd.concat(pool.map(_forked, jobs), ignore_index=True)
-
-
-def with_test_flag(rows: pd.DataFrame, arrays: dict, cfg) -> pd.DataFrame:
-    """``rows`` with ``in_a_test_set``: whether the configuration is in the Test set of any Main
-    repeat (a held-out row is never in its own repeat's, but may be in another's)."""
-    tests = set()
-    for kind, _, _, _, scored in protocol_jobs(arrays, cfg)[0]:
-        if kind == "main":
-            idx = np.flatnonzero(scored["test"])
-            tests |= set(zip(arrays["part"][idx], arrays["config_id"][idx], strict=True))
-    keys = zip(rows.part.astype(str), rows.config_id.astype(str), strict=True)
-    return rows.drop(columns=["held_out"], errors="ignore").assign(in_a_test_set=[k in tests for k in keys])
-
-
-def comparisons(rows: pd.DataFrame, bootstrap: dict) -> pd.DataFrame:
-    """Refit against early-stopped, paired per configuration: over every held-out row, and over
-    those in no Main repeat's Test set."""
-    out = []
-    for subset, mine in (("every held-out row", rows), ("in no Test set", rows[~rows.in_a_test_set])):
-        for scoring in SCORINGS:
-            for model in (STRUCTURED, ENSEMBLE):
-                refit, early = mine[mine.arm == "refit"], mine[mine.arm == "early"]
-                pair = paired_runs(refit, early, scoring, model, bootstrap)
-                out.append({"rows": subset, "scored_as": scoring, "model": model, **pair})
-    return pd.DataFrame(out)
 
 
 def main(argv: list[str]) -> int:
@@ -146,11 +91,11 @@ def main(argv: list[str]) -> int:
         data = load_dataset(dataset)
         cache = dataset.with_name("structured_candidates.npz")
         arrays = structured_arrays(data, cfg, sim_dir, Path("parts"), features_dir, cache, print)
-        rows = check_rows(arrays, cfg, grids(compose_config("train")["prior"]))
+        rows = run_main_checks(arrays, cfg, grids(compose_config("train")["prior"]), check_job)
     rows = with_test_flag(rows, arrays, cfg)
     out_dir.mkdir(parents=True, exist_ok=True)
     io.write_csv(out_dir / "structured_refit_rows.csv", rows)
-    table = comparisons(rows, dict(cfg.protocol.bootstrap))
+    table = arm_comparisons(rows, dict(cfg.protocol.bootstrap), "refit", "early")
     io.write_csv(out_dir / "structured_refit.csv", table)
     print(table.to_string(index=False))
     return 0

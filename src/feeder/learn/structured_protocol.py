@@ -95,6 +95,7 @@ def fit_protocol(arrays: dict, train: np.ndarray, cfg, key: str, known: bool = T
     from feeder.learn.structured_data import neighbour_rows, stack_rows
 
     refit_on(cfg)  # bad settings: an error before any training
+    cross_only(cfg)
     base = int(cfg.seed)
     val_parts = pick_parts(arrays["part"][train], float(cfg.protocol.val_part_fraction), derived_seed(base, key), "val")
     is_val = np.isin(arrays["part"], list(val_parts))
@@ -191,6 +192,7 @@ def fit_protocol(arrays: dict, train: np.ndarray, cfg, key: str, known: bool = T
         "fit_rows": int(fit_rows.size),
         "val_rows": int(val_rows.size),
         "cross_only_copies": int(copies.size),
+        "cross_only": cross_only(cfg),
         "refit_rows": n_refit,
         **{f"search{i}_val_cw1": float(t[0]) for i, t in enumerate(sorted(tried, key=lambda t: t[1]))},
         "val_cw1": float(np.mean([f.val_cw1 for f in early["fits"]])),
@@ -222,13 +224,14 @@ def fit_protocol(arrays: dict, train: np.ndarray, cfg, key: str, known: bool = T
 
 def pool_inputs(arrays: dict, pool, cfg, hide_same: bool = False) -> dict:
     """``arrays`` with every row's inputs from the labels of the rows ``pool`` (a boolean mask):
-    the part's neighbours there (``hide_same``: none of its own fence-type combination, as a
-    Fences row), their composition (``model.composed``) and the row's own drops (when ``arrays``
-    holds them)."""
+    the part's neighbours there (``hide_same``, and always with ``model.cross_only``: none of its
+    own fence-type combination, as a Fences row), their composition (``model.composed``) and the
+    row's own drops (when ``arrays`` holds them)."""
     from feeder.learn.structured_data import with_composed, with_drops, with_neighbours
 
     k, cross = neighbour_count(cfg), neighbour_count(cfg, "cross_neighbours")
     near, nb_opts = float(cfg.model.neighbour_near_deg), neighbour_options(cfg)
+    hide_same = bool(hide_same) or cross_only(cfg)
     a = with_neighbours(arrays, pool, k, near, cross, **nb_opts, hide_same=hide_same)
     if composed_on(cfg):
         a = with_composed(a, pool, near, float(cfg.model.get("composed_start_logit", 0.0)))
@@ -278,6 +281,19 @@ def cross_only_copies(cfg) -> bool:
     value = cfg.model.get("cross_only_copies", False)
     if not isinstance(value, bool):
         raise FeederError(f"model.cross_only_copies must be true or false, got {value!r}")
+    return value
+
+
+def cross_only(cfg) -> bool:
+    """``model.cross_only`` (default false) as a bool: every row reads only its part's labels of other
+    fence-type combinations (the cross neighbours), as a Fences row must, in training, validation
+    and scoring. A one-line FeederError if it is no bool or is combined with
+    ``model.cross_only_copies`` (whose copies would then be their rows)."""
+    value = cfg.model.get("cross_only", False)
+    if not isinstance(value, bool):
+        raise FeederError(f"model.cross_only must be true or false, got {value!r}")
+    if value and cross_only_copies(cfg):
+        raise FeederError("model.cross_only and model.cross_only_copies cannot be combined")
     return value
 
 
