@@ -763,6 +763,71 @@ def test_a_held_out_check_holds_out_the_fits_own_validation_parts_and_scores_the
     assert whole["diff"] == pytest.approx(1.0) and table.loc[("every held-out row", "test", H.STRUCTURED)]["diff"] == 0
 
 
+def test_held_out_combinations_takes_one_two_fence_combination_of_each_drawn_training_part():
+    """feeder.learn.structured_heldout.held_out_combinations, by hand: every training row of one
+    two-fence combination per drawn part, none of another part, combination or split; parts with
+    no two-fence row are never drawn; the draw is the key's; a fraction outside (0, 1] is refused."""
+    from omegaconf import OmegaConf
+
+    from feeder.learn import structured_heldout as H
+
+    cfg = OmegaConf.create({"seed": 39})
+    ids = ["straight30_none", "straight20_curved30", "straight25_curved30", "curved20_straight30", "curved20_curved40"]
+    part = np.repeat([f"p{i}" for i in range(6)], len(ids))
+    a = {"part": part, "config_id": np.tile(ids, 6)}
+    a["config_id"][part == "p5"] = "straight30_none"  # no two-fence row: never drawn
+    train = part != "p4"  # p4 is no training part
+    train[2] = False  # p0's straight25_curved30 is not a training row: never held
+    held, inner, chosen = H.held_out_combinations(a, train, cfg, "main:0")
+    assert set(chosen) == {"p0", "p1", "p2", "p3"}
+    assert not (held & inner).any() and ((held | inner) == train).all()
+    combo = np.array(["_".join(H.fence_key(c)[0]) for c in a["config_id"]])
+    for p, c in chosen.items():
+        assert c in {"straight_curved", "curved_straight", "curved_curved"}
+        np.testing.assert_array_equal(held[part == p], train[part == p] & (combo[part == p] == c))
+    assert not held[part == "p5"].any() and not held[part == "p4"].any() and not held[2]
+    assert H.held_out_combinations(a, train, cfg, "main:0")[2] == chosen  # the key's draw
+    draws = {tuple(sorted(H.held_out_combinations(a, train, cfg, f"main:{k}")[2].items())) for k in range(8)}
+    assert len(draws) > 1  # other keys draw other combinations
+    half = H.held_out_combinations(a, train, cfg, "main:0", fraction=0.5)[2]
+    assert len(half) == 2 and set(half) <= set(chosen)
+    for bad in (0.0, 1.5):
+        with pytest.raises(FeederError, match="fraction of parts"):
+            H.held_out_combinations(a, train, cfg, "main:0", fraction=bad)
+
+
+def test_held_out_combinations_scored_as_fences_rows_read_their_parts_other_combinations():
+    """A fit without the held combinations; its held rows, scored as Fences rows from the whole
+    training pool, read their part's labels of other combinations (the cross neighbour), never
+    their own combination's, unlike the held rows alone."""
+    pytest.importorskip("torch")
+    from feeder.config import compose_config
+    from feeder.learn import structured_heldout as H
+    from feeder.learn.prior import grids
+    from feeder.learn.structured_data import NEIGHBOUR_FEATURES
+    from feeder.learn.structured_protocol import fit_protocol, protocol_jobs
+
+    a = _toy_library(n_parts=12)
+    a["config_id"] = np.where(a["config_id"] == "curved20_straight30", "straight20_curved30", a["config_id"])
+    cfg = compose_config("structured", [*TOY_PROTOCOL, "protocol.fits=[main]"])
+    _, key, index, train, _ = [j for j in protocol_jobs(a, cfg)[0] if j[0] == "main"][0]
+    held, inner, chosen = H.held_out_combinations(a, train, cfg, key)
+    assert held.any() and set(chosen.values()) == {"straight_curved"}
+    f = fit_protocol(a, inner, cfg, f"{key}:check")
+    assert not np.isin(f["train_rows"], np.flatnonzero(held)).any()
+    width = len(NEIGHBOUR_FEATURES)
+    first = f["scaled"]["x"].shape[1] - (width * 3 + 2)
+    read = H.pool_inputs(a, train, cfg, hide_same=True)["x"][held]
+    assert (read[:, [first, first + width]] == 0).all() and (read[:, first + 2 * width] == 1).all()
+    prior = grids(compose_config("train")["prior"])
+    as_fences = H.score_held(a, cfg, f, held, inner, "fences", index, prior, pool=train)
+    alone = H.score_held(a, cfg, f, held, inner, "fences", index, prior)
+    assert set(zip(as_fences.part, as_fences.config_id, strict=True)) == set(
+        zip(a["part"][held & a["kept"]], a["config_id"][held & a["kept"]], strict=True)
+    )
+    assert not np.allclose(as_fences.cw1.to_numpy(), alone.cw1.to_numpy())  # the part's other labels count
+
+
 def test_a_refit_trains_each_seed_on_the_validation_parts_too_and_keeps_the_baselines():
     """train.refit: the choice and each seed's step counts are early stopping's; the networks then
     train on every training row (validation parts included), whose inputs see every training row;

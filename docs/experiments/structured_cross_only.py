@@ -21,14 +21,26 @@ Fences rows, its mean circular W1 (seeds one by one, as the protocol) is lower t
 network's and the 95 % paired bootstrap interval over configurations excludes 0. A second network
 in the shipped answer is a cost, so a point estimate alone does not pay for it.
 
-    python docs/experiments/structured_cross_only.py results/datasets/dataset.npz results/sim \\
-        results/features OUT_DIR [overrides]
+    python docs/experiments/structured_cross_only.py [--combinations] results/datasets/dataset.npz \\
+        results/sim results/features OUT_DIR [overrides]
 
 (with ``OPENBLAS_CORETYPE=Haswell`` where the processor has AVX-512, as docs/testing.md says;
 ``train.workers`` fits at once) writes ``OUT_DIR/structured_cross_only_rows.csv`` (one row per
 held-out configuration, arm, scoring and seed) and ``structured_cross_only.csv`` (the paired
 comparisons), and prints the latter. With ``--from-rows ROWS.csv DATASET OUT_DIR`` it writes both
 again from a run's rows, fitting nothing.
+
+``--combinations`` (stop 59, after the Fences set disagreed with the check above): the held-out
+rows are built as the Fences set is, not as unseen parts. In each Main fit, every training part
+with two-fence rows loses one of its two-fence type combinations
+(:func:`feeder.learn.structured_heldout.held_out_combinations`); the fit trains on the part's
+other rows, and the held rows read them (never their own combination), as a Fences row reads
+its part's Main rows. Scored as Fences rows only; tables ``structured_cross_only_combinations``
+``{,_rows}.csv``. Its question, fixed before the run: does the specialist still win when the
+held-out rows' parts are in the fit, as the Fences set's are? If its interval excludes 0 in the
+specialist's favour again, the proxy's unseen parts do not explain the disagreement; if not,
+they may, and this design replaces the parts design for Fences decisions. Either way the
+specialist is not wired in by this run (it lost on the Fences set).
 """
 
 from __future__ import annotations
@@ -44,13 +56,22 @@ from feeder.config import compose_config
 from feeder.labels.dataset import load_dataset
 from feeder.learn.prior import grids
 from feeder.learn.structured_data import split_arrays, structured_arrays
-from feeder.learn.structured_heldout import arm_comparisons, held_out, run_main_checks, score_held, with_test_flag
+from feeder.learn.structured_heldout import (
+    arm_comparisons,
+    held_out,
+    held_out_combinations,
+    run_main_checks,
+    score_held,
+    with_test_flag,
+)
 from feeder.learn.structured_protocol import fit_protocol
 
 ARMS = {"default": False, "cross_only": True}  # arm: model.cross_only
 # the inner fit's key (its validation parts and seeds): the stop-57 refit check's, so the default
 # arm is that check's early-stopped fit and its rows can be compared with structured_refit_rows.csv
 INNER_KEY = "{key}:refit-check"
+COMBINATIONS = "--combinations"  # the held-out design of the Fences set (module doc)
+COMBINATIONS_KEY = "{key}:combination-check"
 
 
 def arm_cfg(cfg, on: bool):
@@ -67,19 +88,31 @@ def check_job(job: tuple, arrays: dict, cfg, prior_grids) -> pd.DataFrame:
 
     torch.set_num_threads(int(cfg.train.threads))
     _, key, index, train, _ = job
-    held, inner, held_parts = held_out(arrays, train, cfg, key)
+    if _DESIGN["combinations"]:
+        held, inner, held_parts = held_out_combinations(arrays, train, cfg, key)
+        inner_key, pool, scorings = COMBINATIONS_KEY, train, {False: ("fences",), True: ("fences",)}
+    else:
+        held, inner, held_parts = held_out(arrays, train, cfg, key)
+        inner_key, pool, scorings = INNER_KEY, None, {False: ("fences", "test"), True: ("fences",)}
     print(f"{key}: {len(held_parts)} parts held out ({int((held & arrays['kept']).sum())} kept rows)", flush=True)
     out = []
     for arm, on in ARMS.items():
         c = arm_cfg(cfg, on)
-        f = fit_protocol(arrays, inner, c, INNER_KEY.format(key=key), known=True)
-        for scoring in ("fences", "test") if not on else ("fences",):
-            out.append(score_held(arrays, c, f, held, inner, scoring, index, prior_grids).assign(arm=arm))
+        f = fit_protocol(arrays, inner, c, inner_key.format(key=key), known=True)
+        for scoring in scorings[on]:
+            rows = score_held(arrays, c, f, held, inner, scoring, index, prior_grids, pool=pool)
+            out.append(rows.assign(arm=arm))
         print(f"{key}: {arm} done ({f['choice']['kind']}, hidden {f['choice']['hidden']})", flush=True)
     return pd.concat(out, ignore_index=True)
 
 
+_DESIGN = {"combinations": False}  # set by main before the forked checks
+
+
 def main(argv: list[str]) -> int:
+    _DESIGN["combinations"] = COMBINATIONS in argv
+    argv = [a for a in argv if a != COMBINATIONS]
+    name = "structured_cross_only_combinations" if _DESIGN["combinations"] else "structured_cross_only"
     if len(argv) < 4:
         raise SystemExit(__doc__)
     cfg_args = [*argv[4:], "protocol.fits=[main]"]
@@ -99,9 +132,9 @@ def main(argv: list[str]) -> int:
         rows = run_main_checks(arrays, cfg, grids(compose_config("train")["prior"]), check_job)
     rows = with_test_flag(rows, arrays, cfg)
     out_dir.mkdir(parents=True, exist_ok=True)
-    io.write_csv(out_dir / "structured_cross_only_rows.csv", rows)
+    io.write_csv(out_dir / f"{name}_rows.csv", rows)
     table = arm_comparisons(rows, dict(cfg.protocol.bootstrap), "cross_only", "default", scorings=("fences",))
-    io.write_csv(out_dir / "structured_cross_only.csv", table)
+    io.write_csv(out_dir / f"{name}.csv", table)
     print(table.to_string(index=False))
     return 0
 

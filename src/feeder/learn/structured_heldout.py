@@ -5,7 +5,8 @@ the protocol's validation parts when it changes how they are used, and never on 
 which are reported. These checks decide it on the training rows of the protocol's Main fits:
 
 * in each Main fit, its own validation parts (those the real fit validates on) are held out
-  (:func:`held_out`);
+  (:func:`held_out`), or, as the Fences set is built, one two-fence type combination of each of
+  its training parts (:func:`held_out_combinations`: the part's other rows stay in the fit);
 * on the rest, the protocol's fit runs as usual once per arm (its own validation parts inside,
   the search, the seeds);
 * the held-out parts are scored as known parts (:func:`score_held`): as Test rows (each reads its
@@ -25,7 +26,9 @@ from collections.abc import Callable
 import numpy as np
 import pandas as pd
 
-from feeder.learn.splits import derived_seed, pick_parts
+from feeder.errors import FeederError
+from feeder.learn.splits import derived_seed, pick_parts, ranked_parts
+from feeder.learn.structured_data import fence_key
 from feeder.learn.structured_protocol import ENSEMBLE, STRUCTURED, paired_runs, pool_inputs, protocol_jobs, score_rows
 
 SCORINGS = {"test": False, "fences": True}  # scored as a row of this set: hide its own fence-type combination?
@@ -42,12 +45,37 @@ def held_out(arrays: dict, train: np.ndarray, cfg, key: str) -> tuple[np.ndarray
     return held, train & ~held, parts
 
 
-def score_held(arrays: dict, cfg, fitted: dict, held, inner, scoring: str, index: int, prior_grids) -> pd.DataFrame:
+def held_out_combinations(arrays: dict, train: np.ndarray, cfg, key: str, fraction: float = 1.0):
+    """(held-out mask, the rest of ``train``, {part: held combination}): for ``round(fraction ·
+    n)`` of the ``n`` parts of ``train`` that have rows of a two-fence type combination there
+    (ranked by sha256 of the seed derived from ``key``), every ``train`` row of one of those
+    combinations, drawn per part from that seed. So a held row's part keeps its other combinations
+    in the fit, as a Fences row's does (its reserved combination never in Main, the rest there)."""
+    if not 0.0 < float(fraction) <= 1.0:
+        raise FeederError(f"the held-out combinations' fraction of parts {fraction} must lie in (0, 1]")
+    parts = np.asarray(arrays["part"]).astype(str)
+    combos = np.array(["_".join(fence_key(c)[0]) for c in arrays["config_id"]])
+    two = np.array(["none" not in fence_key(c)[0] for c in arrays["config_id"]])
+    train = np.asarray(train, dtype=bool)
+    seed = derived_seed(int(cfg.seed), key, "combinations")
+    candidates = ranked_parts(parts[train & two], seed, "combinations")
+    chosen: dict[str, str] = {}
+    for p in candidates[: max(1, round(float(fraction) * len(candidates)))] if candidates else []:
+        mine = sorted(set(combos[train & two & (parts == p)]))
+        chosen[p] = mine[np.random.default_rng(derived_seed(seed, p)).integers(len(mine))]
+    held = train & np.array([chosen.get(p) == c for p, c in zip(parts, combos, strict=True)])
+    return held, train & ~held, chosen
+
+
+def score_held(
+    arrays: dict, cfg, fitted: dict, held, inner, scoring: str, index: int, prior_grids, pool=None
+) -> pd.DataFrame:
     """The structured predictor's rows (seeds one by one and averaged) on the ``held`` rows, read as
-    ``scoring`` (a key of :data:`SCORINGS`) from the labels of the other held rows, with the
-    inputs of ``cfg``; ``fitted`` has the protocol fit's ``fits``, ``x_mean``, ``x_sd`` and
-    ``mean_pmf`` (a fit on ``inner``)."""
-    a = pool_inputs(arrays, held, cfg, hide_same=SCORINGS[scoring])
+    ``scoring`` (a key of :data:`SCORINGS`) from the labels of the rows ``pool`` (default: the held
+    rows; as Fences rows never those of their own combination), with the inputs of ``cfg``;
+    ``fitted`` has the protocol fit's ``fits``, ``x_mean``, ``x_sd`` and ``mean_pmf`` (a fit on
+    ``inner``)."""
+    a = pool_inputs(arrays, held if pool is None else pool, cfg, hide_same=SCORINGS[scoring])
     scaled = dict(a, x=(a["x"] - fitted["x_mean"]) / fitted["x_sd"])
     fake = {"fits": fitted["fits"], "scaled": scaled, "mean_pmf": fitted["mean_pmf"], "train": inner}
     rows = pd.DataFrame(score_rows(arrays, fake, np.flatnonzero(held), scoring, index, prior_grids))
