@@ -268,20 +268,23 @@ def _refitted(arrays: dict, train, fits, inputs, net, t, ok_train, base: int, ke
 def refit_on(cfg) -> bool:
     """``train.refit`` (default false) as a bool; a one-line FeederError if it is no bool or is
     combined with ``model.cross_only_copies`` (a refit trains no copies)."""
-    value = cfg.train.get("refit", False)
-    if not isinstance(value, bool):
-        raise FeederError(f"train.refit must be true or false, got {value!r}")
+    value = config_flag(cfg, "train", "refit")
     if value and cross_only_copies(cfg):
         raise FeederError("train.refit and model.cross_only_copies cannot be combined")
     return value
 
 
+def config_flag(cfg, group: str, key: str) -> bool:
+    """``cfg.<group>.<key>`` (false when absent) as a bool; a one-line FeederError unless it is one."""
+    value = cfg[group].get(key, False)
+    if not isinstance(value, bool):
+        raise FeederError(f"{group}.{key} must be true or false, got {value!r}")
+    return value
+
+
 def cross_only_copies(cfg) -> bool:
     """``model.cross_only_copies`` (default false) as a bool; a one-line FeederError otherwise."""
-    value = cfg.model.get("cross_only_copies", False)
-    if not isinstance(value, bool):
-        raise FeederError(f"model.cross_only_copies must be true or false, got {value!r}")
-    return value
+    return config_flag(cfg, "model", "cross_only_copies")
 
 
 def cross_only(cfg) -> bool:
@@ -289,9 +292,7 @@ def cross_only(cfg) -> bool:
     fence-type combinations (the cross neighbours), as a Fences row must, in training, validation
     and scoring. A one-line FeederError if it is no bool or is combined with
     ``model.cross_only_copies`` (whose copies would then be their rows)."""
-    value = cfg.model.get("cross_only", False)
-    if not isinstance(value, bool):
-        raise FeederError(f"model.cross_only must be true or false, got {value!r}")
+    value = config_flag(cfg, "model", "cross_only")
     if value and cross_only_copies(cfg):
         raise FeederError("model.cross_only and model.cross_only_copies cannot be combined")
     return value
@@ -342,10 +343,7 @@ def composed_on(cfg) -> bool:
     """``model.composed`` (false when absent): two-fence rows read the composition of their part's
     one-fence maps (:func:`feeder.learn.structured_data.with_composed`). A one-line FeederError
     unless it is a boolean."""
-    value = cfg.model.get("composed", False)
-    if not isinstance(value, bool):
-        raise FeederError(f"model.composed must be true or false, got {value!r}")
-    return value
+    return config_flag(cfg, "model", "composed")
 
 
 def neighbour_options(cfg) -> dict:
