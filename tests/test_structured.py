@@ -521,6 +521,12 @@ def test_two_runs_are_paired_on_the_units_both_scored():
     assert pair["n"] == 2 and pair["run"] == 4.0 and pair["base"] == 2.5  # d/c9 is not in base: left out
     assert pair["diff"] == pytest.approx(1.5) and pair["diff_low"] == 0.0 and pair["diff_high"] == 3.0
     assert paired_runs(run, base, "fences", "structured", {"resamples": 10, "level": 0.95, "seed": 0}) is None
+    # by part: configurations paired first (d/c9 still out), then each part's mean; a's two configurations count once
+    run = rows({("a", "c1", 0): 4.0, ("a", "c3", 0): 8.0, ("b", "c2", 0): 3.0, ("d", "c9", 0): 99.0})
+    base = rows({("a", "c1", 0): 2.0, ("a", "c3", 0): 2.0, ("b", "c2", 0): 2.0})
+    pair = paired_runs(run, base, "test", "structured", {"resamples": 200, "level": 0.95, "seed": 0}, by_part=True)
+    assert pair["n"] == 2 and pair["run"] == 4.5 and pair["base"] == 2.0
+    assert pair["diff"] == pytest.approx(2.5) and pair["diff_low"] == 1.0 and pair["diff_high"] == 4.0
 
 
 def test_neighbour_distances_follow_the_main_fits_training_rows():
@@ -759,8 +765,12 @@ def test_a_held_out_check_holds_out_the_fits_own_validation_parts_and_scores_the
     }
     assert list(rows.in_a_test_set) == [(p, c) in other_tests for p, c in zip(rows.part, rows.config_id, strict=True)]
     table = H.arm_comparisons(rows, dict(cfg.protocol.bootstrap), "b", "a").set_index(["rows", "scored_as", "model"])
-    whole = table.loc[("every held-out row", "fences", H.STRUCTURED)]
-    assert whole["diff"] == pytest.approx(1.0) and table.loc[("every held-out row", "test", H.STRUCTURED)]["diff"] == 0
+    for unit in ("configuration", "part"):
+        mine = table[table.unit == unit]
+        assert mine.loc[("every held-out row", "fences", H.STRUCTURED)]["diff"] == pytest.approx(1.0)
+        assert mine.loc[("every held-out row", "test", H.STRUCTURED)]["diff"] == 0
+    n = table.loc[("every held-out row", "fences", H.STRUCTURED)].set_index("unit").n
+    assert n["part"] == len(set(as_fences.part)) < n["configuration"]
 
 
 def test_held_out_combinations_takes_one_two_fence_combination_of_each_drawn_training_part():

@@ -6,7 +6,9 @@ then say whether it carries over. This script pairs a run's rows with a base run
 both runs scored: the structured predictor's circular W1 per unit (parts for unseen parts,
 configurations for Test and Fences, each averaged over its seeds and repeats, as the protocol),
 for the seeds one by one and their averaged PMF, the mean of each and the paired difference (run
-minus base) with a 95 % bootstrap interval; and the fits' validation scores side by side:
+minus base) with a 95 % bootstrap interval, for Test and Fences also with the configurations'
+differences averaged per part and the interval over parts (unit ``part``); and the fits'
+validation scores side by side:
 
     python docs/experiments/structured_paired.py results/tables/structured_coc_rows.csv \
         results/tables/structured_rows.csv results/tables/structured_coc_choices.csv \
@@ -30,9 +32,11 @@ def paired(run: pd.DataFrame, base: pd.DataFrame) -> pd.DataFrame:
     out = []
     for experiment in UNITS:
         for model in (STRUCTURED, ENSEMBLE):
-            pair = paired_runs(run, base, experiment, model, BOOTSTRAP)
-            if pair is not None:
-                out.append({"what": experiment, "model": model, "unit": UNITS[experiment], **pair})
+            for by_part in (False, True) if UNITS[experiment] == "configuration" else (False,):
+                pair = paired_runs(run, base, experiment, model, BOOTSTRAP, by_part=by_part)
+                unit = "part" if by_part else UNITS[experiment]
+                if pair is not None:
+                    out.append({"what": experiment, "model": model, "unit": unit, **pair})
     return pd.DataFrame(out)
 
 

@@ -119,12 +119,14 @@ def arm_comparisons(
     """``arm`` against ``against`` (values of ``rows.arm``), paired per configuration
     (:func:`feeder.learn.structured_protocol.paired_runs`), for each scoring and for the seeds one
     by one and averaged where both have them: over every held-out row, and over those in no
-    Main repeat's Test set."""
+    Main repeat's Test set; with the interval over configurations and over parts (``unit``)."""
     out = []
     for subset, mine in (("every held-out row", rows), ("in no Test set", rows[~rows.in_a_test_set])):
         for scoring in scorings:
             for model in (STRUCTURED, ENSEMBLE):
-                pair = paired_runs(mine[mine.arm == arm], mine[mine.arm == against], scoring, model, bootstrap)
-                if pair is not None:  # e.g. no averaged seeds with one seed
-                    out.append({"rows": subset, "scored_as": scoring, "model": model, **pair})
+                for unit in ("configuration", "part"):
+                    a, b = mine[mine.arm == arm], mine[mine.arm == against]
+                    pair = paired_runs(a, b, scoring, model, bootstrap, by_part=unit == "part")
+                    if pair is not None:  # e.g. no averaged seeds with one seed
+                        out.append({"rows": subset, "scored_as": scoring, "model": model, "unit": unit, **pair})
     return pd.DataFrame(out)

@@ -582,12 +582,19 @@ def unit_scores(long: pd.DataFrame, experiment: str, predictor: str, metric: str
     return per_config
 
 
-def paired_runs(run: pd.DataFrame, base: pd.DataFrame, experiment: str, model: str, bootstrap: dict) -> dict | None:
+def paired_runs(
+    run: pd.DataFrame, base: pd.DataFrame, experiment: str, model: str, bootstrap: dict, by_part: bool = False
+) -> dict | None:
     """Two runs' rows (``structured_rows.csv``) paired on ``experiment``'s units both scored with
     ``model``: ``n``, each run's mean circular W1 (``run``, ``base``) and the paired difference
     run − base with its bootstrap interval (``diff``, ``diff_low``, ``diff_high``); None where they
-    share no unit."""
-    pair = _paired(unit_scores(run, experiment, model, "cw1"), unit_scores(base, experiment, model, "cw1"), bootstrap)
+    share no unit. ``by_part``: configurations paired first, then each part's mean taken, so the
+    interval resamples parts (a part's configurations are not independent of each other)."""
+    mine, theirs = unit_scores(run, experiment, model, "cw1"), unit_scores(base, experiment, model, "cw1")
+    if by_part and UNITS[experiment] != "part":
+        both = pd.concat([mine, theirs], axis=1, keys=["m", "b"]).dropna()
+        mine, theirs = (both[k].groupby(level="part").mean() for k in ("m", "b"))
+    pair = _paired(mine, theirs, bootstrap)
     if pair is None:
         return None
     n, run_mean, base_mean, diff, lo, hi = pair
