@@ -214,6 +214,8 @@ def test_fit_structured_ships_whole_label_neighbours_only():
             fit_shipped({"part": np.array(["a"])}, cfg, {})
     with pytest.raises(FeederError, match="model.cross_only: false"):
         fit_shipped({"part": np.array(["a"])}, compose_config("structured", ["model.cross_only=true"]), {})
+    with pytest.raises(FeederError, match="model.fences_specialist: false"):
+        fit_shipped({"part": np.array(["a"])}, compose_config("structured", ["model.fences_specialist=true"]), {})
 
 
 def test_the_candidates_key_names_a_missing_part_file(tmp_path):

@@ -59,7 +59,7 @@ def fit_shipped(arrays: dict, cfg, data: dict, train=None) -> dict:
     of the dataset ``data``, whose settings give the label frame, bins, scene and units), in
     :func:`shipped_arrays`, keeping the neighbour inputs (each label's analytic miss) of ``train``
     rows only: no other row's label is in the file."""
-    from feeder.learn.structured_protocol import cross_only, drop_count, fit_protocol
+    from feeder.learn.structured_protocol import cross_only, drop_count, fences_specialist, fit_protocol
     from feeder.mechanics.fence import default_scene
 
     if drop_count(cfg, "neighbour_basins") or drop_count(cfg, "neighbour_candidates"):
@@ -72,6 +72,8 @@ def fit_shipped(arrays: dict, cfg, data: dict, train=None) -> dict:
         raise FeederError(
             "fit-structured ships a predictor that reads every label of the part (model.cross_only: false)"
         )
+    if fences_specialist(cfg):
+        raise FeederError("fit-structured does not ship the Fences specialist yet (model.fences_specialist: false)")
     train = np.ones(len(arrays["part"]), dtype=bool) if train is None else np.asarray(train, dtype=bool)
     settings = json.loads(str(data["settings"]))
     labels = settings["labels"]
