@@ -397,10 +397,19 @@ def main(argv: list[str]) -> int:
     say(f"training on {len(arrays['part'])} configurations of {len(set(arrays['part']))} parts")
     out = fit_shipped(arrays, cfg, data)
     io.write_npz(args.out, **out)
-    choice = json.loads(str(out["meta"]))["choice"]
+    meta = json.loads(str(out["meta"]))
+    choice, sp = meta["choice"], (meta.get("specialist") or {}).get("choice")
+    specialist = (
+        ""
+        if sp is None
+        else (
+            f"; Fences specialist {sp['kind']} (hidden {sp['hidden']}), validation circular W1 {sp['val_cw1']:.2f} deg"
+        )
+    )
     say(
         f"{choice['kind']} (hidden {choice['hidden']}), validation circular W1 {choice['val_cw1']:.2f} deg "
         f"({choice['val_parts']} validation part{'' if choice['val_parts'] == 1 else 's'}"
-        f"{'; refit on ' + str(choice['refit_rows']) + ' rows' if choice.get('refit_rows') else ''}) -> {args.out}"
+        f"{'; refit on ' + str(choice['refit_rows']) + ' rows' if choice.get('refit_rows') else ''}){specialist}"
+        f" -> {args.out}"
     )
     return 0
