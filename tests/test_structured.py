@@ -773,6 +773,76 @@ def test_a_held_out_check_holds_out_the_fits_own_validation_parts_and_scores_the
     assert n["part"] == len(set(as_fences.part)) < n["configuration"]
 
 
+def test_without_own_label_marks_rows_whose_part_has_no_kept_label_of_their_combination():
+    from feeder.learn.structured_protocol import without_own_label
+
+    ids = ["straight30_none", "straight40_none", "straight20_curved30", "straight30_none", "curved20_none"]
+    a = {"part": np.array(["p", "p", "p", "q", "q"]), "config_id": np.array(ids)}
+    a["kept"] = np.array([True, True, True, False, True])
+    pool = np.array([True, False, False, True, True])
+    # p/straight40 reads p/straight30; p's two-fence row and q/straight30 (its own row unkept) read
+    # nothing; a row is never its own neighbour (q/curved20)
+    assert without_own_label(a, pool, np.arange(5)).tolist() == [True, False, True, True, True]
+
+
+def test_the_fences_specialist_answers_the_rows_without_their_own_combination_and_nothing_else():
+    """model.fences_specialist: in a Main fit the rows with no label of their own combination (every
+    Fences row) are the cross_only network's, fitted under its own key; every other row and every
+    baseline is the run without it, to the bit; the choice carries the specialist's; bad values,
+    the combination with cross_only and fit-structured are refused."""
+    pytest.importorskip("torch")
+    from omegaconf import OmegaConf
+
+    from feeder.config import compose_config
+    from feeder.learn.prior import grids
+    from feeder.learn.structured_protocol import (
+        fences_specialist,
+        fit_protocol,
+        protocol_jobs,
+        run_protocol,
+        score_rows,
+        specialist_cfg,
+        without_own_label,
+    )
+
+    a = _toy_library(n_parts=12)
+    a["config_id"] = np.where(a["config_id"] == "curved20_straight30", "straight20_curved30", a["config_id"])
+    base = [*TOY_PROTOCOL, "protocol.fits=[main]"]
+    off_cfg = compose_config("structured", base)
+    on_cfg = compose_config("structured", [*base, "model.fences_specialist=true"])
+    prior = grids(compose_config("train")["prior"])
+    off, on = run_protocol(a, off_cfg, prior), run_protocol(a, on_cfg, prior)
+    _, key, index, train, scored = protocol_jobs(a, on_cfg)[0][0]
+    fences = np.flatnonzero(scored["fences"])
+    assert without_own_label(a, train, fences).all() and not without_own_label(a, train, scored["test"]).any()
+    spec = fit_protocol(a, train, specialist_cfg(on_cfg), f"{key}:specialist")
+    assert spec["choice"]["cross_only"] is True
+    want = pd.DataFrame(score_rows(a, spec, fences, "fences", index, prior))
+    want = want[want.predictor.str.startswith("structured")]
+    got = on[0][(on[0].experiment == "fences") & (on[0].repeat == index) & on[0].predictor.str.startswith("structured")]
+    np.testing.assert_array_equal(got.cw1.to_numpy(), want.cw1.to_numpy())
+    cols = ["experiment", "repeat", "part", "config_id", "predictor", "seed"]
+    off_rows, on_rows = (r[0].sort_values(cols).reset_index(drop=True) for r in (off, on))
+    routed = set()  # (experiment, repeat, part, config_id) of the rows without their own combination's labels
+    for _, _, r, t, sc in protocol_jobs(a, on_cfg)[0]:
+        for experiment, mask in sc.items():
+            idx = np.flatnonzero(mask)
+            idx = idx[without_own_label(a, t, idx)]
+            routed |= {(experiment, r, p, c) for p, c in zip(a["part"][idx], a["config_id"][idx], strict=True)}
+    assert any(k[0] == "test" for k in routed)  # a resplit Test row of a type combination its part has once
+    keys = zip(on_rows.experiment, on_rows.repeat, on_rows.part, on_rows.config_id, strict=True)
+    theirs = on_rows.predictor.str.startswith("structured") & np.array([k in routed for k in keys])
+    pd.testing.assert_frame_equal(on_rows[~theirs], off_rows[~theirs])
+    assert not np.allclose(on_rows[theirs].cw1.to_numpy(), off_rows[theirs].cw1.to_numpy())
+    assert on[1].specialist_cross_only.all() and "specialist_val_cw1" not in off[1]
+    for bad in ("yes", 1):
+        with pytest.raises(FeederError, match="model.fences_specialist must be"):
+            fences_specialist(OmegaConf.create({"model": {"fences_specialist": bad}}))
+    both = compose_config("structured", [*base, "model.fences_specialist=true", "model.cross_only=true"])
+    with pytest.raises(FeederError, match="cannot be combined"):
+        fit_protocol(a, train, both, key)
+
+
 def test_held_out_combinations_takes_one_two_fence_combination_of_each_drawn_training_part():
     """feeder.learn.structured_heldout.held_out_combinations, by hand: every training row of one
     two-fence combination per drawn part, none of another part, combination or split; parts with

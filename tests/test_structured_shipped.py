@@ -132,6 +132,51 @@ def test_the_shipped_answer_is_the_protocols_prediction_of_the_row():
         shipped.frame_of("nope")
 
 
+def test_a_shipped_fences_specialist_answers_the_queries_with_no_label_of_their_own_combination(tmp_path):
+    """model.fences_specialist: the file carries both networks; a query with a label of its own
+    type combination gets the default network's prediction of the row, one with only a cross
+    neighbour the specialist's (each as the protocol predicts it), through a written file too."""
+    pytest.importorskip("torch")
+    from feeder import io
+    from feeder.learn.structured import predict
+    from feeder.learn.structured_protocol import fit_protocol, specialist_cfg
+    from feeder.learn.structured_shipped import ShippedStructured, shipped_arrays
+    from feeder.mechanics.hull import push_geometry
+    from feeder.parts.geometry import load_profile
+
+    cfg, a, scene = _small_study(frame_deg=17.0, overrides=["model.fences_specialist=true"])
+    everything = np.ones(10, dtype=bool)
+    fitted = fit_protocol(a, everything, cfg, "shipped", known=True)
+    spec = fit_protocol(a, everything, specialist_cfg(cfg), "shipped:specialist", known=True)
+    io.write_npz(tmp_path / "s.npz", **shipped_arrays(fitted, a, cfg, "principal", BINS, 1.0, scene, specialist=spec))
+    shipped = ShippedStructured.load(tmp_path / "s.npz")
+    assert set(shipped.networks) == {"default", "specialist"}
+    outline, holes, _ = load_profile(PARTS_DIR / "rect-a3.stl", "auto")
+    geom = push_geometry(outline, holes)
+    answers = {}
+    for row, f in ((1, fitted), (4, spec)):  # three same-type neighbours; only a cross neighbour
+        pool = [i for i in range(5) if i != row]
+        got = shipped.answer(
+            geom, "rect-a3", [CONFIGS[row]], [CONFIGS[i] for i in pool], a["pmf"][pool], a["ok"][pool], scene
+        )
+        want = np.mean([predict(s, f["scaled"], [row], f["mean_pmf"])[0] for s in f["fits"]], axis=0)
+        assert got == pytest.approx(want, abs=2e-5)  # the protocol's networks run in float32
+        answers[row] = got
+    pool = [0, 2, 3]
+    ask = lambda rows: shipped.answer(  # noqa: E731
+        geom, "rect-a3", [CONFIGS[r] for r in rows], [CONFIGS[i] for i in pool], a["pmf"][pool], a["ok"][pool], scene
+    )
+    without = ShippedStructured(shipped_arrays(fitted, a, cfg, "principal", BINS, 1.0, scene))
+    other = without.answer(
+        geom, "rect-a3", [CONFIGS[4]], [CONFIGS[i] for i in (0, 1, 2, 3)], a["pmf"][:4], a["ok"][:4], scene
+    )
+    # the toy networks stay near their common start, so the specialist's answer is told from the
+    # default's by distance: the protocol's specialist lies far nearer than the default network
+    want = np.mean([predict(s, spec["scaled"], [4], spec["mean_pmf"])[0] for s in spec["fits"]], axis=0)
+    assert np.abs(answers[4] - want).sum() < 0.1 * np.abs(answers[4] - other).sum()
+    np.testing.assert_allclose(ask([1, 4]), np.concatenate([ask([1]), ask([4])]), atol=1e-12)  # routed row by row
+
+
 def test_the_shipped_answer_composes_the_one_fence_maps_as_the_protocol_does():
     pytest.importorskip("torch")
     from feeder.learn.structured import predict

@@ -606,3 +606,15 @@ def test_the_card_says_when_the_shipped_seeds_were_trained_again_on_every_row():
     assert S._refit_words({"refit_rows": 1405}) == (
         ", then trained again on all 1405 kept rows for the steps early stopping kept"
     )
+
+
+def test_the_card_names_the_fences_specialist_when_the_file_carries_one():
+    from feeder.learn.study import _card_new_angle
+
+    choice = {"kind": "variants", "hidden": 8, "weight_decay": 0.01, "val_parts": 24, "val_cw1": 9.43}
+    st = {"choice": choice, "seeds": 3, "neighbours": 2, "cross_neighbours": 1, "evidence": [], "by_distance": []}
+    card = {"gate_deg": 10.0, "structured": st}
+    assert "Fences specialist" not in "\n".join(_card_new_angle(card))
+    st["specialist"] = dict(choice, kind="candidates", hidden=32, val_cw1=11.5)
+    text = "\n".join(_card_new_angle(card))
+    assert "Fences specialist: candidates, hidden 32, weight decay 0.01, validation circular W1 11.50 deg" in text

@@ -96,6 +96,7 @@ def fit_protocol(arrays: dict, train: np.ndarray, cfg, key: str, known: bool = T
 
     refit_on(cfg)  # bad settings: an error before any training
     cross_only(cfg)
+    fences_specialist(cfg)
     base = int(cfg.seed)
     val_parts = pick_parts(arrays["part"][train], float(cfg.protocol.val_part_fraction), derived_seed(base, key), "val")
     is_val = np.isin(arrays["part"], list(val_parts))
@@ -298,6 +299,36 @@ def cross_only(cfg) -> bool:
     return value
 
 
+def fences_specialist(cfg) -> bool:
+    """``model.fences_specialist`` (default false) as a bool: a fit scored on known parts also fits
+    the ``model.cross_only`` network, which answers the rows with no label of their own fence-type
+    combination among the fit's training rows. A one-line FeederError if it is no bool or is
+    combined with ``model.cross_only`` (then every row is the specialist's already)."""
+    value = config_flag(cfg, "model", "fences_specialist")
+    if value and cross_only(cfg):
+        raise FeederError("model.fences_specialist and model.cross_only cannot be combined")
+    return value
+
+
+def specialist_cfg(cfg):
+    """``cfg`` with ``model.cross_only`` on and ``model.fences_specialist`` off: the specialist's."""
+    from omegaconf import OmegaConf
+
+    out = OmegaConf.create(OmegaConf.to_container(cfg, resolve=True))
+    out.model.cross_only, out.model.fences_specialist = True, False
+    return out
+
+
+def without_own_label(arrays: dict, pool, rows) -> np.ndarray:
+    """Of ``rows``: whether the kept rows of ``pool`` hold no label of the row's part and fence-type
+    combination (a Fences row's situation; the rows the specialist answers)."""
+    from feeder.learn.structured_data import nearest_rows
+
+    pool = np.asarray(pool, dtype=bool) & np.asarray(arrays["kept"], dtype=bool)
+    _, dist = nearest_rows(arrays["part"], arrays["config_id"], pool, rows, 1)
+    return ~np.isfinite(dist[:, 0])
+
+
 def fit_part_fraction(cfg) -> float:
     """``protocol.fit_part_fraction`` (default 1): the share of a fit's non-validation parts its
     network trains on; the rest train nothing and stay its scored rows' neighbours. Below 1 it
@@ -487,6 +518,9 @@ def run_job(job: tuple, arrays: dict, cfg, prior_grids, m3_pmf: dict | None, loc
     kind, key, index, train, scored = job
     t0 = time.perf_counter()
     fitted = fit_protocol(arrays, train, cfg, key, known=kind == "main")
+    specialist = None
+    if kind == "main" and fences_specialist(cfg):  # answers the rows with no label of their own combination
+        specialist = fit_protocol(arrays, train, specialist_cfg(cfg), f"{key}:specialist", known=True)
     rows = []
     for experiment, mask in scored.items():
         idx = np.flatnonzero(mask)
@@ -501,8 +535,17 @@ def run_job(job: tuple, arrays: dict, cfg, prior_grids, m3_pmf: dict | None, loc
                 nan_row = np.full(arrays["pmf"].shape[1], np.nan)
                 keys = zip(arrays["part"][idx], arrays["config_id"][idx], strict=True)
                 extra[M3] = np.stack([m3_pmf.get((str(p), str(c)), nan_row) for p, c in keys])
-        rows += score_rows(arrays, fitted, idx, experiment, index, prior_grids, extra)
+        if specialist is None:
+            rows += score_rows(arrays, fitted, idx, experiment, index, prior_grids, extra)
+            continue
+        theirs = without_own_label(arrays, train, idx)
+        for mine, f in ((~theirs, fitted), (theirs, specialist)):
+            if mine.any():
+                part_extra = {name: pmf[mine] for name, pmf in extra.items()}
+                rows += score_rows(arrays, f, idx[mine], experiment, index, prior_grids, part_extra)
     choice = {**fitted["choice"], "seconds": time.perf_counter() - t0}
+    if specialist is not None:
+        choice.update({f"specialist_{k}": v for k, v in specialist["choice"].items() if k != "fit"})
     if kind == "locked":
         choice["locked_parts"] = " ".join(sorted(locked))
     return rows, choice

@@ -44,12 +44,15 @@ def scene_digest(scene: dict) -> str:
     return hashlib.sha256(json.dumps(scene, sort_keys=True, separators=(",", ":")).encode()).hexdigest()
 
 
-def state_arrays(fits) -> dict[str, np.ndarray]:
-    """Each fitted seed's PMF network state as float64 arrays named ``seed<i>/<parameter>``."""
+SPECIALIST = "specialist/"  # the prefix of the Fences specialist's arrays (model.fences_specialist)
+
+
+def state_arrays(fits, prefix: str = "") -> dict[str, np.ndarray]:
+    """Each fitted seed's PMF network state as float64 arrays named ``<prefix>seed<i>/<parameter>``."""
     out = {}
     for i, f in enumerate(fits):
         for name, value in f.net.state_dict().items():
-            out[f"seed{i}/{name}"] = value.detach().cpu().numpy().astype(np.float64)
+            out[f"{prefix}seed{i}/{name}"] = value.detach().cpu().numpy().astype(np.float64)
     return out
 
 
@@ -59,7 +62,7 @@ def fit_shipped(arrays: dict, cfg, data: dict, train=None) -> dict:
     of the dataset ``data``, whose settings give the label frame, bins, scene and units), in
     :func:`shipped_arrays`, keeping the neighbour inputs (each label's analytic miss) of ``train``
     rows only: no other row's label is in the file."""
-    from feeder.learn.structured_protocol import cross_only, drop_count, fit_protocol
+    from feeder.learn.structured_protocol import cross_only, drop_count, fences_specialist, fit_protocol, specialist_cfg
     from feeder.mechanics.fence import default_scene
 
     if drop_count(cfg, "neighbour_basins") or drop_count(cfg, "neighbour_candidates"):
@@ -76,6 +79,9 @@ def fit_shipped(arrays: dict, cfg, data: dict, train=None) -> dict:
     settings = json.loads(str(data["settings"]))
     labels = settings["labels"]
     fitted = fit_protocol(arrays, train, cfg, SHIPPED_KEY, known=True)
+    specialist = None
+    if fences_specialist(cfg):  # answers the configurations with no label of their own type combination
+        specialist = fit_protocol(arrays, train, specialist_cfg(cfg), f"{SHIPPED_KEY}:specialist", known=True)
     out = shipped_arrays(
         fitted,
         arrays,
@@ -85,6 +91,7 @@ def fit_shipped(arrays: dict, cfg, data: dict, train=None) -> dict:
         float(labels["sigma_bins"]),
         settings.get("scene") or default_scene(),
         str((settings.get("parts") or {}).get("units", "auto")),
+        specialist,
     )
     labelled = {(str(p), str(c)) for p, c in zip(arrays["part"][train], arrays["config_id"][train], strict=True)}
     mine = [(str(p), str(c)) in labelled for p, c in zip(out["miss_part"], out["miss_config_id"], strict=True)]
@@ -93,11 +100,21 @@ def fit_shipped(arrays: dict, cfg, data: dict, train=None) -> dict:
 
 
 def shipped_arrays(
-    fitted: dict, arrays: dict, cfg, label_frame: str, bins: int, sigma_bins: float, scene: dict, units: str = "auto"
+    fitted: dict,
+    arrays: dict,
+    cfg,
+    label_frame: str,
+    bins: int,
+    sigma_bins: float,
+    scene: dict,
+    units: str = "auto",
+    specialist: dict | None = None,
 ):
     """The shipped file's arrays of a fit of :func:`feeder.learn.structured_protocol.fit_protocol`
     on ``arrays``: ``meta`` (JSON: the settings an answer needs and the choice made), the input
-    scaling, the training-mean PMF, each part's label frame and each seed's network state."""
+    scaling, the training-mean PMF, each part's label frame and each seed's network state; with a
+    ``specialist`` fit (``model.fences_specialist``) its settings, choice, scaling, mean PMF and
+    states too, under :data:`SPECIALIST`."""
     from omegaconf import OmegaConf
 
     from feeder.learn.structured_data import candidate_settings, label_miss
@@ -124,6 +141,19 @@ def shipped_arrays(
         "units": str(units),  # how the parts' STLs were read (parts.units)
         "choice": fitted["choice"],
     }
+    extra = {}
+    if specialist is not None:
+        meta["specialist"] = {
+            "net": asdict(specialist["settings"]),
+            "seeds": len(specialist["fits"]),
+            "choice": specialist["choice"],
+        }
+        extra = {
+            f"{SPECIALIST}x_mean": specialist["x_mean"],
+            f"{SPECIALIST}x_sd": specialist["x_sd"],
+            f"{SPECIALIST}mean_pmf": specialist["mean_pmf"],
+            **state_arrays(specialist["fits"], SPECIALIST),
+        }
     return {
         "meta": np.array(json.dumps(meta, sort_keys=True)),
         "x_mean": fitted["x_mean"],
@@ -137,6 +167,7 @@ def shipped_arrays(
         "miss_config_id": np.asarray(arrays["config_id"])[kept],
         "miss": label_miss(arrays["pmf"][kept], arrays["analytic"][kept]),
         **state_arrays(fitted["fits"]),
+        **extra,
     }
 
 
@@ -144,7 +175,6 @@ class ShippedStructured:
     """The shipped file, answering in numpy (:meth:`answer`)."""
 
     def __init__(self, arrays: dict):
-        from feeder.learn.structured import NetSettings
 
         self.meta = json.loads(str(arrays["meta"]))
         if self.meta.get("format") != SHIPPED_FORMAT:
@@ -152,17 +182,28 @@ class ShippedStructured:
                 f"the structured predictor's file has format {self.meta.get('format')!r}, this code reads "
                 f"{SHIPPED_FORMAT}: run feeder fit-structured and feeder export-study again"
             )
-        self.settings = NetSettings(**self.meta["net"])
-        self.x_mean, self.x_sd, self.mean_pmf = arrays["x_mean"], arrays["x_sd"], arrays["mean_pmf"]
+        self.networks = {"default": self._network(arrays, "", self.meta)}
+        if "specialist" in self.meta:  # model.fences_specialist: for a query with no label of its own combination
+            self.networks["specialist"] = self._network(arrays, SPECIALIST, self.meta["specialist"])
         self.frames = {str(p): float(f) for p, f in zip(arrays["part_ids"], arrays["frame_deg"], strict=True)}
         self.miss = {
             (str(p), str(c)): float(m)
             for p, c, m in zip(arrays["miss_part"], arrays["miss_config_id"], arrays["miss"], strict=True)
         }
-        self.params = [
-            {k.split("/", 1)[1]: arrays[k] for k in arrays if k.startswith(f"seed{i}/")}
-            for i in range(int(self.meta["seeds"]))
-        ]
+
+    @staticmethod
+    def _network(arrays: dict, prefix: str, meta: dict) -> dict:
+        """One network of the file: its settings, input scaling, training-mean PMF and seeds' states."""
+        from feeder.learn.structured import NetSettings
+
+        seeds = [f"{prefix}seed{i}/" for i in range(int(meta["seeds"]))]
+        return {
+            "settings": NetSettings(**meta["net"]),
+            "x_mean": arrays[f"{prefix}x_mean"],
+            "x_sd": arrays[f"{prefix}x_sd"],
+            "mean_pmf": arrays[f"{prefix}mean_pmf"],
+            "params": [{k[len(s) :]: arrays[k] for k in arrays if k.startswith(s)} for s in seeds],
+        }
 
     @classmethod
     def load(cls, path) -> ShippedStructured:
@@ -296,14 +337,21 @@ class ShippedStructured:
             )
             blocks.append(c_feats[n_pool:])
             npmf = np.concatenate([npmf, c_pmf], axis=1)
-        x = (np.concatenate(blocks, axis=1) - self.x_mean) / self.x_sd
-        diffuse = diffuse_components(q["analytic"], self.mean_pmf, m["wide_sigma_bins"], npmf[n_pool:])
-        b = batch_inputs(dict(q, x=x), np.arange(n_q), diffuse, self.settings.start)
+        raw = np.concatenate(blocks, axis=1)
+        # the specialist (when shipped) answers the queries with no label of their own type combination
+        own = (idx[n_pool:, : m["neighbours"]] >= 0).any(axis=1)
+        which = np.where(own | ("specialist" not in self.networks), "default", "specialist")
         out = np.zeros((n_q, bins))
-        for params in self.params:
-            pmf = np.clip(forward_numpy(params, self.settings, m["n_variants"], b), 0.0, None)
-            out += pmf / pmf.sum(axis=1, keepdims=True)
-        return out / len(self.params)
+        for name in sorted(set(which)):
+            net, mine = self.networks[name], np.flatnonzero(which == name)
+            x = (raw - net["x_mean"]) / net["x_sd"]
+            diffuse = diffuse_components(q["analytic"], net["mean_pmf"], m["wide_sigma_bins"], npmf[n_pool:])
+            b = batch_inputs(dict(q, x=x), mine, diffuse[mine], net["settings"].start)
+            for params in net["params"]:
+                pmf = np.clip(forward_numpy(params, net["settings"], m["n_variants"], b), 0.0, None)
+                out[mine] += pmf / pmf.sum(axis=1, keepdims=True)
+            out[mine] /= len(net["params"])
+        return out
 
 
 # ----------------------------------------------------------------------------------------------
@@ -349,10 +397,19 @@ def main(argv: list[str]) -> int:
     say(f"training on {len(arrays['part'])} configurations of {len(set(arrays['part']))} parts")
     out = fit_shipped(arrays, cfg, data)
     io.write_npz(args.out, **out)
-    choice = json.loads(str(out["meta"]))["choice"]
+    meta = json.loads(str(out["meta"]))
+    choice, sp = meta["choice"], (meta.get("specialist") or {}).get("choice")
+    specialist = (
+        ""
+        if sp is None
+        else (
+            f"; Fences specialist {sp['kind']} (hidden {sp['hidden']}), validation circular W1 {sp['val_cw1']:.2f} deg"
+        )
+    )
     say(
         f"{choice['kind']} (hidden {choice['hidden']}), validation circular W1 {choice['val_cw1']:.2f} deg "
         f"({choice['val_parts']} validation part{'' if choice['val_parts'] == 1 else 's'}"
-        f"{'; refit on ' + str(choice['refit_rows']) + ' rows' if choice.get('refit_rows') else ''}) -> {args.out}"
+        f"{'; refit on ' + str(choice['refit_rows']) + ' rows' if choice.get('refit_rows') else ''}){specialist}"
+        f" -> {args.out}"
     )
     return 0

@@ -414,6 +414,7 @@ def export_study(
             "seeds": model.meta["seeds"],
             "neighbours": model.meta["neighbours"],
             "cross_neighbours": model.meta["cross_neighbours"],
+            "specialist": (model.meta.get("specialist") or {}).get("choice"),
             "evidence": [] if structured_table is None else structured_evidence(pd.read_csv(structured_table)),
             "by_distance": [] if structured_errors is None else structured_error_bins(pd.read_csv(structured_errors)),
         }
@@ -528,6 +529,14 @@ def _card_new_angle(card: dict) -> list[str]:
         f"PMFs averaged), early-stopped and chosen on {c['val_parts']} validation parts "
         f"(circular W1 {c['val_cw1']:.2f} deg){_refit_words(c)}. Its ok mass is the analytic one.",
     ]
+    sp = st.get("specialist")
+    if sp:  # model.fences_specialist
+        lines.append(
+            "  Where the part has no labelled configuration of the query's own fence types, a second network "
+            "answers, trained and chosen reading only the part's labels of other type combinations, as such a "
+            f"query must (the Fences specialist: {sp['kind']}, hidden {sp['hidden']}, weight decay "
+            f"{sp['weight_decay']:g}, validation circular W1 {sp['val_cw1']:.2f} deg; docs/structured.md)."
+        )
     if st["evidence"]:
         lines += [
             "",
