@@ -617,6 +617,79 @@ def test_from_rows_writes_the_tables_of_a_run_s_rows(tmp_path):
     assert not (tmp_path / "o2").exists()
 
 
+def test_merge_runs_takes_each_kind_of_fit_from_the_last_run_holding_it():
+    """merge_runs: a later run's kinds of fit replace an earlier run's, rows and choices alike; the
+    other kinds stay; rows and choices that disagree on their kinds stop it in one line."""
+    from feeder.learn.structured_protocol import merge_runs
+
+    def run(tag, experiments, fits):
+        rows = pd.DataFrame({"experiment": experiments, "repeat": 0, "cw1": tag})
+        return rows, pd.DataFrame({"fit": fits, "val_cw1": tag})
+
+    full = run(1.0, ["unseen_groupkfold", "test", "fences", "unseen_locked"], ["groupkfold:0", "main:0", "locked"])
+    main_only = run(2.0, ["test", "fences", "test"], ["main:0", "main:1"])
+    rows, choices, source = merge_runs([full, main_only])
+    assert source == {"groupkfold": 0, "main": 1, "locked": 0}
+    assert list(rows.experiment) == ["unseen_groupkfold", "test", "fences", "test", "unseen_locked"]
+    assert list(rows.cw1) == [1.0, 2.0, 2.0, 2.0, 1.0]
+    assert list(choices.fit) == ["groupkfold:0", "main:0", "main:1", "locked"]
+    assert list(choices.val_cw1) == [1.0, 2.0, 2.0, 1.0]
+    rows, choices, source = merge_runs([main_only, full])  # the last run holding a kind wins
+    assert source == {"groupkfold": 1, "main": 1, "locked": 1} and list(rows.cw1) == [1.0] * 4
+    with pytest.raises(FeederError, match="run 2: its rows hold the fits"):
+        merge_runs([full, run(2.0, ["test"], ["main:0", "locked"])])
+
+
+def test_from_rows_of_several_runs_writes_the_merged_run(tmp_path):
+    """--from-rows A B: B's kinds of fit replace A's; the merged rows and choices are written beside
+    the tables; a rows file without its choices stops it before anything is written."""
+    from factories import make_regression_dataset
+
+    from feeder.config import compose_config
+    from feeder.labels.dataset import load_dataset
+    from feeder.learn.structured_data import split_arrays
+    from feeder.learn.structured_protocol import main, neighbour_distances
+
+    make_regression_dataset(tmp_path / "ds.npz")
+    a = split_arrays(load_dataset(tmp_path / "ds.npz"))
+    d = neighbour_distances(a, compose_config("structured", []))
+    kept = dict(zip(zip(a["part"], a["config_id"]), a["kept"], strict=True))
+    test0 = d[(d.experiment == "test") & (d.repeat == 0)]
+    unseen = test0.assign(experiment="unseen_groupkfold")  # the unseen parts' fits: run a alone
+    unseen = pd.concat([unseen, test0.iloc[:1].assign(experiment="unseen_locked")], ignore_index=True)
+    for name, shift in (("a", 0.0), ("b", 5.0)):
+        rows = []
+        for r in (pd.concat([d, unseen], ignore_index=True) if name == "a" else d).itertuples():
+            base = {"experiment": r.experiment, "repeat": r.repeat, "part": r.part, "config_id": r.config_id}
+            base |= {"kept": kept[(r.part, r.config_id)], "ok_true": 1.0, "ok_pred": 1.0, "r2": 0.5}
+            rows.append({**base, "predictor": "structured", "seed": 0, "cw1": 1.0 + shift})
+            rows.append({**base, "predictor": "analytic_pmf", "seed": -1, "cw1": 3.0})
+        (tmp_path / name).mkdir()
+        pd.DataFrame(rows).to_csv(tmp_path / name / "structured_rows.csv", index=False)
+        fits = sorted({f"main:{r}" for r in d[d.experiment == "test"].repeat})
+        if name == "a":
+            fits = ["groupkfold:0", *fits, "locked"]
+        pd.DataFrame({"fit": fits, "val_cw1": shift}).to_csv(tmp_path / name / "structured_choices.csv", index=False)
+    args = ["--from-rows", str(tmp_path / "a" / "structured_rows.csv"), str(tmp_path / "b" / "structured_rows.csv")]
+    args += ["--dataset", str(tmp_path / "ds.npz")]
+    (tmp_path / "c").mkdir()
+    pd.read_csv(tmp_path / "b" / "structured_rows.csv").to_csv(tmp_path / "c" / "structured_rows.csv", index=False)
+    with pytest.raises(FeederError, match="no structured_choices.csv beside it"):
+        main([*args[:2], str(tmp_path / "c" / "structured_rows.csv"), *args[3:], "--out-dir", str(tmp_path / "o")])
+    assert not (tmp_path / "o").exists()
+    assert main([*args, "--out-dir", str(tmp_path / "out")]) == 0
+    merged = pd.read_csv(tmp_path / "out" / "structured_rows.csv")
+    mine = merged[merged.predictor == "structured"]
+    assert (mine[mine.experiment.isin(["test", "fences"])].cw1 == 6.0).all()
+    assert (mine[~mine.experiment.isin(["test", "fences"])].cw1 == 1.0).all()
+    assert len(merged) == 2 * (len(d) + len(unseen))
+    choices = pd.read_csv(tmp_path / "out" / "structured_choices.csv")
+    assert list(choices.val_cw1) == [0.0 if not f.startswith("main") else 5.0 for f in choices.fit]
+    table = pd.read_csv(tmp_path / "out" / "structured_protocol.csv")
+    diff = table[table.metric == "cw1"].groupby("experiment")["diff"].unique()
+    assert diff["test"] == [3.0] and diff["fences"] == [3.0] and diff["unseen_groupkfold"] == [-2.0]
+
+
 def test_cross_only_copies_train_fit_rows_again_without_their_own_combination():
     """model.cross_only_copies: a fit row with a neighbour of its own type combination and a cross
     neighbour also trains as a copy without the former; hide_same drops exactly those neighbours."""

@@ -823,6 +823,48 @@ def m3_predictions(data: dict, model_dirs) -> dict:
     return {(str(data["part"][i]), str(data["config_id"][i])): mean[j] for j, i in enumerate(rows)}
 
 
+FIT_EXPERIMENTS = {"groupkfold": ("unseen_groupkfold",), "main": ("test", "fences"), "locked": ("unseen_locked",)}
+
+
+def merge_runs(runs: list[tuple[pd.DataFrame, pd.DataFrame]]) -> tuple[pd.DataFrame, pd.DataFrame, dict]:
+    """Several runs' (rows, choices) as one run: each kind of fit (:data:`FIT_KINDS`) comes from the
+    last run that holds it, rows and choices alike (a later run, e.g. ``protocol.fits=[main]`` with
+    another setting, replaces those fits of an earlier one and keeps the rest). Returns (rows,
+    choices, {kind: index of its run}), in the protocol's order of kinds. A one-line FeederError when
+    a run's rows and choices disagree on which kinds they hold."""
+    source = {}
+    for n, (rows, choices) in enumerate(runs):
+        row_kinds = {k for k, exps in FIT_EXPERIMENTS.items() if rows.experiment.isin(exps).any()}
+        choice_kinds = {str(f).split(":")[0] for f in choices["fit"]}
+        if row_kinds != choice_kinds:
+            raise FeederError(
+                f"run {n + 1}: its rows hold the fits {sorted(row_kinds)} but its choices {sorted(choice_kinds)}"
+            )
+        source |= dict.fromkeys(row_kinds, n)
+    kinds = [k for k in FIT_KINDS if k in source]
+    rows = pd.concat(
+        [runs[source[k]][0][runs[source[k]][0].experiment.isin(FIT_EXPERIMENTS[k])] for k in kinds],
+        ignore_index=True,
+    )
+    choices = pd.concat(
+        [runs[source[k]][1][runs[source[k]][1]["fit"].astype(str).str.split(":").str[0] == k] for k in kinds],
+        ignore_index=True,
+    )
+    return rows, choices, {k: source[k] for k in kinds}
+
+
+def read_run(rows_path: Path) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """A run's rows and the choices beside them (``structured_choices.csv`` in the same folder); a
+    one-line FeederError when either is missing or the rows are not a run's."""
+    if not rows_path.is_file():
+        raise FeederError(f"--from-rows {rows_path}: no such file")
+    long = pd.read_csv(rows_path)
+    missing = {"experiment", "repeat", "part", "config_id", "kept", "predictor", "seed", "cw1"} - set(long.columns)
+    if missing:
+        raise FeederError(f"--from-rows {rows_path}: not a structured_rows.csv (no {sorted(missing)})")
+    return long, rows_path.with_name("structured_choices.csv")
+
+
 def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="feeder structured", description=__doc__.split("\n")[0])
     p.add_argument("--dataset", type=Path, default=Path("results/datasets/dataset.npz"))
@@ -841,9 +883,11 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--from-rows",
         type=Path,
+        nargs="+",
         default=None,
         help="a run's structured_rows.csv: fit nothing, write the comparisons and the error by neighbour distance "
-        "from it (default: run the protocol)",
+        "from it (default: run the protocol). Several runs: each kind of fit from the last run holding it, and the "
+        "merged structured_rows.csv and structured_choices.csv (read beside each rows file) written too",
     )
     p.add_argument("overrides", nargs="*", help="Hydra overrides of config/hydra/structured.yaml")
     return p
@@ -875,15 +919,21 @@ def main(argv: list[str]) -> int:
     if args.from_rows is not None:  # the tables of a run's rows: its splits from the dataset, no fit
         from feeder.learn.structured_data import split_arrays
 
-        if not args.from_rows.is_file():
-            raise FeederError(f"--from-rows {args.from_rows}: no such file")
-        long = pd.read_csv(args.from_rows)
-        missing = {"experiment", "repeat", "part", "config_id", "kept", "predictor", "seed", "cw1"} - set(long.columns)
-        if missing:
-            raise FeederError(f"--from-rows {args.from_rows}: not a structured_rows.csv (no {sorted(missing)})")
+        runs = [read_run(path) for path in args.from_rows]
+        long = runs[0][0]
+        if len(runs) > 1:  # each kind of fit from the last run that holds it
+            for path, (_, choices_path) in zip(args.from_rows, runs, strict=True):
+                if not choices_path.is_file():
+                    raise FeederError(f"--from-rows {path}: no {choices_path.name} beside it")
+            long, choices, source = merge_runs([(r, pd.read_csv(c)) for r, c in runs])
+            for kind, n in source.items():
+                print(f"{kind}: from {args.from_rows[n]}", flush=True)
         m3_parts = m3_part_scores(args.m3_groupkfold) if args.m3_groupkfold else None
         table = comparison_table(long, dict(cfg.protocol.bootstrap), m3_parts)
         by_distance = error_by_distance(long, neighbour_distances(split_arrays(load_dataset(args.dataset)), cfg), edges)
+        if len(runs) > 1:
+            io.write_csv(args.out_dir / "structured_rows.csv", long)
+            io.write_csv(args.out_dir / "structured_choices.csv", choices)
         write_tables(args.out_dir, table, by_distance)
         print(by_distance.to_string(index=False))
         return 0
