@@ -156,6 +156,7 @@ class _Shipped:
         self.rule = ShippedStructured.__new__(ShippedStructured)
         self.rule.meta = {"neighbours": 2, "cross_neighbours": 1}
         self.calls = []
+        self.networks = {"default": None}
 
     def serves(self, bins, sigma_bins, scene_sha256):
         return scene_sha256 == S.scene_digest(SCENE)
@@ -192,6 +193,9 @@ def test_a_known_part_at_a_new_angle_gets_the_structured_predictor_where_it_has_
     # curved10: the part's only curved row jams, and no labelled row has a curved downstream fence
     assert model.sources() == ["simulated", "structured", "structured", "analytic", "analytic"]
     assert "straight30_none, 15 deg away" in model.describe(1) and "only of its downstream fence" in model.describe(2)
+    assert "Fences specialist" not in model.describe(2)
+    lib.structured.networks["specialist"] = None  # shipped with one: it answers row 2, and says so
+    assert "its Fences specialist answers" in model.describe(2) and "specialist" not in model.describe(1)
     uniform = np.full((len(ids), 360), 1.0 / 360)
     pmf, _ = model.predict(np.zeros((5, 45)), np.zeros((5, 8)), _push(0.5, 5), uniform)
     assert pmf[1, 40] == pytest.approx(1.0) and pmf[2, 40] == pytest.approx(1.0)  # 50 in the label frame

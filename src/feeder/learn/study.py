@@ -681,6 +681,7 @@ class StudyModel(AnalyticModel):
                 f"; nearest simulated angle of its fence types {self.library.config_id[i]}, {dist:g} deg away"
                 if i >= 0
                 else "; none of its fence types, only of its downstream fence"
+                + ("; its Fences specialist answers" if "specialist" in self.structured.networks else "")
             )
             return (
                 f"the structured predictor from the part's labelled configurations{near} (docs/structured.md)"
