@@ -869,6 +869,8 @@ def test_the_fences_specialist_answers_the_rows_without_their_own_combination_an
     from feeder.config import compose_config
     from feeder.learn.prior import grids
     from feeder.learn.structured_protocol import (
+        cross_only,
+        cross_only_copies,
         fences_specialist,
         fit_protocol,
         protocol_jobs,
@@ -881,8 +883,9 @@ def test_the_fences_specialist_answers_the_rows_without_their_own_combination_an
     a = _toy_library(n_parts=12)
     a["config_id"] = np.where(a["config_id"] == "curved20_straight30", "straight20_curved30", a["config_id"])
     base = [*TOY_PROTOCOL, "protocol.fits=[main]"]
-    off_cfg = compose_config("structured", base)
+    off_cfg = compose_config("structured", [*base, "model.fences_specialist=false"])
     on_cfg = compose_config("structured", [*base, "model.fences_specialist=true"])
+    assert fences_specialist(compose_config("structured", base))  # the default since stop 60
     prior = grids(compose_config("train")["prior"])
     off, on = run_protocol(a, off_cfg, prior), run_protocol(a, on_cfg, prior)
     _, key, index, train, scored = protocol_jobs(a, on_cfg)[0][0]
@@ -912,8 +915,9 @@ def test_the_fences_specialist_answers_the_rows_without_their_own_combination_an
         with pytest.raises(FeederError, match="model.fences_specialist must be"):
             fences_specialist(OmegaConf.create({"model": {"fences_specialist": bad}}))
     both = compose_config("structured", [*base, "model.fences_specialist=true", "model.cross_only=true"])
-    with pytest.raises(FeederError, match="cannot be combined"):
-        fit_protocol(a, train, both, key)
+    assert not fences_specialist(both)  # cross_only: every row is the specialist's already
+    copies = compose_config("structured", [*base, "model.cross_only_copies=true"])
+    assert not cross_only_copies(specialist_cfg(copies)) and cross_only(specialist_cfg(copies))
 
 
 def test_held_out_combinations_takes_one_two_fence_combination_of_each_drawn_training_part():

@@ -302,20 +302,20 @@ def cross_only(cfg) -> bool:
 def fences_specialist(cfg) -> bool:
     """``model.fences_specialist`` (default false) as a bool: a fit scored on known parts also fits
     the ``model.cross_only`` network, which answers the rows with no label of their own fence-type
-    combination among the fit's training rows. A one-line FeederError if it is no bool or is
-    combined with ``model.cross_only`` (then every row is the specialist's already)."""
+    combination among the fit's training rows. Off under ``model.cross_only`` (every row is then
+    the specialist's already). A one-line FeederError if it is no bool."""
     value = config_flag(cfg, "model", "fences_specialist")
-    if value and cross_only(cfg):
-        raise FeederError("model.fences_specialist and model.cross_only cannot be combined")
-    return value
+    return value and not cross_only(cfg)
 
 
 def specialist_cfg(cfg):
-    """``cfg`` with ``model.cross_only`` on and ``model.fences_specialist`` off: the specialist's."""
+    """``cfg`` with ``model.cross_only`` on and ``model.fences_specialist`` and
+    ``model.cross_only_copies`` off: the specialist's (its rows read only cross neighbours, so
+    copies without their own combination would be their rows)."""
     from omegaconf import OmegaConf
 
     out = OmegaConf.create(OmegaConf.to_container(cfg, resolve=True))
-    out.model.cross_only, out.model.fences_specialist = True, False
+    out.model.cross_only, out.model.fences_specialist, out.model.cross_only_copies = True, False, False
     return out
 
 
