@@ -300,10 +300,11 @@ def cross_only(cfg) -> bool:
 
 
 def fences_specialist(cfg) -> bool:
-    """``model.fences_specialist`` (default false) as a bool: a fit scored on known parts also fits
-    the ``model.cross_only`` network, which answers the rows with no label of their own fence-type
-    combination among the fit's training rows. Off under ``model.cross_only`` (every row is then
-    the specialist's already). A one-line FeederError if it is no bool."""
+    """``model.fences_specialist`` (true in ``config/hydra/structured.yaml``) as a bool: a fit
+    scored on known parts also fits the ``model.cross_only`` network, which answers the rows with
+    no label of their own fence-type combination among the fit's training rows. Off under
+    ``model.cross_only`` (every row is then the specialist's already). A one-line FeederError if it
+    is no bool."""
     value = config_flag(cfg, "model", "fences_specialist")
     return value and not cross_only(cfg)
 
@@ -826,6 +827,11 @@ def m3_predictions(data: dict, model_dirs) -> dict:
 FIT_EXPERIMENTS = {"groupkfold": ("unseen_groupkfold",), "main": ("test", "fences"), "locked": ("unseen_locked",)}
 
 
+def fit_kind(fit) -> str:
+    """The kind of fit (:data:`FIT_KINDS`) of a choices row's ``fit`` name (``main:1`` -> ``main``)."""
+    return str(fit).split(":")[0]
+
+
 def merge_runs(runs: list[tuple[pd.DataFrame, pd.DataFrame]]) -> tuple[pd.DataFrame, pd.DataFrame, dict]:
     """Several runs' (rows, choices) as one run: each kind of fit (:data:`FIT_KINDS`) comes from the
     last run that holds it, rows and choices alike (a later run, e.g. ``protocol.fits=[main]`` with
@@ -835,27 +841,25 @@ def merge_runs(runs: list[tuple[pd.DataFrame, pd.DataFrame]]) -> tuple[pd.DataFr
     source = {}
     for n, (rows, choices) in enumerate(runs):
         row_kinds = {k for k, exps in FIT_EXPERIMENTS.items() if rows.experiment.isin(exps).any()}
-        choice_kinds = {str(f).split(":")[0] for f in choices["fit"]}
+        choice_kinds = {fit_kind(f) for f in choices["fit"]}
         if row_kinds != choice_kinds:
             raise FeederError(
                 f"run {n + 1}: its rows hold the fits {sorted(row_kinds)} but its choices {sorted(choice_kinds)}"
             )
         source |= dict.fromkeys(row_kinds, n)
-    kinds = [k for k in FIT_KINDS if k in source]
+    picked = {k: source[k] for k in FIT_KINDS if k in source}  # the protocol's order of kinds
     rows = pd.concat(
-        [runs[source[k]][0][runs[source[k]][0].experiment.isin(FIT_EXPERIMENTS[k])] for k in kinds],
-        ignore_index=True,
+        [runs[n][0][runs[n][0].experiment.isin(FIT_EXPERIMENTS[k])] for k, n in picked.items()], ignore_index=True
     )
     choices = pd.concat(
-        [runs[source[k]][1][runs[source[k]][1]["fit"].astype(str).str.split(":").str[0] == k] for k in kinds],
-        ignore_index=True,
+        [runs[n][1][runs[n][1]["fit"].map(fit_kind) == k] for k, n in picked.items()], ignore_index=True
     )
-    return rows, choices, {k: source[k] for k in kinds}
+    return rows, choices, picked
 
 
-def read_run(rows_path: Path) -> tuple[pd.DataFrame, pd.DataFrame]:
-    """A run's rows and the choices beside them (``structured_choices.csv`` in the same folder); a
-    one-line FeederError when either is missing or the rows are not a run's."""
+def read_run(rows_path: Path) -> tuple[pd.DataFrame, Path]:
+    """A run's rows and the path of the choices beside them (``structured_choices.csv`` in the same
+    folder); a one-line FeederError when the rows are missing or not a run's."""
     if not rows_path.is_file():
         raise FeederError(f"--from-rows {rows_path}: no such file")
     long = pd.read_csv(rows_path)
