@@ -17,13 +17,18 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from workflow_helpers import ROOT, SNAKEMAKE, scratch_copy
+from workflow_helpers import ROOT, SNAKEMAKE, merged_config, scratch_copy
 
 pytestmark = pytest.mark.slow
 
 UP = ROOT / "profiles" / "slurm-local" / "up.sh"
-SMOKE = ("--configfile", "config/smoke.yaml")
-TARGET = "results/smoke/datasets/dataset.npz"  # features, every smoke simulation, labels: 28 jobs
+# The smoke workflow's 28 jobs (features, 20 simulations, configurations, labels), each simulation
+# with the adaptive design's first round of yaws only (2-4 s a job): what is tested is the route
+# through SLURM (array jobs, then the jobs that read their files), not the labels. The overlay is
+# written into both scratch copies.
+OVERLAY = "cluster_test.yaml"
+SMOKE = ("--configfile", "config/smoke.yaml", OVERLAY)
+TARGET = "results/smoke/datasets/dataset.npz"
 TIMING_KEYS = {"wall_s", "cpu_s"}  # measured, so different on every run
 RUN_TIMEOUT_S = 1800
 UP_TIMEOUT_S = 900
@@ -44,6 +49,8 @@ def cluster() -> None:
 
 
 def _run(work: Path, *args: str) -> subprocess.CompletedProcess:
+    first_round = merged_config(ROOT, "config/smoke.yaml")["sim"]["adaptive"]["n0"]
+    (work / OVERLAY).write_text(f"sim:\n  drops: {int(first_round)}\n")
     return subprocess.run(
         [SNAKEMAKE, *args, *SMOKE, "--", TARGET], cwd=work, capture_output=True, text=True, timeout=RUN_TIMEOUT_S
     )

@@ -56,6 +56,20 @@ def test_code_modules_follow_function_local_imports_and_packages(tmp_path):
     assert module_file("feeder.stage.nothing", root) is None
 
 
+def test_feeder_imports_reads_a_module_again_once_it_changes(tmp_path):
+    """Each file is parsed once per version (a Snakefile parse asks ~1,800 times), so the cache
+    must see an edit, and a module that appears later, in a long-lived process."""
+    root = _fake_package(tmp_path)
+    a = root / "feeder" / "stage" / "a.py"
+    assert feeder_imports("feeder.stage.a", root) == {"feeder.stage.b", "feeder.stage.c"}
+    before = a.stat().st_mtime_ns
+    a.write_text("from feeder.stage import b, d\nimport feeder.errors\n")
+    os.utime(a, ns=(before + 10**9, before + 10**9))  # a new version even on a coarse clock
+    assert feeder_imports("feeder.stage.a", root) == {"feeder.stage.b", "feeder.stage", "feeder.errors"}
+    (root / "feeder" / "stage" / "d.py").write_text("")  # ``from feeder.stage import d`` is now a module
+    assert feeder_imports("feeder.stage.a", root) == {"feeder.stage.b", "feeder.stage.d", "feeder.errors"}
+
+
 def test_code_inputs_of_a_command_include_its_dispatcher_and_figure_module():
     files = code_inputs("figure", "fig12_test_predictions")
     assert {
