@@ -32,19 +32,12 @@ from feeder.bench.frontier_known import replicate_label, replicate_seed, scores
 from feeder.config import load_study_config
 from feeder.io import write_csv
 from feeder.labels.dataset import load_dataset
+from feeder.learn.evaluate import fence_types
 
 ROOT = Path(__file__).resolve().parents[2]
 SIM_DIR = ROOT / "results" / "bench" / "label_pairs" / "sim"
 ROWS = ROOT / "results" / "tables" / "structured_rows.csv"
 SEED = 2  # base seed of the second labels: neither the study's (0) nor the frontier's (1)
-
-
-def fence_types(config_id: str) -> str:
-    """``curved10_straight30`` -> ``curved+straight`` (pure)."""
-    kinds = []
-    for loc in config_id.split("_"):
-        kinds.append("none" if loc == "none" else "curved" if loc.startswith("curved") else "straight")
-    return "+".join(kinds)
 
 
 def one(job: tuple) -> dict:

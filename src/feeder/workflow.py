@@ -46,7 +46,7 @@ def _feeder_import_statements(path: str, mtime_ns: int, size: int) -> tuple[tupl
     """The ``feeder`` imports of the file at ``path`` as (module, None) for ``import module`` and
     (module, names) for ``from module import names``. Parsed once per file version (its
     modification time and size are part of the key): a Snakefile parse asks for the same modules
-    about 1,800 times, and parsing each time cost most of every Snakemake start (13 of 17 s)."""
+    about 1,800 times, and parsing each time cost most of every Snakemake start (about 15 of 22 s)."""
     import ast
     from pathlib import Path
 
