@@ -1,0 +1,238 @@
+"""Where does the analytic push model part from the simulator, drop by drop? (issue #39, unseen parts)
+
+For an unseen part the answer is the analytic PMF (20.6 deg circular W1 on GroupKFold), and the
+structured predictor's candidates are its modes. Pooled PMFs hide where it goes wrong; this
+compares it with the simulator drop by drop. Every simulated drop of the study (the simulation
+files of a run, ``results/sim/<part>/<config>.npz``) is pushed through the analytic model
+(``feeder.mechanics.distribution``: the same fence models, friction, push functions, turn budget
+and exit turns as ``analytic_distribution``) from the same initial yaw, centred as the
+simulator drops it. A drop agrees when both end ok and their final yaws lie within ``AGREE_DEG``
+of each other modulo the part's symmetry period (the design's ``symmetry_order``). Each drop is
+weighted by its share of the initial yaws (half the gap to each neighbour within the period), as
+the adaptive design refines near basin edges and would otherwise over-count the hard drops.
+Configurations where a fence rolls the part (no stable edge: the model gives a density, not a yaw
+per drop) are left out and counted. For one-fence configurations each drop also gets why the
+modelled exit turn of its basin stopped (``released``: the complete model; ``notch``, ``wedged``,
+``end face``, ``hooked``, ``phases``: where it gives up), and the summary splits the agreement by it.
+
+Optionally (``--budget-scales``) it also scores the analytic PMF of every kept configuration of a
+dataset against its label with the turn budget (the ``overlap / (2c)`` bound on how far a fence can
+turn a part) multiplied by each scale; the package is not changed (a copy of ``_apply`` with the
+factor is executed in the module's namespace).
+
+    python docs/experiments/analytic_dropwise.py SIM_DIR PARTS_DIR OUT_CSV_GZ \
+        [--dataset DATASET --budget-scales 1,2,4 --budget-csv OUT_CSV]
+
+About 3 minutes for the 60,000 drops of the default study on one core; each budget scale about
+2.5 minutes more.
+"""
+
+from __future__ import annotations
+
+# isort: off
+import feeder  # noqa: F401 - first, before numpy loads: OpenBLAS's AVX2 kernel (feeder/__init__.py)
+
+# isort: on
+import argparse
+import gzip
+import inspect
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+import feeder.mechanics.distribution as D
+from feeder.io import write_bytes, write_csv
+from feeder.labels.dataset import load_dataset
+from feeder.labels.metrics import circular_w1
+from feeder.lane.fences import parse_config_id
+from feeder.learn.evaluate import fence_types
+from feeder.mechanics.exitturn import exit_turn
+from feeder.mechanics.fence import default_scene, fence_models, fence_mu, fence_normal_deg
+from feeder.mechanics.hull import as_geometry
+from feeder.mechanics.pmf import analytic_pmf
+from feeder.parts.geometry import load_part
+
+STEEP_DEG = 45.0  # a straight fence at least this steep counts as steep in the summary
+AGREE_DEG = 5.0  # two final yaws this close (modulo the symmetry period) are the same outcome
+BUDGET_LINE = "budget = np.degrees(overlap / (2.0 * geom.limit_radius))"
+
+
+def cell_weights(y0: np.ndarray, period: float) -> np.ndarray:
+    """Each initial yaw's share of the period: half the gap to each neighbour on the circle."""
+    order = np.argsort(y0)
+    ys = y0[order]
+    nxt = np.roll(ys, -1)
+    nxt[-1] += period
+    prv = np.roll(ys, 1)
+    prv[0] -= period
+    w = np.empty(len(y0))
+    w[order] = (nxt - prv) / (2.0 * period)
+    return w
+
+
+def analytic_final(geom, fences, yaws, mu, memo) -> tuple[np.ndarray, list[float]]:
+    """Final yaw of each drop (NaN: jammed) through ``fences`` in order, and each fence's touched
+    share; the drops are tracked through ``_apply`` by their weights (index + 1). ValueError when
+    a fence rolls the part (its drops leave at a density, not one yaw each)."""
+    yaw = np.asarray(yaws, dtype=np.float64).copy()
+    x = np.zeros_like(yaw)
+    tag = np.arange(1.0, yaw.size + 1.0)
+    touched = []
+    for m in fences:
+        if m not in memo:
+            memo[m] = D.fence_response(geom, m, mu, True)
+        if memo[m].push.rolls:
+            raise ValueError("a fence rolls the part: no yaw per drop")
+        yaw, x, tag, (t, _, _) = D._apply(geom, memo[m], mu, yaw, x, tag, True)
+        touched.append(t)
+    out = np.full(len(yaws), np.nan)
+    out[np.rint(tag).astype(int) - 1] = yaw
+    return out, touched
+
+
+def exit_reasons(geom, model, yaws, mu, memo) -> list[str]:
+    """Why the modelled exit turn of each drop's basin on one fence stopped
+    (:class:`feeder.mechanics.exitturn.ExitTurn`: ``released`` is the complete model; ``notch``,
+    ``wedged``, ``end face``, ``hooked``, ``phases``, ``travel``, ``stuck`` are where it gives up),
+    for drops whose centred start reaches the fence (else ``missed``)."""
+    if model not in memo:
+        memo[model] = D.fence_response(geom, model, mu, True)
+    resp = memo[model]
+    key = ("reasons", model)
+    if key not in memo:
+        memo[key] = [exit_turn(geom, int(e), model.exit_deg, model.side, mu).reason for e in resp.push.edges]
+    phi = fence_normal_deg(model.exit_deg, model.side) - np.asarray(yaws, dtype=np.float64)
+    idx = resp.push.basin_index(phi)
+    reach = D._support_towards(geom, np.asarray(yaws, dtype=np.float64), model.side)
+    return [memo[key][int(i)] if r > model.inner else "missed" for i, r in zip(idx, reach)]
+
+
+def dropwise(sim_dir: Path, parts_dir: Path) -> tuple[pd.DataFrame, list[str]]:
+    scene = default_scene()
+    mu = fence_mu(scene)
+    rows, rolling = [], []
+    for part_dir in sorted(p for p in sim_dir.iterdir() if p.is_dir()):
+        part = part_dir.name
+        geom = as_geometry(load_part(parts_dir / f"{part}.stl"))
+        memo: dict = {}
+        for path in sorted(part_dir.glob("*.npz")):
+            with np.load(path, allow_pickle=False) as z:
+                meta = json.loads(str(z["meta"]))
+                y0, yf, status = z["initial_yaw_deg"], z["final_yaw_deg"], z["status"]
+            period = 360.0 / int(meta["design"].get("symmetry_order", 1))
+            fences = fence_models(meta["loc1"], meta["loc2"], scene)
+            for m in fences:
+                if m not in memo:
+                    memo[m] = D.fence_response(geom, m, mu, True)
+            if any(memo[m].push.rolls for m in fences):
+                rolling.append(f"{part} {path.stem}")
+                continue
+            ana, _ = analytic_final(geom, fences, y0, mu, memo)
+            w = cell_weights(y0, period)
+            why = exit_reasons(geom, fences[0], y0, mu, memo) if len(fences) == 1 else [""] * len(y0)
+            for i in range(len(y0)):
+                rows.append(
+                    (part, path.stem, meta["loc1"], meta["loc2"], period, y0[i], w[i], status[i], yf[i], ana[i], why[i])
+                )
+    cols = ["part", "config_id", "loc1", "loc2", "period", "initial_yaw_deg", "weight", "status", "final_yaw_deg"]
+    return pd.DataFrame(rows, columns=cols + ["analytic_yaw_deg", "exit_reason"]), rolling
+
+
+def agreement(df: pd.DataFrame, keys: list[str]) -> pd.DataFrame:
+    """Per group: configurations, and the weighted share of initial yaws whose drops agree (both
+    ok, within ``AGREE_DEG``), both jam, or where exactly one of the two jams."""
+    sim_ok = df.status == "ok"
+    ana_ok = df.analytic_yaw_deg.notna()
+    p = df.period
+    d = np.abs((df.final_yaw_deg - df.analytic_yaw_deg + p / 2) % p - p / 2)
+    flags = pd.DataFrame(
+        {"agree": sim_ok & ana_ok & (d < AGREE_DEG), "both_jam": ~sim_ok & ~ana_ok, "one_jams": sim_ok != ana_ok}
+    )
+    w = df.weight
+    grouped = flags.mul(w, axis=0).groupby([df[k] for k in keys]).sum()
+    out = grouped.div(w.groupby([df[k] for k in keys]).sum(), axis=0)
+    out.insert(0, "configs", df.groupby(keys).apply(lambda g: g.groupby(["part", "config_id"]).ngroups))
+    return out
+
+
+def summarise(df: pd.DataFrame) -> None:
+    df = df.assign(fences=[fence_types(c) for c in df.config_id])
+    print(f"drops {len(df)}, configurations {df.groupby(['part', 'config_id']).ngroups}")
+    print("share of the initial yaws (weighted) by fence types (Location 1 + Location 2):")
+    print(agreement(df, ["fences"]).round(3).to_string())
+    one = df[(df.loc2 == "none") & df.loc1.str.startswith("straight")]
+    one = one.assign(angle=one.loc1.str.split(":").str[1].astype(int))
+    print("one straight fence, by its angle:")
+    print(agreement(one, ["angle"]).round(3).to_string())
+    one = one.assign(steep=one.angle >= STEEP_DEG)
+    share = one.groupby(["steep", "exit_reason"]).weight.sum()
+    table = agreement(one, ["steep", "exit_reason"]).assign(share=share / share.groupby(level=0).transform("sum"))
+    print(f"one straight fence, by why the modelled exit turn stopped (steep: >= {STEEP_DEG:g} deg):")
+    print(table.round(3).to_string())
+
+
+def budget_scores(dataset: Path, parts_dir: Path, scales: list[float]) -> pd.DataFrame:
+    src = inspect.getsource(D._apply)
+    if BUDGET_LINE not in src:
+        sys.exit("feeder.mechanics.distribution._apply no longer computes the turn budget as this script expects")
+    ns = dict(vars(D))
+    exec(src.replace(BUDGET_LINE, "budget = BUDGET_SCALE * " + BUDGET_LINE.split(" = ", 1)[1]), ns)
+    data = load_dataset(dataset)
+    geoms: dict = {}
+    rows = []
+    for scale in scales:
+        ns["BUDGET_SCALE"] = scale
+        D._apply, original = ns["_apply"], D._apply
+        try:
+            memos: dict = {}
+            for i, (part, config_id) in enumerate(zip(data["part"], data["config_id"])):
+                part = str(part)
+                if part not in geoms:
+                    geoms[part] = as_geometry(load_part(parts_dir / f"{part}.stl"))
+                loc1, loc2 = parse_config_id(str(config_id))
+                dist = D.analytic_distribution(geoms[part], loc1, loc2, responses=memos.setdefault(part, {}))
+                pmf = analytic_pmf(geoms[part], None, None, frame_deg=float(data["frame_deg"][i]), distribution=dist)
+                cw1 = float(circular_w1(np.cumsum(pmf), data["cdf"][i]))
+                rows.append((scale, part, str(config_id), str(data["split"][i]), cw1))
+        finally:
+            D._apply = original
+        print(f"turn budget x {scale:g}: mean circular W1 {np.mean([r[-1] for r in rows if r[0] == scale]):.2f} deg")
+    return pd.DataFrame(rows, columns=["budget_scale", "part", "config_id", "split", "circular_w1_deg"])
+
+
+def main(argv: list[str]) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("sim_dir", type=Path)
+    ap.add_argument("parts_dir", type=Path)
+    ap.add_argument("out_csv", type=Path)
+    ap.add_argument("--dataset", type=Path)
+    ap.add_argument("--budget-scales", default="")
+    ap.add_argument("--budget-csv", type=Path)
+    args = ap.parse_args(argv)
+    df, rolling = dropwise(args.sim_dir, args.parts_dir)
+    write_bytes(args.out_csv, gzip.compress(df.to_csv(index=False, lineterminator="\n").encode(), mtime=0))
+    parts = sorted({r.split()[0] for r in rolling})
+    print(
+        f"left out: {len(rolling)} configurations where a fence rolls the part (no stable edge), "
+        f"of {', '.join(parts) or 'none'}"
+    )
+    summarise(df)
+    if args.budget_scales:
+        if args.dataset is None or args.budget_csv is None:
+            sys.exit("--budget-scales needs --dataset and --budget-csv")
+        scales = [float(s) for s in args.budget_scales.split(",")]
+        raw = budget_scores(args.dataset, args.parts_dir, scales)
+        write_csv(args.budget_csv, raw)
+        raw["fences"] = [fence_types(c) for c in raw.config_id]
+        for key in ("split", "fences"):
+            print(raw.pivot_table(index=key, columns="budget_scale", values="circular_w1_deg").round(2).to_string())
+        per_part = raw.groupby(["budget_scale", "part"]).circular_w1_deg.mean().unstack(0)
+        print("per part (what GroupKFold averages):", per_part.mean().round(2).to_dict())
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main(sys.argv[1:]))
