@@ -26,6 +26,10 @@ def test_shipped_configs_are_valid(config):
     validate(copy.deepcopy(config), schema=SCHEMA)
 
 
+def test_a_round_fence_tip_is_a_valid_setting():
+    validate(_set(copy.deepcopy(_load("config.yaml")), "scene.fences.tip", "round"), schema=SCHEMA)
+
+
 def _set(config, dotted, value):
     *path, last = dotted.split(".")
     node = config
@@ -51,6 +55,7 @@ BAD = [
     ("models.regression", ["m9"], "regression"),
     ("bogus_section", {}, "bogus_section"),
     ("sim.preset", _DELETE, "preset"),  # missing required key
+    ("scene.fences.tip", "pointy", "tip"),  # not in enum (the key itself is optional)
 ]
 
 

@@ -22,8 +22,8 @@ normal, whatever the fence's thickness. This script tests whether Bullet agrees,
    study's (both ok and within ``AGREE_DEG`` modulo the symmetry period), the median |change of
    final yaw| over those, and the share of each run that agrees with the analytic model.
 
-The round tip exists only here (``World._add_fences`` replaced in this process); the package is
-unchanged.
+The round tip is the setting ``scene.fences.tip: round`` (``feeder.lane.geometry.FenceGeom.tip_cap``);
+the study's scene leaves it out (square).
 
     python docs/experiments/fence_tip.py SIM_DIR PARTS_DIR OUT_CSV [--min-angle 45] [--others 24]
 
@@ -53,7 +53,6 @@ import pandas as pd
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from analytic_dropwise import AGREE_DEG, analytic_final  # noqa: E402
 
-import feeder.sim.body as body  # noqa: E402
 import feeder.sim.drops as drops  # noqa: E402
 from feeder.circular import LABEL_BINS, LABEL_SIGMA_BINS, wrapped_gaussian_smooth  # noqa: E402
 from feeder.config import load_study_config  # noqa: E402
@@ -75,34 +74,22 @@ SEED = 0  # base seed: the grid's offset, the same for every variant
 RESAMPLES = 10_000  # bootstrap resamples over configurations
 BOOT_SEED = 0
 TRACE = ("rect-a3", "straight:60", 141.1)  # part, fence, initial yaw of the traced drop
-_SQUARE = body.World._add_fences
 
 
-def _add_fences_round(self, x0: float) -> None:
-    """The study's fences, each capped at its free end by a vertical cylinder of its half
-    thickness centred on the end of its centre line (a body of its own)."""
-    _SQUARE(self, x0)
-    pb, c, fc = self.pb, self.cid, self.scene["fences"]
-    fh, fclr = float(fc["height"]), float(fc["clearance"])
-    for f in self.plan.fences:
-        cx, cy, hl, ht, yaw = f.boxes[-1]
-        shape = pb.createCollisionShape(pb.GEOM_CYLINDER, radius=ht, height=fh, physicsClientId=c)
-        end = [x0 + cx + hl * math.cos(yaw), cy + hl * math.sin(yaw), fclr + 0.5 * fh]
-        cap = pb.createMultiBody(0, shape, basePosition=end, physicsClientId=c)
-        self._surface(cap, float(fc["friction"]))
-
-
-def variant_scene(scene: dict, variant: str) -> tuple[dict, bool]:
-    """(scene, round tip) of a variant: ``square`` (the study), ``round``, ``thin``."""
+def variant_scene(scene: dict, variant: str) -> dict:
+    """The scene of a variant: ``square`` (the study's), ``round`` (``scene.fences.tip: round``),
+    ``thin`` (a square tip ``THIN_M`` thick)."""
     out = copy.deepcopy(scene)
     if variant == "thin":
         out["fences"]["thickness"] = THIN_M
-    return out, variant == "round"
+    if variant == "round":
+        out["fences"]["tip"] = "round"
+    return out
 
 
 def one(job: tuple) -> list[dict]:
     part, config_id, variant, settings, parts_dir = job
-    scene, round_tip = variant_scene(settings["scene"], variant)
+    scene = variant_scene(settings["scene"], variant)
     sim = settings["sim"]
     preset = get_preset(sim["presets"], sim["preset"])
     request = json.dumps(
@@ -127,11 +114,7 @@ def one(job: tuple) -> list[dict]:
                 res = {k: z[k] for k in keys}
     if res is None:
         loc1, loc2 = parse_config_id(config_id)
-        body.World._add_fences = _add_fences_round if round_tip else _SQUARE
-        try:
-            out = simulate(geom, loc1, loc2, DROPS, SEED, scene, preset, sim["preset"], yaw_sampling="grid")
-        finally:
-            body.World._add_fences = _SQUARE
+        out = simulate(geom, loc1, loc2, DROPS, SEED, scene, preset, sim["preset"], yaw_sampling="grid")
         res = {k: out[k] for k in keys}
         path.parent.mkdir(parents=True, exist_ok=True)
         write_npz(path, request=np.array(request), **res)
@@ -196,9 +179,13 @@ def trace(settings: dict, parts_dir: Path) -> pd.DataFrame:
     drops.check_lane = recording
     try:
         for tip in ("square", "round"):
-            body.World._add_fences = _add_fences_round if tip == "round" else _SQUARE
             out = drops.run_drops(
-                geom, parse_location(loc1), parse_location("none"), np.array([yaw0]), settings["scene"], preset
+                geom,
+                parse_location(loc1),
+                parse_location("none"),
+                np.array([yaw0]),
+                variant_scene(settings["scene"], tip),
+                preset,
             )
             print(
                 f"traced {part} {loc1} from {yaw0} deg, {tip} tip: ends at {out['final_yaw_deg'][0]:.1f} deg "
@@ -206,7 +193,6 @@ def trace(settings: dict, parts_dir: Path) -> pd.DataFrame:
             )
     finally:
         drops.check_lane = check
-        body.World._add_fences = _SQUARE
     return pd.DataFrame(rows)
 
 

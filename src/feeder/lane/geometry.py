@@ -36,7 +36,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from feeder.errors import FeederError
 from feeder.lane.fences import Fence
+
+FENCE_TIPS = ("square", "round")  # scene.fences.tip
+_CAP_QUAD_SEGS = 16  # segments per quarter circle of a round tip's disc in a footprint
 
 
 # --------------------------------------------------------------------------------------------
@@ -50,17 +54,41 @@ class FenceGeom:
     fence: Fence
     side: int  # +1 right (x > 0), -1 left
     boxes: tuple[tuple[float, float, float, float, float], ...]
+    round_tip: bool = False  # scene.fences.tip: round (a cylinder caps the free end)
+
+    def tip_cap(self) -> tuple[float, float, float] | None:
+        """``(x, y, radius)`` of the vertical cylinder that caps a round tip: centred on the end of
+        the last box's centre line, of the box's half thickness, so the face runs smoothly into it;
+        None for a square tip (or no box left)."""
+        if not self.round_tip or not self.boxes:
+            return None
+        cx, cy, hl, ht, yaw = self.boxes[-1]
+        return (cx + hl * math.cos(yaw), cy + hl * math.sin(yaw), ht)
 
     def footprint(self):
-        """Union of the boxes' footprints (shapely)."""
-        from shapely.geometry import Polygon
+        """Union of the boxes' footprints (shapely), with the round tip's disc."""
+        from shapely.geometry import Point, Polygon
         from shapely.ops import unary_union
 
-        return unary_union([Polygon(box_corners(*b)) for b in self.boxes])
+        shapes = [Polygon(box_corners(*b)) for b in self.boxes]
+        cap = self.tip_cap()
+        if cap is not None:
+            shapes.append(Point(cap[0], cap[1]).buffer(cap[2], quad_segs=_CAP_QUAD_SEGS))
+        return unary_union(shapes)
 
     @property
     def length(self) -> float:
         return float(sum(2.0 * b[2] for b in self.boxes))
+
+
+def fence_tip(scene: dict) -> str:
+    """``scene.fences.tip``: ``square`` (the box's end, the default when the key is absent) or
+    ``round`` (a cylinder of the fence's half thickness caps its free end). Bullet pushes past a
+    square tip's corner with the face's normal (docs/simulation.md, "A square fence tip")."""
+    tip = scene["fences"].get("tip", "square")
+    if tip not in FENCE_TIPS:
+        raise FeederError(f"scene.fences.tip must be one of {', '.join(FENCE_TIPS)}, got {tip!r}")
+    return tip
 
 
 def box_corners(cx, cy, hl, ht, yaw) -> np.ndarray:
@@ -162,7 +190,7 @@ def fence_geometry(scene: dict, location: str, fence: Fence) -> FenceGeom | None
             fence.angle, side, slot_x, y0, float(cc["radius"]), float(cc["span_deg"]), int(cc["segments"]), offset=ht
         )
         boxes = arc_boxes(pts, centre, ht)
-    return FenceGeom(location, fence, side, boxes)
+    return FenceGeom(location, fence, side, boxes, fence_tip(scene) == "round")
 
 
 def trim_to_gap(up: FenceGeom, down: FenceGeom, gap: float, tol: float = 1e-4) -> FenceGeom:
@@ -178,7 +206,7 @@ def trim_to_gap(up: FenceGeom, down: FenceGeom, gap: float, tol: float = 1e-4) -
         return up
 
     def with_boxes(boxes):
-        return FenceGeom(up.location, up.fence, up.side, tuple(boxes))
+        return FenceGeom(up.location, up.fence, up.side, tuple(boxes), up.round_tip)
 
     if up.fence.type == "curved":
         boxes = list(up.boxes)

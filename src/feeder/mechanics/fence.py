@@ -97,7 +97,8 @@ def _local_angle(yaw_rad: float, side: int) -> float:
 def fence_models(loc1, loc2, scene: dict | None = None) -> list[FenceModel]:
     """The fences of a configuration in the order a part meets them (Location 2, then 1), built
     by the simulator's own geometry (:func:`feeder.sim.scene.scene_fences`, with the upstream
-    fence trimmed to ``min_gap``)."""
+    fence trimmed to ``min_gap``). A round tip (``scene.fences.tip``) is taken as the face's corner:
+    the cap's radius (half the fence's thickness) is left out."""
     scene = default_scene() if scene is None else scene
     loc1, loc2 = as_fence(loc1), as_fence(loc2)
     out = []

@@ -541,7 +541,8 @@ class World:
         self._surface(body, float(walls["friction"]))
 
     def _add_fences(self, x0: float) -> None:
-        """The plan's fences in the lane: static compounds of their boxes (at most 16 per body)."""
+        """The plan's fences in the lane: static compounds of their boxes (at most 16 per body), and
+        a round tip's cylinder (:meth:`feeder.lane.geometry.FenceGeom.tip_cap`)."""
         pb, c, fc = self.pb, self.cid, self.scene["fences"]
         fh, fclr = float(fc["height"]), float(fc["clearance"])
         for f in self.plan.fences:
@@ -555,6 +556,13 @@ class World:
                     physicsClientId=c,
                 )
                 body = pb.createMultiBody(0, shape, basePosition=[x0, 0.0, fclr + 0.5 * fh], physicsClientId=c)
+                self._surface(body, float(fc["friction"]))
+            cap = f.tip_cap()
+            if cap is not None:  # a round tip: a static cylinder of its own (a compound holds <= 16 shapes)
+                shape = pb.createCollisionShape(pb.GEOM_CYLINDER, radius=cap[2], height=fh, physicsClientId=c)
+                body = pb.createMultiBody(
+                    0, shape, basePosition=[x0 + cap[0], cap[1], fclr + 0.5 * fh], physicsClientId=c
+                )
                 self._surface(body, float(fc["friction"]))
 
     def _add_part_shape(self) -> int:
