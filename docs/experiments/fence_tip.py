@@ -11,21 +11,25 @@ normal, whatever the fence's thickness. This script tests whether Bullet agrees,
    check past the tip, the part's yaw and every fence contact's position, normal direction and
    normal force, with the square tip of the study and with a round one.
 2. **Paired sweep.** Every configuration of the study with one straight fence at ``--min-angle``
-   degrees or more, and ``--others`` more single-fence configurations (any type and angle, chosen
-   by sha256 of their names), simulated three ways: the study's scene (square tip, 10 mm), the
-   same with a round tip (a vertical cylinder of the fence's half thickness capping its free end,
-   so the face runs smoothly into it: the box is unchanged, the tip reaches half a thickness
-   further), and a square tip on a fence ``THIN_M`` thick. The same preset, an evenly spaced grid
-   of ``DROPS`` initial yaws with one offset (base seed ``SEED``), so the runs are paired drop by
-   drop. Per drop it records the final yaws and status and the analytic model's yaw
-   (``analytic_dropwise.analytic_final``). It prints the share of drops in the same basin as the
-   study's (both ok and within ``AGREE_DEG`` modulo the symmetry period), the median |change of
-   final yaw| over those, and the share of each run that agrees with the analytic model.
+   degrees or more (Location 1, Location 2 empty), ``--others`` more such single-fence
+   configurations (any type and angle) and ``--two-fence`` two-fence configurations with a
+   straight fence that steep (both chosen by sha256 of their names). Each is simulated three
+   ways: the study's scene (square tip, 10 mm); the same with a round tip (a vertical cylinder of
+   the fence's half thickness capping its free end, so the face runs smoothly into it: the box is
+   unchanged, the tip reaches half a thickness further); and a square tip on a fence ``THIN_M``
+   thick. The same preset, an evenly spaced grid of ``DROPS`` initial yaws with one offset (base
+   seed ``SEED``), so the runs are paired drop by drop. Per drop it records the final yaws and
+   status and the analytic model's yaw (``analytic_dropwise.analytic_final``). It prints, per
+   group, the share of drops in the same basin as the study's (both ok and within ``AGREE_DEG``
+   modulo the symmetry period), the median |change of final yaw| over those, the share of each
+   run that agrees with the analytic model, and circular W1 between the runs' PMFs and to the
+   analytic PMF.
 
 The round tip is the setting ``scene.fences.tip: round`` (``feeder.lane.geometry.FenceGeom.tip_cap``);
 the study's scene leaves it out (square).
 
-    python docs/experiments/fence_tip.py SIM_DIR PARTS_DIR OUT_CSV [--min-angle 45] [--others 24]
+    python docs/experiments/fence_tip.py SIM_DIR PARTS_DIR OUT_CSV [--min-angle 45] [--others 24] \
+        [--two-fence 24]
 
 SIM_DIR is a run's ``results/sim`` (which configurations exist). Simulation files go to
 ``results/bench/fence_tip/sim/`` and are reused while their request is unchanged; raw rows (one per
@@ -237,27 +241,38 @@ def main(argv: list[str]) -> int:
     ap.add_argument("out_csv", type=Path)
     ap.add_argument("--min-angle", type=float, default=45.0)
     ap.add_argument("--others", type=int, default=24)
+    ap.add_argument("--two-fence", type=int, default=24)
     ap.add_argument("--workers", type=int, default=2)
     args = ap.parse_args(argv)
     config = load_study_config(root=ROOT)
     settings = {k: config[k] for k in ("scene", "sim", "parts")}
     tr = trace(settings, args.parts_dir)
     write_csv(args.out_csv.with_name(args.out_csv.stem + "_trace" + args.out_csv.suffix), tr)
-    single = sorted((p.parent.name, p.stem) for p in args.sim_dir.glob("*/*_none.npz") if not p.stem.startswith("none"))
 
-    def steep(cid: str) -> bool:
-        kind, angle = (
-            cid.split("_")[0].rstrip("0123456789"),
-            float(cid.split("_")[0].lstrip("abcdefghijklmnopqrstuvwxyz")),
-        )
-        return kind == "straight" and angle >= args.min_angle
+    def steep_straight(token: str) -> bool:
+        kind = token.rstrip("0123456789.")
+        return kind == "straight" and float(token[len(kind) :]) >= args.min_angle
 
-    chosen = [c for c in single if steep(c[1])]
-    rest = sorted(
-        (c for c in single if not steep(c[1])), key=lambda c: hashlib.sha256(f"{c[0]}:{c[1]}".encode()).hexdigest()
-    )
-    chosen += rest[: args.others]
-    print(f"{len(chosen)} configurations ({len(chosen) - args.others} steep straight), 3 variants", file=sys.stderr)
+    def group(cid: str) -> str:
+        """``steep one``: one straight fence at Location 1 at min-angle or more; ``other one``: any
+        other fence at Location 1 alone; ``steep two``: two fences, one of them straight at min-angle
+        or more; ``other``: the rest (two shallow fences, a fence at Location 2 alone)."""
+        loc1, loc2 = cid.split("_")
+        if loc2 == "none" and loc1 != "none":
+            return f"{'steep' if steep_straight(loc1) else 'other'} one"
+        if "none" not in (loc1, loc2) and (steep_straight(loc1) or steep_straight(loc2)):
+            return "steep two"
+        return "other"
+
+    def by_hash(configs):
+        return sorted(configs, key=lambda c: hashlib.sha256(f"{c[0]}:{c[1]}".encode()).hexdigest())
+
+    every = sorted((p.parent.name, p.stem) for p in args.sim_dir.glob("*/*.npz"))
+    chosen = [c for c in every if group(c[1]) == "steep one"]
+    chosen += by_hash(c for c in every if group(c[1]) == "other one")[: args.others]
+    chosen += by_hash(c for c in every if group(c[1]) == "steep two")[: args.two_fence]
+    counts = pd.Series([group(c[1]) for c in chosen]).value_counts().to_dict()
+    print(f"{len(chosen)} configurations {counts}, 3 variants", file=sys.stderr)
     jobs = [(part, cid, v, settings, args.parts_dir) for part, cid in chosen for v in ("square", "round", "thin")]
     rows = []
     with ProcessPoolExecutor(args.workers) as pool:
@@ -268,8 +283,8 @@ def main(argv: list[str]) -> int:
     raw = pd.DataFrame(rows)
     write_csv(args.out_csv, raw)
     flags = summarise(raw)
-    flags["steep"] = [steep(c) for c in flags.index.get_level_values("config_id")]
-    table = flags.groupby(["steep", "variant"]).agg(
+    flags["group"] = [group(c) for c in flags.index.get_level_values("config_id")]
+    table = flags.groupby(["group", "variant"]).agg(
         configs=("same_basin", lambda s: s.index.droplevel("drop").nunique()),
         same_basin_as_study=("same_basin", "mean"),
         median_abs_dyaw=("abs_dyaw", "median"),
@@ -280,30 +295,39 @@ def main(argv: list[str]) -> int:
     w1 = pmf_scores(raw, args.parts_dir, settings["scene"], str(settings["parts"]["units"]))
     write_csv(args.out_csv.with_name(args.out_csv.stem + "_pmf" + args.out_csv.suffix), w1)
     piv = w1.pivot_table(index=["part", "config_id"], columns="variant", values="analytic_cw1_deg")
-    piv["steep"] = [steep(c) for c in piv.index.get_level_values("config_id")]
+    piv["group"] = [group(c) for c in piv.index.get_level_values("config_id")]
     print("circular W1 (deg) of the analytic PMF to each run's 16-drop PMF, mean over configurations:")
-    print(piv.groupby("steep")[["square", "round", "thin"]].mean().round(2).to_string())
-    d = (piv[piv.steep]["round"] - piv[piv.steep]["square"]).dropna().to_numpy()
-    lo, hi = paired_interval(d)
-    print(f"steep, round minus square: {d.mean():+.2f} [{lo:+.2f}, {hi:+.2f}] deg over {d.size} configurations")
+    print(piv.groupby("group")[["square", "round", "thin"]].mean().round(2).to_string())
     between = w1[w1.variant != "square"].pivot_table(
         index=["part", "config_id"], columns="variant", values="to_square_cw1_deg"
     )
-    between["steep"] = [steep(c) for c in between.index.get_level_values("config_id")]
+    between["group"] = [group(c) for c in between.index.get_level_values("config_id")]
     print("circular W1 (deg) of each run's PMF to the study's (square) one:")
-    print(between.groupby("steep")[["round", "thin"]].mean().round(2).to_string())
-    steep_rows = flags[flags.steep]
-    per = steep_rows.groupby(["variant", "part", "config_id"]).agg(
-        same=("same_basin", "mean"), agrees=("agrees_analytic", "mean")
-    )
-    for variant in ("round", "thin"):
-        d = (per.loc[variant].agrees - per.loc["square"].agrees).dropna().to_numpy()
-        lo, hi = paired_interval(d)
-        print(
-            f"steep, {variant} minus square: agreement with the analytic model {d.mean():+.3f} [{lo:+.3f}, {hi:+.3f}]"
-            f" over {d.size} configurations; same basin as the study {per.loc[variant].same.mean():.3f}"
-            f" [{', '.join(f'{v:.3f}' for v in paired_interval(per.loc[variant].same.to_numpy()))}]"
+    print(between.groupby("group")[["round", "thin"]].mean().round(2).to_string())
+    for name in ("steep one", "steep two"):
+        sel = piv[piv.group == name]
+        d = (sel["round"] - sel["square"]).dropna().to_numpy()
+        if d.size:
+            lo, hi = paired_interval(d)
+            print(
+                f"{name}, round minus square, analytic PMF's W1: {d.mean():+.2f} [{lo:+.2f}, {hi:+.2f}] deg, {d.size}"
+            )
+        per = (
+            flags[flags.group == name]
+            .groupby(["variant", "part", "config_id"])
+            .agg(same=("same_basin", "mean"), agrees=("agrees_analytic", "mean"))
         )
+        if per.empty:
+            continue
+        for variant in ("round", "thin"):
+            d = (per.loc[variant].agrees - per.loc["square"].agrees).dropna().to_numpy()
+            lo, hi = paired_interval(d)
+            same_lo, same_hi = paired_interval(per.loc[variant].same.to_numpy())
+            print(
+                f"{name}, {variant} minus square: agreement with the analytic model {d.mean():+.3f} "
+                f"[{lo:+.3f}, {hi:+.3f}] over {d.size} configurations; same basin as the study "
+                f"{per.loc[variant].same.mean():.3f} [{same_lo:.3f}, {same_hi:.3f}]"
+            )
     return 0
 
 
