@@ -102,8 +102,11 @@ def exit_reasons(geom, model, yaws, mu, memo) -> list[str]:
         memo[model] = D.fence_response(geom, model, mu, True)
     resp = memo[model]
     key = ("reasons", model)
-    if key not in memo:
-        memo[key] = [exit_turn(geom, int(e), model.exit_deg, model.side, mu).reason for e in resp.push.edges]
+    if key not in memo:  # the response's own (around a round tip's cap if it has one) ...
+        memo[key] = [  # ... or, where the exit face holds the part and it has none, the turn it would take
+            why or exit_turn(geom, int(e), model.exit_deg, model.side, mu).reason
+            for why, e in zip(resp.exit_reason, resp.push.edges)
+        ]
     phi = fence_normal_deg(model.exit_deg, model.side) - np.asarray(yaws, dtype=np.float64)
     idx = resp.push.basin_index(phi)
     reach = D._support_towards(geom, np.asarray(yaws, dtype=np.float64), model.side)

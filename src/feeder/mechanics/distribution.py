@@ -20,12 +20,15 @@ Configurations (:func:`analytic_distribution`)
     radians (a unit push at moment arm ``a`` turns it by ``a / (c² + a²) ≤ 1 / (2c)`` on the
     limit surface), so a part that would need more (a shallow curved fence reaching only its
     edge: ``curved:0``) turns that far towards its stable edge and leaves unaligned.
+    A round fence tip (``scene.fences.tip: round``) is a disc: the exit turn pushes the outline
+    grown by the disc's radius (:func:`feeder.mechanics.hull.dilate`) with the disc's centre as
+    the corner; the face still meets the outline itself.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -41,9 +44,14 @@ from feeder.mechanics.fence import (
     friction_margin_deg,
     resting_yaw,
 )
-from feeder.mechanics.hull import PushGeometry, as_geometry, radius_function
+from feeder.mechanics.hull import PushGeometry, as_geometry, dilate, radius_function
 from feeder.mechanics.pushfunction import PushFunction, push_function, rolling_density
 
+# Chords per quarter turn of the arcs that round the outline's corners for a round fence tip
+# (feeder.mechanics.hull.dilate): docs/structured.md, "A round tip in the analytic model".
+TIP_ARC_QUAD_SEGS = 8
+EDGE_MATCH_DEG = 0.01  # a grown hull edge keeps its normal to this (outline vertices within the hull's
+# collinearity tolerance of a hull edge split it: 0.002° at most over the library)
 YAW_SAMPLES = 7200  # evenly spaced initial yaws (0.05° apart): a basin's mass is off by < 1/7200
 # Contact normals at which a rolling part (no stable edge) may leave a fence: 0.5° apart.
 ROLL_SAMPLES = 720
@@ -59,6 +67,7 @@ class FenceResponse:
     rest_deg: np.ndarray  # (S,) yaw flush on the exit face
     exit_deg: np.ndarray  # (S,) yaw after the exit turn
     exit_offset: np.ndarray  # (S, 2) centroid relative to the tip corner when released
+    exit_reason: tuple = ()  # (S,) why each exit turn stopped (ExitTurn.reason; "" without one)
 
 
 def fence_response(part, model: FenceModel, mu: float, exit_turns: bool = True) -> FenceResponse:
@@ -68,14 +77,32 @@ def fence_response(part, model: FenceModel, mu: float, exit_turns: bool = True) 
     rest = resting_yaw(push.normals_deg, model.exit_deg, model.side)
     # no exit turn where the exit face holds the part (in the friction cone): it jams there
     turning = exit_turns and float(friction_margin_deg(model.exit_deg, mu)) > 0.0
-    turns = [exit_turn(geom, int(k), model.exit_deg, model.side, mu) if turning else None for k in push.edges]
+    grown = dilate(geom, model.cap_radius, TIP_ARC_QUAD_SEGS) if turning and model.cap is not None else None
+    turns = [_exit(geom, grown, model, int(k), mu) if turning else None for k in push.edges]
     delta = np.array([t.delta_deg if t else 0.0 for t in turns])
+    reasons = tuple(t.reason if t else "" for t in turns)
     if turning:
         offset = np.array([t.offset for t in turns])
     else:  # flush at the tip: the centroid sits at its height from the face, over the foot
         normal = np.radians(fence_normal_deg(model.exit_deg, model.side))
         offset = -np.outer(geom.heights[push.edges], [math.cos(normal), math.sin(normal)])
-    return FenceResponse(model, push, rest, wrap360(rest + delta), offset)
+    return FenceResponse(model, push, rest, wrap360(rest + delta), offset, reasons)
+
+
+def _exit(geom: PushGeometry, grown: PushGeometry | None, model: FenceModel, edge: int, mu: float):
+    """The exit turn of hull edge ``edge`` leaving ``model``'s tip; its offset is from ``model.tip``.
+    Around a round tip (``grown``: the outline grown by its radius): the grown outline's edge of
+    the same normal, flush on the line through the disc's centre, which is the corner (the offset
+    moved from it to ``model.tip``)."""
+    if grown is None:
+        return exit_turn(geom, edge, model.exit_deg, model.side, mu)
+    gap = np.abs(np.mod(grown.normals_deg - geom.normals_deg[edge] + HALF_TURN_DEG, FULL_TURN_DEG) - HALF_TURN_DEG)
+    match = int(np.argmin(gap))
+    if gap[match] > EDGE_MATCH_DEG:  # pragma: no cover - dilate keeps every hull edge's normal
+        raise FeederError(f"hull edge {edge} has no edge of the same normal once grown by the tip's radius")
+    turn = exit_turn(grown, match, model.exit_deg, model.side, mu)
+    shift = (model.cap[0] - model.tip[0], model.cap[1] - model.tip[1])
+    return replace(turn, offset=(turn.offset[0] + shift[0], turn.offset[1] + shift[1]))
 
 
 @dataclass(frozen=True)

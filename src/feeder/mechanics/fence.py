@@ -71,7 +71,9 @@ class FenceModel:
     ``side``: +1 right, −1 left; ``inner``: innermost reach ``min(side · x)`` of its footprint;
     ``exit_deg``: local angle of the face the part leaves from (straight: θ; curved: last chord);
     ``slot_deg``: local angle at the slot end (straight: θ); ``tip``: the corner the part leaves
-    around; ``centre``/``outer_radius``: the arc of a curved fence's face (None for straight)."""
+    around; ``centre``/``outer_radius``: the arc of a curved fence's face (None for straight);
+    ``cap``/``cap_radius``: a round tip's cylinder, centre and radius (None and 0 for a square
+    tip): the part leaves around it, not around ``tip``."""
 
     location: str
     fence: Fence
@@ -82,6 +84,8 @@ class FenceModel:
     tip: tuple[float, float]
     centre: tuple[float, float] | None = None
     outer_radius: float | None = None
+    cap: tuple[float, float] | None = None
+    cap_radius: float = 0.0
 
     @property
     def curved(self) -> bool:
@@ -97,8 +101,8 @@ def _local_angle(yaw_rad: float, side: int) -> float:
 def fence_models(loc1, loc2, scene: dict | None = None) -> list[FenceModel]:
     """The fences of a configuration in the order a part meets them (Location 2, then 1), built
     by the simulator's own geometry (:func:`feeder.sim.scene.scene_fences`, with the upstream
-    fence trimmed to ``min_gap``). A round tip (``scene.fences.tip``) is taken as the face's corner:
-    the cap's radius (half the fence's thickness) is left out."""
+    fence trimmed to ``min_gap``). A round tip (``scene.fences.tip``) keeps its cylinder (``cap``): the
+    exit turn runs around it (:func:`feeder.mechanics.distribution.fence_response`)."""
     scene = default_scene() if scene is None else scene
     loc1, loc2 = as_fence(loc1), as_fence(loc2)
     out = []
@@ -124,9 +128,20 @@ def fence_models(loc1, loc2, scene: dict | None = None) -> list[FenceModel]:
             )
             centre = (float(ctr[0]), float(ctr[1]))
             radius = float(cc["radius"]) + float(ht)
+        cap = fg.tip_cap()
         out.append(
             FenceModel(
-                fg.location, fg.fence, side, inner, exit_deg, slot_deg, (float(tip[0]), float(tip[1])), centre, radius
+                fg.location,
+                fg.fence,
+                side,
+                inner,
+                exit_deg,
+                slot_deg,
+                (float(tip[0]), float(tip[1])),
+                centre,
+                radius,
+                None if cap is None else (float(cap[0]), float(cap[1])),
+                0.0 if cap is None else float(cap[2]),
             )
         )
     return out

@@ -112,6 +112,14 @@ def push_geometry(outline, holes=()) -> PushGeometry:
         _check_holes(pts, cut, "part")
     area, centroid, _ = profile_moments(pts, cut)
     rel = pts - centroid
+    # ∫|x| dA over the region: the outline's less each hole's (all CCW, about the same centroid)
+    limit_radius = (_mean_distance_integral(rel) - sum(_mean_distance_integral(h - centroid) for h in cut)) / area
+    centroid.setflags(write=False)
+    return _about_centroid(rel, centroid, area, limit_radius)
+
+
+def _about_centroid(rel: np.ndarray, centroid: np.ndarray, area: float, limit_radius: float) -> PushGeometry:
+    """The hull fields of a cleaned CCW outline ``rel`` given about the area centroid."""
     size = float(np.max(np.hypot(rel[:, 0], rel[:, 1])))
     hull = convex_hull(rel, REL_TOL * size)
     nxt = np.roll(hull, -1, axis=0)
@@ -124,13 +132,47 @@ def push_geometry(outline, holes=()) -> PushGeometry:
         raise FeederError("outline's area centroid lies on its convex hull (degenerate outline)")
     feet = -np.sum(hull * e, axis=1)
     normals_deg = np.mod(np.degrees(np.arctan2(normals[:, 1], normals[:, 0])), FULL_TURN_DEG)
-    # ∫|x| dA over the region: the outline's less each hole's (all CCW, about the same centroid)
-    limit_radius = (_mean_distance_integral(rel) - sum(_mean_distance_integral(h - centroid) for h in cut)) / area
     d1, d2 = rel - np.roll(rel, 1, axis=0), np.roll(rel, -1, axis=0) - rel
     convex = d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0] >= 0.0
-    for arr in (centroid, hull, normals_deg, lengths, heights, feet, rel, convex):
+    for arr in (hull, normals_deg, lengths, heights, feet, rel, convex):
         arr.setflags(write=False)
     return PushGeometry(centroid, area, hull, normals_deg, lengths, heights, feet, limit_radius, size, rel, convex)
+
+
+def dilate(part, radius: float, quad_segs: int) -> PushGeometry:
+    """The part as a disc of ``radius`` sees it: its outline grown by ``radius`` (the Minkowski
+    sum with the disc), about the same centroid, with the same area and limit-surface radius (the
+    part itself is unchanged: only the contact is). A disc of radius ``r`` touching the outline
+    is its centre touching the grown outline, so a round fence tip is a point pusher on it.
+    Concavities narrower than the disc fill in; holes play no part.
+
+    The disc is a polygon with a vertex every ``90 / quad_segs`` degrees and at the normal of
+    every hull edge, so each hull edge of the part is a hull edge of the grown outline, with the
+    same normal and length (a bridge over a concavity too). ``radius`` 0 returns the geometry."""
+    from shapely import Polygon
+    from shapely.ops import unary_union
+
+    geom = as_geometry(part)
+    radius = float(radius)
+    if not (math.isfinite(radius) and radius >= 0.0):
+        raise FeederError(f"dilation radius must be a finite number >= 0, got {radius!r}")
+    if int(quad_segs) < 1:
+        raise FeederError(f"quad_segs must be a positive integer, got {quad_segs!r}")
+    if radius == 0.0:
+        return geom
+    even = np.arange(4 * int(quad_segs)) * (FULL_TURN_DEG / (4 * int(quad_segs)))
+    angles = np.radians(np.unique(np.concatenate([even, geom.normals_deg])))
+    disc = radius * np.column_stack([np.cos(angles), np.sin(angles)])
+    rel = geom.outline
+    nxt = np.roll(rel, -1, axis=0)
+    edge = nxt - rel
+    normal = np.column_stack([edge[:, 1], -edge[:, 0]]) / np.hypot(edge[:, 0], edge[:, 1])[:, None] * radius
+    shapes = [Polygon(rel)]
+    shapes += [Polygon(v + disc) for v in rel[geom.convex]]
+    shapes += [Polygon([a, b, b + n, a + n]) for a, b, n in zip(rel, nxt, normal)]
+    grown = unary_union(shapes)
+    outline = clean_outline(np.asarray(grown.exterior.coords)[:-1], what="grown outline")
+    return _about_centroid(outline, geom.centroid, geom.area, geom.limit_radius)
 
 
 def as_geometry(part) -> PushGeometry:

@@ -1,0 +1,142 @@
+"""The analytic model of a round fence tip: the part's outline grown by the cap's radius
+(feeder.mechanics.hull.dilate), pushed by the cap's centre in the exit turn
+(feeder.mechanics.distribution.fence_response; docs/structured.md, "A round tip in the analytic model")."""
+
+import copy
+import dataclasses
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from feeder.errors import FeederError
+from feeder.lane import geometry as lane_geometry
+from feeder.lane.fences import Fence
+from feeder.mechanics.distribution import analytic_distribution, fence_response
+from feeder.mechanics.fence import fence_models, fence_mu
+from feeder.mechanics.hull import as_geometry, dilate, push_geometry
+
+ROOT = Path(__file__).resolve().parents[1]
+SCENE = yaml.safe_load((ROOT / "config" / "config.yaml").read_text())["scene"]
+ROUND = copy.deepcopy(SCENE)
+ROUND["fences"]["tip"] = "round"
+MU = fence_mu(SCENE)
+
+
+def _rect(w, h):
+    return np.array([[0.0, 0.0], [w, 0.0], [w, h], [0.0, h]])
+
+
+def test_growing_a_rectangle_keeps_its_edges_and_adds_the_radius_to_every_height():
+    geom = push_geometry(_rect(0.06, 0.02))
+    grown = dilate(geom, 0.005, 8)
+    for k, normal in enumerate(geom.normals_deg):
+        j = int(np.argmin(np.abs((grown.normals_deg - normal + 180.0) % 360.0 - 180.0)))
+        assert grown.normals_deg[j] == pytest.approx(normal, abs=1e-9)
+        assert grown.lengths[j] == pytest.approx(geom.lengths[k], abs=1e-12)
+        assert grown.heights[j] == pytest.approx(geom.heights[k] + 0.005, abs=1e-12)
+    # four quarter discs of 8 chords each: the area of the grown polygon, by hand
+    chords = 0.5 * 32 * 0.005**2 * math.sin(2.0 * math.pi / 32)
+    grown_area = float(
+        0.5
+        * abs(
+            np.sum(
+                grown.outline[:, 0] * np.roll(grown.outline[:, 1], -1)
+                - np.roll(grown.outline[:, 0], -1) * grown.outline[:, 1]
+            )
+        )
+    )
+    assert grown_area == pytest.approx(0.06 * 0.02 + 2 * 0.005 * (0.06 + 0.02) + chords, rel=1e-12)
+    # the part itself is unchanged: centroid, area, limit surface
+    assert grown.area == geom.area and grown.limit_radius == geom.limit_radius
+    np.testing.assert_array_equal(grown.centroid, geom.centroid)
+    assert dilate(geom, 0.0, 8) is geom
+
+
+def test_a_slot_narrower_than_the_disc_fills_in_and_a_wide_one_stays():
+    def u_shape(slot):  # 60 x 40 mm, a 20 mm deep slot of width `slot` in the middle of the top
+        a, b = 0.03 - slot / 2, 0.03 + slot / 2
+        return np.array([[0, 0], [0.06, 0], [0.06, 0.04], [b, 0.04], [b, 0.02], [a, 0.02], [a, 0.04], [0, 0.04]])
+
+    def floor(slot):  # lowest point of the grown outline over the slot (part file frame)
+        geom = push_geometry(u_shape(slot))
+        pts = dilate(geom, 0.005, 8).outline + geom.centroid
+        return float(np.min(pts[np.abs(pts[:, 0] - 0.03) < slot / 2, 1]))
+
+    # 8 mm < 10 mm: the disc cannot enter; two arcs of 5 mm about the slot's top corners meet
+    # sqrt(5² - 4²) = 3 mm above the top
+    assert floor(0.008) == pytest.approx(0.04 + 0.003, abs=1e-4)
+    assert floor(0.016) == pytest.approx(0.02 + 0.005, abs=1e-12)  # 16 mm: the disc reaches the floor
+
+
+def test_a_bridge_over_a_notch_survives_growing_with_its_normal_and_length():
+    """The hull edge across a V notch is no outline edge, nor in line with one: the discs at its
+    two ends must carry a vertex at its normal (here 100°, off the 11.25° grid of 8 chords a
+    quarter) for it to lie exactly ``r`` further out."""
+    u = np.array([[0, 0], [0.06, 0], [0.06, 0.04], [0.03, 0.02], [0, 0.04]])
+    turn = math.radians(10.0)
+    geom = push_geometry(u @ np.array([[math.cos(turn), math.sin(turn)], [-math.sin(turn), math.cos(turn)]]))
+    grown = dilate(geom, 0.005, 8)
+    assert len(grown.hull) >= len(geom.hull)
+    for k, normal in enumerate(geom.normals_deg):
+        gap = np.abs((grown.normals_deg - normal + 180.0) % 360.0 - 180.0)
+        j = int(np.argmin(gap))
+        assert gap[j] < 1e-9 and grown.lengths[j] == pytest.approx(geom.lengths[k], abs=1e-12)
+        # exactly r further out (a disc polygon without that vertex falls short by r (1 - cos 1.25°))
+        assert grown.heights[j] == pytest.approx(geom.heights[k] + 0.005, abs=1e-12)
+
+
+@pytest.mark.parametrize("radius, segs", [(-0.001, 8), (float("nan"), 8), (0.005, 0)])
+def test_a_bad_radius_or_resolution_is_a_feeder_error(radius, segs):
+    with pytest.raises(FeederError):
+        dilate(push_geometry(_rect(0.06, 0.02)), radius, segs)
+
+
+def test_fence_models_carry_the_cap_of_a_round_tip_only():
+    square = fence_models("straight:30", "curved:40", SCENE)
+    rounded = fence_models("straight:30", "curved:40", ROUND)
+    assert all(m.cap is None and m.cap_radius == 0.0 for m in square)
+    for m, fg in zip(rounded, lane_geometry.scene_fences(ROUND, Fence("straight", 30.0), Fence("curved", 40.0))):
+        x, y, r = fg.tip_cap()
+        assert m.cap == pytest.approx((x, y)) and m.cap_radius == pytest.approx(0.5 * SCENE["fences"]["thickness"])
+        # everything else is the square tip's model
+        assert dataclasses.replace(m, cap=None, cap_radius=0.0) in square
+
+
+def test_a_vanishing_cap_is_the_corner_model_moved_to_the_cap_centre():
+    geom = as_geometry(push_geometry(_rect(0.06, 0.02)))
+    corner = fence_models("straight:30", "none", SCENE)[0]
+    cap = fence_models("straight:30", "none", ROUND)[0]
+    tiny = dataclasses.replace(cap, cap_radius=1e-9)
+    a, b = fence_response(geom, corner, MU), fence_response(geom, tiny, MU)
+    np.testing.assert_allclose(b.exit_deg, a.exit_deg, atol=1e-4)
+    shift = np.subtract(cap.cap, corner.tip)  # the face line runs through the cap's centre
+    np.testing.assert_allclose(b.exit_offset, a.exit_offset + shift, atol=1e-6)
+    assert b.exit_reason == a.exit_reason and len(a.exit_reason) == len(a.push.edges)
+
+
+def test_the_cap_changes_only_the_exit_turn():
+    geom = as_geometry(push_geometry(_rect(0.06, 0.02)))
+    corner = fence_models("straight:55", "none", SCENE)[0]
+    cap = fence_models("straight:55", "none", ROUND)[0]
+    a, b = fence_response(geom, corner, MU), fence_response(geom, cap, MU)
+    np.testing.assert_array_equal(b.push.edges, a.push.edges)
+    np.testing.assert_array_equal(b.rest_deg, a.rest_deg)
+    assert np.max(np.abs((b.exit_deg - a.exit_deg + 180.0) % 360.0 - 180.0)) > 0.1  # the disc turns it otherwise
+    # without exit turns the cap plays no part
+    c, d = fence_response(geom, corner, MU, exit_turns=False), fence_response(geom, cap, MU, exit_turns=False)
+    np.testing.assert_array_equal(c.exit_deg, d.exit_deg)
+    np.testing.assert_array_equal(c.exit_offset, d.exit_offset)
+
+
+def test_a_square_tip_model_is_what_it_was():
+    """The study's scene (no ``tip``: square) gives the same distribution as fence models with
+    the cap fields at their defaults, to the bit."""
+    geom = as_geometry(push_geometry(_rect(0.06, 0.02)))
+    fences = fence_models("straight:45", "curved:30", SCENE)
+    a = analytic_distribution(geom, "straight:45", "curved:30", SCENE, samples=720)
+    b = analytic_distribution(geom, None, None, SCENE, samples=720, fences=fences)
+    np.testing.assert_array_equal(a.yaws, b.yaws)
+    np.testing.assert_array_equal(a.weights, b.weights)
