@@ -14,7 +14,7 @@ import yaml
 from feeder.errors import FeederError
 from feeder.lane import geometry as lane_geometry
 from feeder.lane.fences import Fence
-from feeder.mechanics.distribution import analytic_distribution, fence_response
+from feeder.mechanics.distribution import fence_response
 from feeder.mechanics.fence import fence_models, fence_mu
 from feeder.mechanics.hull import as_geometry, dilate, push_geometry
 
@@ -80,12 +80,24 @@ def test_a_bridge_over_a_notch_survives_growing_with_its_normal_and_length():
     geom = push_geometry(u @ np.array([[math.cos(turn), math.sin(turn)], [-math.sin(turn), math.cos(turn)]]))
     grown = dilate(geom, 0.005, 8)
     assert len(grown.hull) >= len(geom.hull)
+    assert int((~grown.convex).sum()) == 1  # the notch's own corner, no false one beside its edges
     for k, normal in enumerate(geom.normals_deg):
         gap = np.abs((grown.normals_deg - normal + 180.0) % 360.0 - 180.0)
         j = int(np.argmin(gap))
         assert gap[j] < 1e-9 and grown.lengths[j] == pytest.approx(geom.lengths[k], abs=1e-12)
         # exactly r further out (a disc polygon without that vertex falls short by r (1 - cos 1.25°))
         assert grown.heights[j] == pytest.approx(geom.heights[k] + 0.005, abs=1e-12)
+
+
+@pytest.mark.parametrize("part", ["keyhole-a", "star5-a", "gear8-a", "randpoly-01", "blob-a", "crescent-a"])
+def test_growing_a_library_part_adds_no_concave_corner(part):
+    """Off-grid edge normals (star arms, gear teeth, notch walls) once left the corners of the
+    edges' rectangles poking past the disc polygon: tiny false notches that stopped the exit turn."""
+    from feeder.parts.geometry import load_part
+
+    geom = as_geometry(load_part(ROOT / "parts" / f"{part}.stl"))
+    grown = dilate(geom, 0.005, 16)
+    assert int((~grown.convex).sum()) <= int((~geom.convex).sum())
 
 
 @pytest.mark.parametrize("radius, segs", [(-0.001, 8), (float("nan"), 8), (0.005, 0)])
@@ -131,12 +143,48 @@ def test_the_cap_changes_only_the_exit_turn():
     np.testing.assert_array_equal(c.exit_offset, d.exit_offset)
 
 
-def test_a_square_tip_model_is_what_it_was():
-    """The study's scene (no ``tip``: square) gives the same distribution as fence models with
-    the cap fields at their defaults, to the bit."""
-    geom = as_geometry(push_geometry(_rect(0.06, 0.02)))
-    fences = fence_models("straight:45", "curved:30", SCENE)
-    a = analytic_distribution(geom, "straight:45", "curved:30", SCENE, samples=720)
-    b = analytic_distribution(geom, None, None, SCENE, samples=720, fences=fences)
-    np.testing.assert_array_equal(a.yaws, b.yaws)
-    np.testing.assert_array_equal(a.weights, b.weights)
+GOLDEN = ROOT / "tests" / "data" / "analytic_square_golden.json"
+PINNED = (
+    ("rect-a3", "straight:55", "none"),
+    ("keyhole-a", "curved:40", "straight:30"),
+    ("star5-a", "none", "curved:80"),
+)
+PMF_ATOL = 1e-3  # elsewhere: a drop sample's basin may flip (1/7200 of the mass, smoothed)
+EXIT_ATOL_DEG = 1e-6
+
+
+def _square_values(parts_dir: Path = ROOT / "parts") -> dict:
+    """What a square tip gives: per pinned configuration, each fence's exit yaws and offsets and
+    the analytic PMF. Recorded with the code before the cap existed (a5a48c7)."""
+    from feeder.mechanics.pmf import analytic_pmf
+    from feeder.parts.geometry import load_part
+
+    out = {}
+    for part, loc1, loc2 in PINNED:
+        geom = as_geometry(load_part(parts_dir / f"{part}.stl"))
+        fences = [fence_response(geom, m, MU) for m in fence_models(loc1, loc2, SCENE)]
+        out[f"{part} {loc1} {loc2}"] = {
+            "exit_deg": [r.exit_deg.tolist() for r in fences],
+            "exit_offset": [r.exit_offset.tolist() for r in fences],
+            "pmf": analytic_pmf(geom, loc1, loc2, SCENE).tolist(),
+        }
+    return out
+
+
+def test_a_square_tip_is_pinned_from_before_the_cap():
+    """The study's square tip gives what the code gave before the cap was modelled
+    (tests/data/analytic_square_golden.json, recorded at a5a48c7): to the bit under the recording
+    arithmetic (tests/pins.py), within PMF_ATOL and EXIT_ATOL_DEG elsewhere."""
+    import json
+
+    from pins import assert_pinned
+
+    golden = json.loads(GOLDEN.read_text())
+    got = _square_values()
+    assert sorted(got) == sorted(golden["values"])
+    for key, want in golden["values"].items():
+        for a, b in zip(got[key]["exit_deg"], want["exit_deg"], strict=True):
+            assert_pinned(a, b, golden["recorded_on"], 0.0, EXIT_ATOL_DEG, f"{key} exit_deg")
+        for a, b in zip(got[key]["exit_offset"], want["exit_offset"], strict=True):
+            assert_pinned(a, b, golden["recorded_on"], 0.0, EXIT_ATOL_DEG, f"{key} exit_offset")
+        assert_pinned(got[key]["pmf"], want["pmf"], golden["recorded_on"], 0.0, PMF_ATOL, f"{key} pmf")

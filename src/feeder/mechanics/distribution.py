@@ -22,7 +22,8 @@ Configurations (:func:`analytic_distribution`)
     edge: ``curved:0``) turns that far towards its stable edge and leaves unaligned.
     A round fence tip (``scene.fences.tip: round``) is a disc: the exit turn pushes the outline
     grown by the disc's radius (:func:`feeder.mechanics.hull.dilate`) with the disc's centre as
-    the corner; the face still meets the outline itself.
+    the corner (friction taken there, not ``r`` nearer the part where it acts: an approximation);
+    the face still meets the outline itself.
 """
 
 from __future__ import annotations
@@ -49,7 +50,7 @@ from feeder.mechanics.pushfunction import PushFunction, push_function, rolling_d
 
 # Chords per quarter turn of the arcs that round the outline's corners for a round fence tip
 # (feeder.mechanics.hull.dilate): docs/structured.md, "A round tip in the analytic model".
-TIP_ARC_QUAD_SEGS = 8
+TIP_ARC_QUAD_SEGS = 16
 EDGE_MATCH_DEG = 0.01  # a grown hull edge keeps its normal to this (outline vertices within the hull's
 # collinearity tolerance of a hull edge split it: 0.002° at most over the library)
 YAW_SAMPLES = 7200  # evenly spaced initial yaws (0.05° apart): a basin's mass is off by < 1/7200

@@ -142,14 +142,18 @@ def _about_centroid(rel: np.ndarray, centroid: np.ndarray, area: float, limit_ra
 def dilate(part, radius: float, quad_segs: int) -> PushGeometry:
     """The part as a disc of ``radius`` sees it: its outline grown by ``radius`` (the Minkowski
     sum with the disc), about the same centroid, with the same area and limit-surface radius (the
-    part itself is unchanged: only the contact is). A disc of radius ``r`` touching the outline
-    is its centre touching the grown outline, so a round fence tip is a point pusher on it.
-    Concavities narrower than the disc fill in; holes play no part.
+    part itself is unchanged: only the contact is). The centre of a disc of radius ``r`` touching
+    the outline lies on the grown outline, so a round fence tip's centre is a point pusher on it
+    (the contact itself, and so where friction acts, lies ``r`` further in). Concavities narrower
+    than the disc fill in; holes play no part.
 
-    The disc is a polygon with a vertex every ``90 / quad_segs`` degrees and at the normal of
-    every hull edge, so each hull edge of the part is a hull edge of the grown outline, with the
-    same normal and length (a bridge over a concavity too). ``radius`` 0 returns the geometry."""
-    from shapely import Polygon
+    The union of the outline, each edge's rectangle swept out by ``r`` along its outward normal,
+    and at each convex vertex the arc between its two edges' normals: a fan with a vertex every
+    ``90 / quad_segs`` degrees, at both ends (where the rectangles end, so no false concave corner
+    appears between them) and at the normal of every hull edge in between (so a hull edge
+    bridging a concavity stays a hull edge of the grown outline, ``r`` further out).
+    ``radius`` 0 returns the geometry itself."""
+    import shapely
     from shapely.ops import unary_union
 
     geom = as_geometry(part)
@@ -160,17 +164,30 @@ def dilate(part, radius: float, quad_segs: int) -> PushGeometry:
         raise FeederError(f"quad_segs must be a positive integer, got {quad_segs!r}")
     if radius == 0.0:
         return geom
-    even = np.arange(4 * int(quad_segs)) * (FULL_TURN_DEG / (4 * int(quad_segs)))
-    angles = np.radians(np.unique(np.concatenate([even, geom.normals_deg])))
-    disc = radius * np.column_stack([np.cos(angles), np.sin(angles)])
+    step = FULL_TURN_DEG / (4 * int(quad_segs))
     rel = geom.outline
     nxt = np.roll(rel, -1, axis=0)
     edge = nxt - rel
-    normal = np.column_stack([edge[:, 1], -edge[:, 0]]) / np.hypot(edge[:, 0], edge[:, 1])[:, None] * radius
-    shapes = [Polygon(rel)]
-    shapes += [Polygon(v + disc) for v in rel[geom.convex]]
-    shapes += [Polygon([a, b, b + n, a + n]) for a, b, n in zip(rel, nxt, normal)]
-    grown = unary_union(shapes)
+    unit = np.column_stack([edge[:, 1], -edge[:, 0]]) / np.hypot(edge[:, 0], edge[:, 1])[:, None]  # outward
+    normal_deg = np.degrees(np.arctan2(unit[:, 1], unit[:, 0]))
+    shapes = [shapely.Polygon(rel)]
+    shapes += [shapely.Polygon([a, b, b + radius * n, a + radius * n]) for a, b, n in zip(rel, nxt, unit)]
+    for i in np.flatnonzero(geom.convex):
+        start = normal_deg[i - 1]  # the incoming edge's normal; the arc turns CCW to the outgoing one
+        span = float(np.mod(normal_deg[i] - start, FULL_TURN_DEG))
+        inner = np.arange(math.floor(start / step) + 1, math.ceil((start + span) / step)) * step
+        bridges = np.mod(geom.normals_deg - start, FULL_TURN_DEG)
+        between = np.concatenate([np.mod(inner - start, FULL_TURN_DEG), bridges[bridges < span]])
+        between = np.radians(start + np.unique(between[(between > 0.0) & (between < span)]))
+        arc = rel[i] + radius * np.column_stack([np.cos(between), np.sin(between)])
+        # the ends exactly where the two edges' rectangles end: the pieces share those sides
+        shapes.append(
+            shapely.Polygon(np.vstack([rel[i], rel[i] + radius * unit[i - 1], arc, rel[i] + radius * unit[i]]))
+        )
+    try:
+        grown = unary_union(shapes)
+    except shapely.errors.GEOSException as err:
+        raise FeederError(f"outline cannot be grown by {radius} ({err})") from None
     outline = clean_outline(np.asarray(grown.exterior.coords)[:-1], what="grown outline")
     return _about_centroid(outline, geom.centroid, geom.area, geom.limit_radius)
 
