@@ -22,6 +22,10 @@ version changes these values: re-pin them (``python tests/test_sim_pinned.py`` w
 
 from __future__ import annotations
 
+# isort: off
+import feeder  # noqa: F401 - first, before numpy loads: the re-pin (__main__) runs with the BLAS kernel pytest uses
+
+# isort: on
 import copy
 import hashlib
 import json
