@@ -31,7 +31,6 @@ import feeder  # noqa: F401 - first, before numpy loads: OpenBLAS's AVX2 kernel 
 
 # isort: on
 import argparse
-import copy
 import math
 import sys
 from pathlib import Path
@@ -42,15 +41,12 @@ import pandas as pd
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from analytic_dropwise import AGREE_DEG, analytic_final  # noqa: E402
 from fence_tip import paired_interval  # noqa: E402
-from round_tip_model import group  # noqa: E402
+from round_tip_model import group, round_tip_drops  # noqa: E402
 
 import feeder.mechanics.distribution as D  # noqa: E402
 import feeder.mechanics.exitturn as E  # noqa: E402
 from feeder.io import write_csv  # noqa: E402
-from feeder.lane.fences import parse_config_id  # noqa: E402
-from feeder.mechanics.fence import default_scene, fence_models, fence_mu  # noqa: E402
-from feeder.mechanics.hull import as_geometry  # noqa: E402
-from feeder.parts.geometry import load_part  # noqa: E402
+from feeder.mechanics.fence import fence_models  # noqa: E402
 
 RULES = ("none", "edge", "next", "flush")
 RIGHT_ANGLE_DEG = 90.0
@@ -96,20 +92,11 @@ def main(argv: list[str]) -> int:
     args = ap.parse_args(argv)
     E._Exit.release = _release
     D.exit_turn = _tracking_exit_turn
-    raw = pd.read_csv(args.fence_tip_csv)
-    raw = raw[raw.variant == "round"]
-    scene = copy.deepcopy(default_scene())
-    scene["fences"]["tip"] = "round"
-    mu = fence_mu(scene)
+    configs = round_tip_drops(args.fence_tip_csv, args.parts_dir)
+    scene, mu = next(configs)
     rows = []
-    for (part, config_id), g in raw.groupby(["part", "config_id"], sort=True):
-        geom = as_geometry(load_part(args.parts_dir / f"{part}.stl"))
-        loc1, loc2 = parse_config_id(config_id)
+    for part, config_id, geom, loc1, loc2, y0, period, ok, final, _ in configs:
         fences = fence_models(loc1, loc2, scene)
-        y0 = g.initial_yaw_deg.to_numpy()
-        period = float(g.period.iloc[0])
-        ok = (g.status == "ok").to_numpy()
-        final = g.final_yaw_deg.to_numpy()
         for rule in RULES:
             STATE["rule"] = rule
             try:

@@ -60,6 +60,33 @@ def group(config_id: str) -> str:
     return "one steep straight" if one.type == "straight" and one.angle >= STEEP_DEG else "one, other"
 
 
+def round_tip_drops(csv: Path, parts_dir: Path):
+    """The ``round`` rows of a ``fence_tip.csv``-style file, per configuration: ``(part, config_id,
+    geom, loc1, loc2, initial yaws, period, ok, final yaws)``, with the round-tip scene and its
+    part–fence friction as the first item."""
+    raw = pd.read_csv(csv)
+    raw = raw[raw.variant == "round"]
+    scene = copy.deepcopy(default_scene())
+    scene["fences"]["tip"] = "round"
+    yield scene, fence_mu(scene)
+    for (part, config_id), g in raw.groupby(["part", "config_id"], sort=True):
+        geom = as_geometry(load_part(parts_dir / f"{part}.stl"))
+        loc1, loc2 = parse_config_id(config_id)
+        ok = (g.status == "ok").to_numpy()
+        yield (
+            part,
+            config_id,
+            geom,
+            loc1,
+            loc2,
+            g.initial_yaw_deg.to_numpy(),
+            float(g.period.iloc[0]),
+            ok,
+            g.final_yaw_deg.to_numpy(),
+            list(g.status),
+        )
+
+
 def models(loc1, loc2, scene: dict) -> dict:
     disc = fence_models(loc1, loc2, scene)
     return {"corner": [dataclasses.replace(m, cap=None, cap_radius=0.0) for m in disc], "disc": disc}
@@ -71,20 +98,11 @@ def main(argv: list[str]) -> int:
     ap.add_argument("parts_dir", type=Path)
     ap.add_argument("out_csv", type=Path)
     args = ap.parse_args(argv)
-    raw = pd.read_csv(args.fence_tip_csv)
-    raw = raw[raw.variant == "round"]
-    scene = copy.deepcopy(default_scene())
-    scene["fences"]["tip"] = "round"
-    mu = fence_mu(scene)
+    configs = round_tip_drops(args.fence_tip_csv, args.parts_dir)
+    scene, mu = next(configs)
     drops, pmfs = [], []
-    for (part, config_id), g in raw.groupby(["part", "config_id"], sort=True):
-        geom = as_geometry(load_part(args.parts_dir / f"{part}.stl"))
-        loc1, loc2 = parse_config_id(config_id)
+    for part, config_id, geom, loc1, loc2, y0, period, ok, final, status in configs:
         fences = models(loc1, loc2, scene)
-        y0 = g.initial_yaw_deg.to_numpy()
-        period = float(g.period.iloc[0])
-        ok = (g.status == "ok").to_numpy()
-        final = g.final_yaw_deg.to_numpy()
         run = run_pmf(final, ok)
         rec = {"part": part, "config_id": config_id, "group": group(config_id)}
         per_drop = {}
@@ -111,7 +129,7 @@ def main(argv: list[str]) -> int:
                     "config_id": config_id,
                     "group": rec["group"],
                     "initial_yaw_deg": y0[i],
-                    "status": g.status.iloc[i],
+                    "status": status[i],
                     "final_yaw_deg": final[i],
                     **{f"{name}_agrees": per_drop[name][i] for name in MODELS},
                 }
