@@ -188,3 +188,53 @@ def test_a_square_tip_is_pinned_from_before_the_cap():
         for a, b in zip(got[key]["exit_offset"], want["exit_offset"], strict=True):
             assert_pinned(a, b, golden["recorded_on"], 0.0, EXIT_ATOL_DEG, f"{key} exit_offset")
         assert_pinned(got[key]["pmf"], want["pmf"], golden["recorded_on"], 0.0, PMF_ATOL, f"{key} pmf")
+
+
+@pytest.mark.parametrize("angle", [45.0, 65.0])
+def test_a_cap_caught_in_a_notch_turns_the_flush_edge_along_the_travel_direction(angle):
+    """keyhole-a's grown hull edge 9 bridges the keyhole's slot; leaving a steep straight fence, the cap
+    reaches the slot's concave corner (reason ``notch``). Let go there, the part keeps its yaw;
+    hooked (the round tip's model), it turns about the cap's centre until that edge lies along
+    the travel direction: by the fence's own angle, since the edge rode the face (by hand)."""
+    from feeder.mechanics.exitturn import exit_turn
+    from feeder.parts.geometry import load_part
+
+    geom = as_geometry(load_part(ROOT / "parts" / "keyhole-a.stl"))
+    cap = fence_models(f"straight:{angle:g}", "none", ROUND)[0]
+    grown = dilate(geom, cap.cap_radius, 16)
+    let_go = exit_turn(grown, 9, cap.exit_deg, cap.side, MU)
+    hooked = exit_turn(grown, 9, cap.exit_deg, cap.side, MU, hook=True)
+    assert let_go.reason == hooked.reason == "notch"
+    assert hooked.phases == let_go.phases + "N"
+    turn = hooked.delta_deg - let_go.delta_deg
+    assert abs(turn) > 1.0
+    # the edge was along the face (angle° off the travel direction) and now lies along the travel
+    assert hooked.delta_deg == pytest.approx(-angle, abs=1e-9)
+    # about the corner: the centroid keeps its distance from it and turns with the part
+    c, s = math.cos(math.radians(turn)), math.sin(math.radians(turn))
+    np.testing.assert_allclose(hooked.offset, np.array([[c, -s], [s, c]]) @ np.array(let_go.offset), atol=1e-12)
+    # the response of the round tip hooks; its exit yaw for that edge is the rest yaw turned by -angle
+    resp = fence_response(geom, cap, MU)
+    normals = geom.normals_deg[resp.push.edges]  # the part's own hull edge of grown edge 9's normal
+    k = int(np.argmin(np.abs((normals - grown.normals_deg[9] + 180.0) % 360.0 - 180.0)))
+    assert resp.exit_reason[k] == "notch"
+    assert (resp.exit_deg[k] - resp.rest_deg[k] + angle) % 360.0 == pytest.approx(0.0, abs=1e-9)
+
+
+def test_a_square_tip_at_a_notch_still_lets_the_part_go():
+    """keyhole-a leaving a straight 65° fence: with the square tip, four stable edges reach a notch
+    of the outline itself; the model of a square tip keeps letting go there (their exit turns are
+    the plain ``exit_turn``'s, with no hook phase)."""
+    from feeder.mechanics.exitturn import exit_turn
+    from feeder.parts.geometry import load_part
+
+    geom = as_geometry(load_part(ROOT / "parts" / "keyhole-a.stl"))
+    square = fence_models("straight:65", "none", SCENE)[0]
+    resp = fence_response(geom, square, MU)
+    notches = [k for k, why in enumerate(resp.exit_reason) if why == "notch"]
+    assert len(notches) >= 2
+    for k in notches:
+        plain = exit_turn(geom, int(resp.push.edges[k]), square.exit_deg, square.side, MU)
+        assert "N" not in plain.phases
+        gap = (resp.exit_deg[k] - resp.rest_deg[k] - plain.delta_deg + 180.0) % 360.0 - 180.0
+        assert gap == pytest.approx(0.0, abs=1e-9)

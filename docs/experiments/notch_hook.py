@@ -6,13 +6,16 @@ quarter of the steep one-fence drops: the cap reaches a concave vertex of the gr
 part ends suggests that the cap hooks there and the part turns about it until an edge lies along
 the travel direction, where the fence's motion no longer pushes it. Which edge is not settled.
 This script patches ``feeder.mechanics.exitturn._Exit.release`` for ``notch`` (the package is not
-changed) with one rule at a time, turning the part about the corner by the smallest angle that
+changed; the library's own hook, the "flush" rule below since it was adopted for a round tip, is
+switched off) with one rule at a time, turning the part about the corner by the smallest angle that
 makes that edge parallel to the travel direction:
 
 * ``none``: as the library (let go as it is);
 * ``edge``: the outline edge the cap was on when it reached the notch;
 * ``next``: the outline edge beyond the notch;
-* ``flush``: the hull edge the part rested on along the face.
+* ``flush``: the hull edge the part rested on along the face;
+* ``library``: the library's hook as it is (``exit_turn(..., hook=True)``), to check that it is
+  ``flush``.
 
 Each is scored on the round-tip drops of ``docs/experiments/fence_tip.py`` (16 per configuration,
 ``results/tables/fence_tip.csv``): the share of drops that agree with the simulated ones (both ok
@@ -48,7 +51,7 @@ import feeder.mechanics.exitturn as E  # noqa: E402
 from feeder.io import write_csv  # noqa: E402
 from feeder.mechanics.fence import fence_models  # noqa: E402
 
-RULES = ("none", "edge", "next", "flush")
+RULES = ("none", "edge", "next", "flush", "library")
 RIGHT_ANGLE_DEG = 90.0
 STRAIGHT_DEG = 180.0
 _ORIGINAL_RELEASE = E._Exit.release
@@ -62,7 +65,8 @@ def _tracking_exit_turn(part, edge, *args, **kwargs):
 
 
 def _release(self, k, s, reason):
-    if reason != "notch" or STATE["rule"] == "none":
+    self.hook_notch = STATE["rule"] == "library"
+    if reason != "notch" or STATE["rule"] in ("none", "library"):
         return _ORIGINAL_RELEASE(self, k, s, reason)
     n = self.n
     a = self.poly[k]

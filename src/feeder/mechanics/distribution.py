@@ -94,14 +94,15 @@ def _exit(geom: PushGeometry, grown: PushGeometry | None, model: FenceModel, edg
     """The exit turn of hull edge ``edge`` leaving ``model``'s tip; its offset is from ``model.tip``.
     Around a round tip (``grown``: the outline grown by its radius): the grown outline's edge of
     the same normal, flush on the line through the disc's centre, which is the corner (the offset
-    moved from it to ``model.tip``)."""
+    moved from it to ``model.tip``), and a corner caught in a notch hooks there (``exit_turn``'s
+    ``hook``)."""
     if grown is None:
         return exit_turn(geom, edge, model.exit_deg, model.side, mu)
     gap = np.abs(np.mod(grown.normals_deg - geom.normals_deg[edge] + HALF_TURN_DEG, FULL_TURN_DEG) - HALF_TURN_DEG)
     match = int(np.argmin(gap))
     if gap[match] > EDGE_MATCH_DEG:  # pragma: no cover - dilate keeps every hull edge's normal
         raise FeederError(f"hull edge {edge} has no edge of the same normal once grown by the tip's radius")
-    turn = exit_turn(grown, match, model.exit_deg, model.side, mu)
+    turn = exit_turn(grown, match, model.exit_deg, model.side, mu, hook=True)
     shift = (model.cap[0] - model.tip[0], model.cap[1] - model.tip[1])
     return replace(turn, offset=(turn.offset[0] + shift[0], turn.offset[1] + shift[1]))
 

@@ -54,11 +54,12 @@ class ExitTurn:
     to the tip corner when it is let go (world, metres), why the integration stopped
     (``released``: nothing pushes any more; ``stuck``: flush again where it was before;
     ``wedged``: two contacts that neither slide nor stick consistently;
-    ``notch``: the corner reached a concave vertex of the
-    outline, where it would hook; ``end face``: a vertex past the tip swung back against the
-    fence's end face, left out of the model; ``travel``: the travel limit) and the contact phases it went
-    through (``F``: an outline vertex pivoting on the face, ``C``: the corner on an outline edge,
-    ``B``: both at once)."""
+    ``notch``: the corner reached a concave vertex of the outline, where it would hook (with
+    ``hook``: after the hook turn, phase ``N``); ``end face``: a vertex past the tip swung back
+    against the fence's end face, left out of the model; ``travel``: the travel limit) and the
+    contact phases it went through (``F``: an outline vertex pivoting on the face, ``C``: the
+    corner on an outline edge, ``B``: both at once, ``H``: a vertex caught on the corner, ``N``:
+    the hook turn in a notch)."""
 
     delta_deg: float
     offset: tuple[float, float]
@@ -160,8 +161,11 @@ class _Exit:
     face is the line ``p · nf = 0`` for ``p · t < 0``. The part's pose is its centroid ``X`` and
     yaw; the pusher moves at ``_PUSHER_VELOCITY`` relative to the belt."""
 
-    def __init__(self, geom: PushGeometry, alpha_deg: float, side: int, mu: float, yaw_rad: float):
+    def __init__(
+        self, geom: PushGeometry, alpha_deg: float, side: int, mu: float, yaw_rad: float, edge: int, hook: bool
+    ):
         a = math.radians(alpha_deg)
+        self.edge, self.hook_notch = edge, hook  # the hull edge that left the face; turn in a notch
         self.t = np.array([-side * math.sin(a), math.cos(a)])
         self.nf = np.array([-side * math.cos(a), -math.sin(a)])
         self.geom, self.mu, self.yaw = geom, mu, yaw_rad
@@ -451,6 +455,8 @@ class _Exit:
         e = self.poly[(k + 1) % self.n] - a
         p = a + s * e / float(np.hypot(*e))
         self.X = -(self.rot() @ p)  # the corner is at the contact point
+        if reason == "notch" and self.hook_notch:
+            return self.hook()
         if reason != "released":
             return ("free", reason)
         d = self.rot().T @ np.array(_PUSHER_VELOCITY)  # the corner's path in the part frame
@@ -460,6 +466,22 @@ class _Exit:
         j, sj, dist = hit
         self.X = self.X - dist * np.array(_PUSHER_VELOCITY)
         return ("C", j, sj)
+
+    def hook(self):
+        """The corner caught in a notch (at the contact, ``X`` already there): the part turns about
+        it by the smallest angle that lays the hull edge it rode the face on along the travel
+        direction, where the fence no longer pushes it, and is let go (docs/structured.md, "A
+        candidate for the notch": the "flush" rule)."""
+        self.phases += "N"
+        hull = self.geom.hull
+        e = self.rot() @ (hull[(self.edge + 1) % len(hull)] - hull[self.edge])
+        travel = math.atan2(_PUSHER_VELOCITY[1], _PUSHER_VELOCITY[0])
+        # either way along the travel line: the smaller turn, in [-90°, 90°)
+        turn = (travel - math.atan2(float(e[1]), float(e[0])) + math.pi / 2) % math.pi - math.pi / 2
+        c, s = math.cos(turn), math.sin(turn)
+        self.yaw += turn
+        self.X = np.array([[c, -s], [s, c]]) @ self.X  # about the corner (the origin)
+        return ("free", "notch")
 
     def ray(self, p: np.ndarray, d: np.ndarray):
         """First outline edge hit by the ray ``p + λ d`` (part frame, λ beyond a small margin):
@@ -478,7 +500,7 @@ class _Exit:
         return j, float(u[j] * np.hypot(*e[j])), float(lam[j])
 
 
-def exit_turn(part, edge: int, fence_angle_deg: float, side: int, mu: float) -> ExitTurn:
+def exit_turn(part, edge: int, fence_angle_deg: float, side: int, mu: float, hook: bool = False) -> ExitTurn:
     """The turn of a part leaving the tip of a fence (local angle ``fence_angle_deg``) resting
     flush on hull edge ``edge`` (a stable edge of :func:`push_function` with the same ``mu`` and
     ``side``). Quasi-static phases, with the actual outline: the part slides flush until the foot
@@ -486,10 +508,12 @@ def exit_turn(part, edge: int, fence_angle_deg: float, side: int, mu: float) -> 
     pushes an outline edge (``C``: the edge turns about the corner towards the travel direction
     until the corner slides off its end) or, where the hull edge bridges a concavity, the last
     supported vertex pivots on the face (``F``) until it passes the tip or another vertex lands
-    on the face (flush again)."""
+    on the face (flush again). ``hook``: where the corner reaches a notch, turn the part about it
+    until hull edge ``edge`` lies along the travel direction (:meth:`_Exit.hook`; the model of a
+    round tip), instead of letting it go as it is."""
     geom = as_geometry(part)
     yaw0 = math.radians(float(resting_yaw(geom.normals_deg[edge], fence_angle_deg, side)))
-    ex = _Exit(geom, fence_angle_deg, side, mu, yaw0)
+    ex = _Exit(geom, fence_angle_deg, side, mu, yaw0, int(edge), bool(hook))
     a = geom.hull[edge]
     along = ex.rot() @ (geom.hull[(edge + 1) % len(geom.hull)] - a)
     ex.X = -(ex.rot() @ a)  # hull edge on the face line, first vertex at the tip ...
