@@ -30,6 +30,17 @@ def test_a_round_fence_tip_is_a_valid_setting():
     validate(_set(copy.deepcopy(_load("config.yaml")), "scene.fences.tip", "round"), schema=SCHEMA)
 
 
+def test_the_round_tip_overlay_is_the_default_study_with_round_tips_in_its_own_folder():
+    merged = merged_config(ROOT, "config/round_tip.yaml")
+    validate(copy.deepcopy(merged), schema=SCHEMA)
+    default = _load("config.yaml")
+    assert merged["scene"]["fences"]["tip"] == "round" and "tip" not in default["scene"]["fences"]
+    assert merged["results"] != default["results"]
+    # nothing else differs: the same grid, budget and physics
+    merged["scene"]["fences"].pop("tip")
+    assert {k: v for k, v in merged.items() if k != "results"} == {k: v for k, v in default.items() if k != "results"}
+
+
 def _set(config, dotted, value):
     *path, last = dotted.split(".")
     node = config
