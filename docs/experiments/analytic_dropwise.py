@@ -6,7 +6,8 @@ compares it with the simulator drop by drop. Every simulated drop of the study (
 files of a run, ``results/sim/<part>/<config>.npz``) is pushed through the analytic model
 (``feeder.mechanics.distribution``: the same fence models, friction, push functions, turn budget
 and exit turns as ``analytic_distribution``) from the same initial yaw, centred as the
-simulator drops it. A drop agrees when both end ok and their final yaws lie within ``AGREE_DEG``
+simulator drops it, under the scene each file was simulated with (its settings: a round tip's cap
+included). A drop agrees when both end ok and their final yaws lie within ``AGREE_DEG``
 of each other modulo the part's symmetry period (the design's ``symmetry_order``). Each drop is
 weighted by its share of the initial yaws (half the gap to each neighbour within the period), as
 the adaptive design refines near basin edges and would otherwise over-count the hard drops.
@@ -113,18 +114,28 @@ def exit_reasons(geom, model, yaws, mu, memo) -> list[str]:
     return [memo[key][int(i)] if r > model.inner else "missed" for i, r in zip(idx, reach)]
 
 
-def dropwise(sim_dir: Path, parts_dir: Path) -> tuple[pd.DataFrame, list[str]]:
-    scene = default_scene()
-    mu = fence_mu(scene)
-    rows, rolling = [], []
+def file_scene(meta: dict) -> dict:
+    """The scene a simulation file was run with (its settings), else the study's default."""
+    return meta.get("settings", {}).get("scene") or default_scene()
+
+
+def dropwise(sim_dir: Path, parts_dir: Path) -> tuple[pd.DataFrame, list[str], list[dict]]:
+    """The drop rows, the configurations left out (a fence rolls the part) and the distinct
+    scenes of the files (each file is modelled with its own scene: a round tip's cap included)."""
+    rows, rolling, scenes = [], [], []
     for part_dir in sorted(p for p in sim_dir.iterdir() if p.is_dir()):
         part = part_dir.name
         geom = as_geometry(load_part(parts_dir / f"{part}.stl"))
-        memo: dict = {}
+        memos: dict = {}
         for path in sorted(part_dir.glob("*.npz")):
             with np.load(path, allow_pickle=False) as z:
                 meta = json.loads(str(z["meta"]))
                 y0, yf, status = z["initial_yaw_deg"], z["final_yaw_deg"], z["status"]
+            scene = file_scene(meta)
+            if scene not in scenes:
+                scenes.append(scene)
+            mu = fence_mu(scene)
+            memo = memos.setdefault(mu, {})
             period = 360.0 / int(meta["design"].get("symmetry_order", 1))
             fences = fence_models(meta["loc1"], meta["loc2"], scene)
             for m in fences:
@@ -141,7 +152,7 @@ def dropwise(sim_dir: Path, parts_dir: Path) -> tuple[pd.DataFrame, list[str]]:
                     (part, path.stem, meta["loc1"], meta["loc2"], period, y0[i], w[i], status[i], yf[i], ana[i], why[i])
                 )
     cols = ["part", "config_id", "loc1", "loc2", "period", "initial_yaw_deg", "weight", "status", "final_yaw_deg"]
-    return pd.DataFrame(rows, columns=cols + ["analytic_yaw_deg", "exit_reason"]), rolling
+    return pd.DataFrame(rows, columns=cols + ["analytic_yaw_deg", "exit_reason"]), rolling, scenes
 
 
 def agreement(df: pd.DataFrame, keys: list[str]) -> pd.DataFrame:
@@ -177,7 +188,7 @@ def summarise(df: pd.DataFrame) -> None:
     print(table.round(3).to_string())
 
 
-def budget_scores(dataset: Path, parts_dir: Path, scales: list[float]) -> pd.DataFrame:
+def budget_scores(dataset: Path, parts_dir: Path, scales: list[float], scene: dict) -> pd.DataFrame:
     src = inspect.getsource(D._apply)
     if BUDGET_LINE not in src:
         sys.exit("feeder.mechanics.distribution._apply no longer computes the turn budget as this script expects")
@@ -196,7 +207,7 @@ def budget_scores(dataset: Path, parts_dir: Path, scales: list[float]) -> pd.Dat
                 if part not in geoms:
                     geoms[part] = as_geometry(load_part(parts_dir / f"{part}.stl"))
                 loc1, loc2 = parse_config_id(str(config_id))
-                dist = D.analytic_distribution(geoms[part], loc1, loc2, responses=memos.setdefault(part, {}))
+                dist = D.analytic_distribution(geoms[part], loc1, loc2, scene, responses=memos.setdefault(part, {}))
                 pmf = analytic_pmf(geoms[part], None, None, frame_deg=float(data["frame_deg"][i]), distribution=dist)
                 cw1 = float(circular_w1(np.cumsum(pmf), data["cdf"][i]))
                 rows.append((scale, part, str(config_id), str(data["split"][i]), cw1))
@@ -215,7 +226,7 @@ def main(argv: list[str]) -> int:
     ap.add_argument("--budget-scales", default="")
     ap.add_argument("--budget-csv", type=Path)
     args = ap.parse_args(argv)
-    df, rolling = dropwise(args.sim_dir, args.parts_dir)
+    df, rolling, scenes = dropwise(args.sim_dir, args.parts_dir)
     write_bytes(args.out_csv, gzip.compress(df.to_csv(index=False, lineterminator="\n").encode(), mtime=0))
     parts = sorted({r.split()[0] for r in rolling})
     print(
@@ -226,8 +237,10 @@ def main(argv: list[str]) -> int:
     if args.budget_scales:
         if args.dataset is None or args.budget_csv is None:
             sys.exit("--budget-scales needs --dataset and --budget-csv")
+        if len(scenes) != 1:
+            sys.exit(f"--budget-scales needs simulation files of one scene, got {len(scenes)}")
         scales = [float(s) for s in args.budget_scales.split(",")]
-        raw = budget_scores(args.dataset, args.parts_dir, scales)
+        raw = budget_scores(args.dataset, args.parts_dir, scales, scenes[0])
         write_csv(args.budget_csv, raw)
         raw["fences"] = [fence_types(c) for c in raw.config_id]
         for key in ("split", "fences"):

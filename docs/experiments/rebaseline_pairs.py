@@ -13,8 +13,11 @@ period) and share every later yaw where their refinements coincide. This script 
 * **Labels** (``--old-dataset`` / ``--new-dataset``, the runs' ``results/datasets/dataset.npz``):
   per configuration kept in both, the circular W1 between the two labels; per configuration in
   either, whether it was kept (excluded ones jammed); and, if ``--analytic`` is given, the
-  analytic PMF's circular W1 to each run's label (the analytic model reads no label, so the
-  difference is the labels' alone), paired, with a 95 % bootstrap interval over configurations.
+  analytic PMF's circular W1 to each run's label, paired, with a 95 % bootstrap interval over
+  configurations: the old run's model (its scene) against both labels (``diff``: the analytic
+  model reads no label, so the difference is the labels' alone), and the new run's model (its
+  scene: a round tip's cap) against the new labels (``diff_own``: what the re-baseline gives).
+  Each run's scene is read from its simulation files (their settings).
   Rows: ``OUT_CSV_GZ`` with ``_labels.csv`` in place of ``.csv.gz``.
 
     python docs/experiments/rebaseline_pairs.py OLD_SIM_DIR NEW_SIM_DIR PARTS_DIR OUT_CSV_GZ \
@@ -131,7 +134,20 @@ def drop_summary(df: pd.DataFrame, keys: list[str]) -> pd.DataFrame:
     return pd.DataFrame(out, columns=keys + ["configs", "drops", "same", "same_lo", "same_hi", "median_abs_dyaw_deg"])
 
 
-def label_rows(old_npz: Path, new_npz: Path, parts_dir: Path | None) -> pd.DataFrame:
+def run_scene(sim_dir: Path) -> dict:
+    """The one scene every simulation file of a run was simulated with (their settings)."""
+    scenes: list[dict] = []
+    for path in sorted(sim_dir.glob("*/*.npz")):
+        with np.load(path, allow_pickle=False) as z:
+            scene = json.loads(str(z["meta"]))["settings"]["scene"]
+        if scene not in scenes:
+            scenes.append(scene)
+    if len(scenes) != 1:
+        raise SystemExit(f"{sim_dir}: simulation files of {len(scenes)} scenes, not one")
+    return scenes[0]
+
+
+def label_rows(old_npz: Path, new_npz: Path, parts_dir: Path | None, scenes: tuple = (None, None)) -> pd.DataFrame:
     old, new = load_dataset(old_npz), load_dataset(new_npz)
 
     def index(d):
@@ -164,13 +180,18 @@ def label_rows(old_npz: Path, new_npz: Path, parts_dir: Path | None) -> pd.DataF
 
                 if part not in geoms:
                     geoms[part] = as_geometry(load_part(parts_dir / f"{part}.stl"))
-                dist = analytic_distribution(geoms[part], loc1, loc2, responses=memos.setdefault(part, {}))
                 frame = float(new["frame_deg"][inew[key]])
                 if frame != float(old["frame_deg"][io[key]]):
                     raise SystemExit(f"{part} {config_id}: the label frames differ between the runs")
-                cdf = np.cumsum(analytic_pmf(geoms[part], None, None, frame_deg=frame, distribution=dist))
-                row["analytic_old_cw1_deg"] = float(circular_w1(cdf, ca))
-                row["analytic_new_cw1_deg"] = float(circular_w1(cdf, cb))
+                cdfs = []
+                for run, scene in enumerate(scenes):
+                    memo = memos.setdefault((run, part), {})
+                    dist = analytic_distribution(geoms[part], loc1, loc2, scene, responses=memo)
+                    pmf = analytic_pmf(geoms[part], None, None, frame_deg=frame, distribution=dist)
+                    cdfs.append(np.cumsum(pmf))
+                row["analytic_old_cw1_deg"] = float(circular_w1(cdfs[0], ca))
+                row["analytic_new_cw1_deg"] = float(circular_w1(cdfs[0], cb))
+                row["analytic_own_new_cw1_deg"] = float(circular_w1(cdfs[1], cb))
         rows.append(row)
     return pd.DataFrame(rows)
 
@@ -190,12 +211,18 @@ def label_summary(df: pd.DataFrame, keys: list[str]) -> pd.DataFrame:
         if "analytic_new_cw1_deg" in both:
             diff = (both.analytic_new_cw1_deg - both.analytic_old_cw1_deg).to_numpy()
             m, lo, hi = boot_mean(diff, rng)
+            own = (both.analytic_own_new_cw1_deg - both.analytic_old_cw1_deg).to_numpy()
+            m2, lo2, hi2 = boot_mean(own, rng)
             rec.update(
                 analytic_old=float(both.analytic_old_cw1_deg.mean()),
                 analytic_new=float(both.analytic_new_cw1_deg.mean()),
                 diff=m,
                 diff_lo=lo,
                 diff_hi=hi,
+                analytic_own_new=float(both.analytic_own_new_cw1_deg.mean()),
+                diff_own=m2,
+                diff_own_lo=lo2,
+                diff_own_hi=hi2,
             )
         out.append(rec)
     return pd.DataFrame(out)
@@ -218,7 +245,8 @@ def main() -> None:
     for keys in (["fences"], ["steep"], ["fences", "steep"]):
         print(drop_summary(drops, keys).round(3).to_string(index=False))
     if args.old_dataset and args.new_dataset:
-        labels = label_rows(args.old_dataset, args.new_dataset, args.parts if args.analytic else None)
+        scenes = (run_scene(args.old_sim), run_scene(args.new_sim)) if args.analytic else (None, None)
+        labels = label_rows(args.old_dataset, args.new_dataset, args.parts if args.analytic else None, scenes)
         write_csv(Path(str(args.out).replace(".csv.gz", "_labels.csv")), labels)
         all_rows = labels.assign(all="all")
         for keys in (["all"], ["fences"], ["steep"], ["split"]):
