@@ -21,7 +21,9 @@ from feeder.sim import drops as sim
 
 ROOT = Path(__file__).resolve().parents[1]
 CFG = yaml.safe_load((ROOT / "config" / "config.yaml").read_text())
-SCENE = CFG["scene"]
+STUDY = CFG["scene"]
+SCENE = copy.deepcopy(STUDY)  # the study's scene with a square tip, whichever tip the study has
+SCENE["fences"].pop("tip", None)
 PRESET = CFG["sim"]["presets"][CFG["sim"]["preset"]]
 
 
@@ -33,8 +35,8 @@ def _with_tip(tip):
 
 
 def test_the_tip_is_square_unless_the_scene_says_round():
-    assert "tip" not in SCENE["fences"]  # the study's requests stay as they were
-    assert lane_geometry.fence_tip(SCENE) == "square"
+    assert lane_geometry.fence_tip(SCENE) == "square"  # absent
+    assert lane_geometry.fence_tip(STUDY) == STUDY["fences"].get("tip", "square")
     assert lane_geometry.fence_tip(_with_tip("round")) == "round"
     with pytest.raises(FeederError, match=r"scene\.fences\.tip must be one of square, round, got 'pointy'"):
         lane_geometry.fence_tip(_with_tip("pointy"))

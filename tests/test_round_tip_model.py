@@ -19,7 +19,9 @@ from feeder.mechanics.fence import fence_models, fence_mu
 from feeder.mechanics.hull import as_geometry, dilate, push_geometry
 
 ROOT = Path(__file__).resolve().parents[1]
-SCENE = yaml.safe_load((ROOT / "config" / "config.yaml").read_text())["scene"]
+STUDY = yaml.safe_load((ROOT / "config" / "config.yaml").read_text())["scene"]
+SCENE = copy.deepcopy(STUDY)  # the study's scene with a square tip, whichever tip the study has
+SCENE["fences"].pop("tip", None)
 ROUND = copy.deepcopy(SCENE)
 ROUND["fences"]["tip"] = "round"
 MU = fence_mu(SCENE)
