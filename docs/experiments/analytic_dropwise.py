@@ -22,7 +22,9 @@ turn a part) multiplied by each scale; the package is not changed (a copy of ``_
 factor is executed in the module's namespace).
 
     python docs/experiments/analytic_dropwise.py SIM_DIR PARTS_DIR OUT_CSV_GZ \
-        [--dataset DATASET --budget-scales 1,2,4 --budget-csv OUT_CSV]
+        [--one-fence-csv CSV] [--from-rows] [--dataset DATASET --budget-scales 1,2,4 --budget-csv OUT_CSV]
+
+``--from-rows`` reads OUT_CSV_GZ as written before and only summarises it (seconds).
 
 About 3 minutes for the 60,000 drops of the default study on one core; each budget scale about
 2.5 minutes more.
@@ -58,6 +60,7 @@ from feeder.parts.geometry import load_part
 
 STEEP_DEG = 45.0  # a straight fence at least this steep counts as steep in the summary
 AGREE_DEG = 5.0  # two final yaws this close (modulo the symmetry period) are the same outcome
+YAW_SAME_DEG = 1e-6  # a modelled final yaw this close to the initial one: the model left the drop untouched
 BUDGET_LINE = "budget = np.degrees(overlap / (2.0 * geom.limit_radius))"
 
 
@@ -172,6 +175,33 @@ def agreement(df: pd.DataFrame, keys: list[str]) -> pd.DataFrame:
     return out
 
 
+def one_fence_table(df: pd.DataFrame) -> pd.DataFrame:
+    """One fence alone, by its type and angle: the weighted share of initial yaws that agree, that
+    the model leaves untouched (final = initial: it says the part misses the fence, or only
+    grazes a curved fence's tip), that it leaves untouched while the simulator turns them by more
+    than ``AGREE_DEG``, and where exactly one of the two jams (either way)."""
+    one = df[df.loc2 == "none"]
+    p = one.period
+    sim_ok, ana_ok = one.status == "ok", one.analytic_yaw_deg.notna()
+    untouched = ana_ok & (np.abs((one.analytic_yaw_deg - one.initial_yaw_deg + p / 2) % p - p / 2) < YAW_SAME_DEG)
+    moved = sim_ok & (np.abs((one.final_yaw_deg - one.initial_yaw_deg + p / 2) % p - p / 2) >= AGREE_DEG)
+    d = np.abs((one.final_yaw_deg - one.analytic_yaw_deg + p / 2) % p - p / 2)
+    flags = pd.DataFrame(
+        {
+            "agree": sim_ok & ana_ok & (d < AGREE_DEG),
+            "untouched": untouched,
+            "untouched_but_moved": untouched & moved,
+            "model_jams_only": sim_ok & ~ana_ok,
+            "sim_jams_only": ~sim_ok & ana_ok,
+        }
+    ).astype(float)
+    keys = [one.loc1.str.split(":").str[0].rename("fence"), one.loc1.str.split(":").str[1].astype(int).rename("angle")]
+    w = one.weight
+    out = flags.mul(w, axis=0).groupby(keys).sum().div(w.groupby(keys).sum(), axis=0)
+    out.insert(0, "configs", one.groupby(keys).apply(lambda g: g.config_id.str.cat(g.part).nunique()))
+    return out.reset_index()
+
+
 def summarise(df: pd.DataFrame) -> None:
     df = df.assign(fences=[fence_types(c) for c in df.config_id])
     print(f"drops {len(df)}, configurations {df.groupby(['part', 'config_id']).ngroups}")
@@ -186,6 +216,8 @@ def summarise(df: pd.DataFrame) -> None:
     table = agreement(one, ["steep", "exit_reason"]).assign(share=share / share.groupby(level=0).transform("sum"))
     print(f"one straight fence, by why the modelled exit turn stopped (steep: >= {STEEP_DEG:g} deg):")
     print(table.round(3).to_string())
+    print("one fence alone, by its type and angle (untouched: the model leaves the yaw as it was):")
+    print(one_fence_table(df).round(3).to_string(index=False))
 
 
 def budget_scores(dataset: Path, parts_dir: Path, scales: list[float], scene: dict) -> pd.DataFrame:
@@ -225,15 +257,22 @@ def main(argv: list[str]) -> int:
     ap.add_argument("--dataset", type=Path)
     ap.add_argument("--budget-scales", default="")
     ap.add_argument("--budget-csv", type=Path)
+    ap.add_argument("--one-fence-csv", type=Path, help="also write the one-fence table here")
+    ap.add_argument("--from-rows", action="store_true", help="OUT_CSV_GZ exists: summarise its rows, simulate nothing")
     args = ap.parse_args(argv)
-    df, rolling, scenes = dropwise(args.sim_dir, args.parts_dir)
-    write_bytes(args.out_csv, gzip.compress(df.to_csv(index=False, lineterminator="\n").encode(), mtime=0))
-    parts = sorted({r.split()[0] for r in rolling})
-    print(
-        f"left out: {len(rolling)} configurations where a fence rolls the part (no stable edge), "
-        f"of {', '.join(parts) or 'none'}"
-    )
+    if args.from_rows:
+        df, scenes = pd.read_csv(args.out_csv), []
+    else:
+        df, rolling, scenes = dropwise(args.sim_dir, args.parts_dir)
+        write_bytes(args.out_csv, gzip.compress(df.to_csv(index=False, lineterminator="\n").encode(), mtime=0))
+        parts = sorted({r.split()[0] for r in rolling})
+        print(
+            f"left out: {len(rolling)} configurations where a fence rolls the part (no stable edge), "
+            f"of {', '.join(parts) or 'none'}"
+        )
     summarise(df)
+    if args.one_fence_csv:
+        write_csv(args.one_fence_csv, one_fence_table(df))
     if args.budget_scales:
         if args.dataset is None or args.budget_csv is None:
             sys.exit("--budget-scales needs --dataset and --budget-csv")
