@@ -36,8 +36,10 @@ def test_the_round_tip_overlay_is_the_default_study_with_round_tips_in_its_own_f
     default = _load("config.yaml")
     assert merged["scene"]["fences"]["tip"] == "round" and "tip" not in default["scene"]["fences"]
     assert merged["results"] != default["results"]
+    assert merged["models"]["export_dir"].startswith(merged["results"] + "/")  # never over models/
     # nothing else differs: the same grid, budget and physics
     merged["scene"]["fences"].pop("tip")
+    merged["models"]["export_dir"] = default["models"]["export_dir"]
     assert {k: v for k, v in merged.items() if k != "results"} == {k: v for k, v in default.items() if k != "results"}
 
 

@@ -220,7 +220,7 @@ def test_a_cap_caught_in_a_notch_turns_the_flush_edge_along_the_travel_direction
     normals = geom.normals_deg[resp.push.edges]  # the part's own hull edge of grown edge 9's normal
     k = int(np.argmin(np.abs((normals - grown.normals_deg[9] + 180.0) % 360.0 - 180.0)))
     assert resp.exit_reason[k] == "notch"
-    assert (resp.exit_deg[k] - resp.rest_deg[k] + angle) % 360.0 == pytest.approx(0.0, abs=1e-9)
+    assert (resp.exit_deg[k] - resp.rest_deg[k] + angle + 180.0) % 360.0 - 180.0 == pytest.approx(0.0, abs=1e-9)
 
 
 def test_a_square_tip_at_a_notch_still_lets_the_part_go():
@@ -240,3 +240,20 @@ def test_a_square_tip_at_a_notch_still_lets_the_part_go():
         assert "N" not in plain.phases
         gap = (resp.exit_deg[k] - resp.rest_deg[k] - plain.delta_deg + 180.0) % 360.0 - 180.0
         assert gap == pytest.approx(0.0, abs=1e-9)
+
+
+def test_the_hook_on_the_left_side_turns_the_other_way():
+    """The same part and edge against a fence at Location 2 (left side, mirrored): the flush edge
+    is turned along the travel direction by the fence's angle the other way round (by hand)."""
+    from feeder.mechanics.exitturn import exit_turn
+    from feeder.parts.geometry import load_part
+
+    geom = as_geometry(load_part(ROOT / "parts" / "keyhole-a.stl"))
+    cap = fence_models("none", "straight:45", ROUND)[0]
+    assert cap.side == -1
+    grown = dilate(geom, cap.cap_radius, 16)
+    hooked = [exit_turn(grown, int(k), cap.exit_deg, cap.side, MU, hook=True) for k in range(len(grown.hull))]
+    turned = [t for t in hooked if t.phases.endswith("N")]
+    assert turned  # some edge's exit reaches a notch
+    for t in turned:
+        assert t.reason == "notch" and t.delta_deg == pytest.approx(45.0, abs=1e-9)

@@ -99,8 +99,9 @@ def analytic_final(geom, fences, yaws, mu, memo) -> tuple[np.ndarray, list[float
 
 def exit_reasons(geom, model, yaws, mu, memo) -> list[str]:
     """Why the modelled exit turn of each drop's basin on one fence stopped
-    (:class:`feeder.mechanics.exitturn.ExitTurn`: ``released`` is the complete model; ``notch``,
-    ``wedged``, ``end face``, ``hooked``, ``phases``, ``travel``, ``stuck`` are where it gives up),
+    (:class:`feeder.mechanics.exitturn.ExitTurn`: ``released`` is the complete model; ``notch``
+    is where it gives up for a square tip and hooks for a round one; ``wedged``, ``end face``,
+    ``hooked``, ``phases``, ``travel``, ``stuck`` are where it gives up),
     for drops whose centred start reaches the fence (else ``missed``)."""
     if model not in memo:
         memo[model] = D.fence_response(geom, model, mu, True)
@@ -175,31 +176,76 @@ def agreement(df: pd.DataFrame, keys: list[str]) -> pd.DataFrame:
     return out
 
 
+def _one_fence(df: pd.DataFrame) -> pd.DataFrame:
+    """The rows of one fence alone, at either location, with its ``location``, ``fence`` type
+    and ``angle``, and the yaw gap between the two final yaws where both end ok (``gap_deg``)."""
+    one = df[(df.loc1 == "none") != (df.loc2 == "none")]
+    at2 = one.loc1 == "none"
+    where = one.loc2.where(at2, one.loc1)
+    p = one.period
+    ok = (one.status == "ok") & one.analytic_yaw_deg.notna()
+    gap = np.abs((one.final_yaw_deg - one.analytic_yaw_deg + p / 2) % p - p / 2)
+    return one.assign(
+        location=np.where(at2, "loc2", "loc1"),
+        fence=where.str.split(":").str[0],
+        angle=where.str.split(":").str[1].astype(int),
+        gap_deg=gap.where(ok),
+    )
+
+
 def one_fence_table(df: pd.DataFrame) -> pd.DataFrame:
-    """One fence alone, by its type and angle: the weighted share of initial yaws that agree, that
-    the model leaves untouched (final = initial: it says the part misses the fence, or only
-    grazes a curved fence's tip), that it leaves untouched while the simulator turns them by more
-    than ``AGREE_DEG``, and where exactly one of the two jams (either way)."""
-    one = df[df.loc2 == "none"]
+    """One fence alone (at either location), by its type and angle: the weighted share of initial
+    yaws that agree, that the model leaves untouched (final = initial: it says the part misses
+    the fence, or only grazes a curved fence's tip), that it leaves untouched while the simulator
+    turns them by at least ``AGREE_DEG``, and where exactly one of the two jams (either way); and
+    the weighted quartiles of the yaw gap where both end ok."""
+    one = _one_fence(df)
     p = one.period
     sim_ok, ana_ok = one.status == "ok", one.analytic_yaw_deg.notna()
     untouched = ana_ok & (np.abs((one.analytic_yaw_deg - one.initial_yaw_deg + p / 2) % p - p / 2) < YAW_SAME_DEG)
     moved = sim_ok & (np.abs((one.final_yaw_deg - one.initial_yaw_deg + p / 2) % p - p / 2) >= AGREE_DEG)
-    d = np.abs((one.final_yaw_deg - one.analytic_yaw_deg + p / 2) % p - p / 2)
     flags = pd.DataFrame(
         {
-            "agree": sim_ok & ana_ok & (d < AGREE_DEG),
+            "agree": sim_ok & ana_ok & (one.gap_deg < AGREE_DEG),
             "untouched": untouched,
             "untouched_but_moved": untouched & moved,
             "model_jams_only": sim_ok & ~ana_ok,
             "sim_jams_only": ~sim_ok & ana_ok,
         }
     ).astype(float)
-    keys = [one.loc1.str.split(":").str[0].rename("fence"), one.loc1.str.split(":").str[1].astype(int).rename("angle")]
+    keys = [one.fence, one.angle]
     w = one.weight
     out = flags.mul(w, axis=0).groupby(keys).sum().div(w.groupby(keys).sum(), axis=0)
-    out.insert(0, "configs", one.groupby(keys).apply(lambda g: g.config_id.str.cat(g.part).nunique()))
+    out.insert(0, "configs", one.groupby(keys).apply(lambda g: len(g.groupby(["part", "config_id"]))))
+    gaps = one.groupby(keys).apply(lambda g: weighted_quantiles(g.gap_deg, g.weight, (0.25, 0.5, 0.75)))
+    out[["gap_q25_deg", "gap_median_deg", "gap_q75_deg"]] = np.vstack(gaps.to_numpy())
     return out.reset_index()
+
+
+def weighted_quantiles(values: pd.Series, weights: pd.Series, qs) -> np.ndarray:
+    """Quantiles of ``values`` (NaN left out) under ``weights``: the smallest value whose
+    cumulative weight share reaches each q."""
+    keep = values.notna().to_numpy()
+    v, w = values.to_numpy()[keep], weights.to_numpy()[keep]
+    if v.size == 0:
+        return np.full(len(qs), np.nan)
+    order = np.argsort(v, kind="stable")
+    share = np.cumsum(w[order]) / w.sum()
+    return np.array([v[order][np.searchsorted(share, q)] for q in qs])
+
+
+def one_curved_by_reason(df: pd.DataFrame, angles: tuple[int, int]) -> pd.DataFrame:
+    """One curved fence alone at ``angles[0]``..``angles[1]`` degrees, by why the modelled exit
+    turn of each drop's basin stopped: weighted share, agreement and gap quartiles."""
+    one = _one_fence(df)
+    one = one[(one.fence == "curved") & one.angle.between(*angles)]
+    ok = (one.status == "ok") & one.analytic_yaw_deg.notna()
+    one = one.assign(agree=(ok & (one.gap_deg < AGREE_DEG)).astype(float))
+    rows = []
+    for why, g in one.groupby("exit_reason"):
+        q = weighted_quantiles(g.gap_deg, g.weight, (0.25, 0.5, 0.75))
+        rows.append((why, g.weight.sum() / one.weight.sum(), np.average(g.agree, weights=g.weight), *q))
+    return pd.DataFrame(rows, columns=["exit_reason", "share", "agree", "gap_q25_deg", "gap_median_deg", "gap_q75_deg"])
 
 
 def summarise(df: pd.DataFrame) -> None:
@@ -216,8 +262,10 @@ def summarise(df: pd.DataFrame) -> None:
     table = agreement(one, ["steep", "exit_reason"]).assign(share=share / share.groupby(level=0).transform("sum"))
     print(f"one straight fence, by why the modelled exit turn stopped (steep: >= {STEEP_DEG:g} deg):")
     print(table.round(3).to_string())
-    print("one fence alone, by its type and angle (untouched: the model leaves the yaw as it was):")
+    print("one fence alone (either location), by its type and angle (untouched: the model leaves the yaw as it was):")
     print(one_fence_table(df).round(3).to_string(index=False))
+    print("one curved fence alone at 10-40 deg, by why the modelled exit turn stopped:")
+    print(one_curved_by_reason(df, (10, 40)).round(3).to_string(index=False))
 
 
 def budget_scores(dataset: Path, parts_dir: Path, scales: list[float], scene: dict) -> pd.DataFrame:
@@ -260,6 +308,8 @@ def main(argv: list[str]) -> int:
     ap.add_argument("--one-fence-csv", type=Path, help="also write the one-fence table here")
     ap.add_argument("--from-rows", action="store_true", help="OUT_CSV_GZ exists: summarise its rows, simulate nothing")
     args = ap.parse_args(argv)
+    if args.from_rows and args.budget_scales:
+        sys.exit("--budget-scales needs the simulation files' scene: run without --from-rows")
     if args.from_rows:
         df, scenes = pd.read_csv(args.out_csv), []
     else:

@@ -48,7 +48,7 @@ BINS = 360
 def pmfs(conf: pd.DataFrame, parts_dir: Path, nudge: float) -> np.ndarray:
     """The base analytic PMF (unsmoothed, part frame) of every configuration, its exit turns
     integrated ``nudge`` degrees above the fence's angle; rows of zeros where nothing is ok."""
-    D.exit_turn = lambda geom, k, angle, side, mu: exit_turn(geom, k, angle + nudge, side, mu)
+    D.exit_turn = lambda geom, k, angle, side, mu, **kw: exit_turn(geom, k, angle + nudge, side, mu, **kw)
     scene, memo, out = default_scene(), {}, []
     for part, cid in zip(conf.part, conf.config_id, strict=True):
         geom = load_part(parts_dir / f"{part}.stl", "auto")

@@ -1,10 +1,11 @@
-"""A round tip caught in a notch: candidate rules for where the part goes (issue #39, not adopted).
+"""A round tip caught in a notch: candidate rules for where the part goes (issue #39; "flush" adopted).
 
 With the cap modelled (``docs/experiments/round_tip_model.py``), the exit turn still gives up on a
 quarter of the steep one-fence drops: the cap reaches a concave vertex of the grown outline
 (``notch``) and the model lets the part go as it is, which is always wrong. Where the simulated
 part ends suggests that the cap hooks there and the part turns about it until an edge lies along
-the travel direction, where the fence's motion no longer pushes it. Which edge is not settled.
+the travel direction. Which edge is not settled. (The rules are empirical: none checks whether the
+corner's further path meets the part again, and after the turn it often does.)
 This script patches ``feeder.mechanics.exitturn._Exit.release`` for ``notch`` (the package is not
 changed; the library's own hook, the "flush" rule below since it was adopted for a round tip, is
 switched off) with one rule at a time, turning the part about the corner by the smallest angle that
@@ -66,7 +67,7 @@ def _tracking_exit_turn(part, edge, *args, **kwargs):
 
 def _release(self, k, s, reason):
     self.hook_notch = STATE["rule"] == "library"
-    if reason != "notch" or STATE["rule"] in ("none", "library"):
+    if reason != "notch" or not self.concave or STATE["rule"] in ("none", "library"):
         return _ORIGINAL_RELEASE(self, k, s, reason)
     n = self.n
     a = self.poly[k]

@@ -166,6 +166,7 @@ class _Exit:
     ):
         a = math.radians(alpha_deg)
         self.edge, self.hook_notch = edge, hook  # the hull edge that left the face; turn in a notch
+        self.concave = False  # the corner stopped at a concave vertex (not by circling the outline)
         self.t = np.array([-side * math.sin(a), math.cos(a)])
         self.nf = np.array([-side * math.cos(a), -math.sin(a)])
         self.geom, self.mu, self.yaw = geom, mu, yaw_rad
@@ -342,7 +343,8 @@ class _Exit:
                 return self.release(k, s, "travel")
             switches += 1
             j = (k + 1) % n if s > length else k  # the vertex reached
-            if not self.geom.convex[j] or switches > 2 * n:
+            if not self.geom.convex[j] or switches > 2 * n:  # a concave vertex, or the corner circling
+                self.concave = not self.geom.convex[j]
                 return self.release(k, min(max(s, 0.0), length), "notch")
             k, s = (j, 0.0) if s > length else ((k - 1) % n, float(np.hypot(*(P[k] - P[(k - 1) % n]))))
 
@@ -422,6 +424,7 @@ class _Exit:
                 switches += 1
                 j = (k + 1) % n if s > length else k
                 if not self.geom.convex[j] or switches > 2 * n:
+                    self.concave = not self.geom.convex[j]
                     return self.release(k, min(max(s, 0.0), length), "notch")
                 k, s = (j, 0.0) if s > length else ((k - 1) % n, float(np.hypot(*(P[k] - P[(k - 1) % n]))))
                 continue
@@ -455,7 +458,7 @@ class _Exit:
         e = self.poly[(k + 1) % self.n] - a
         p = a + s * e / float(np.hypot(*e))
         self.X = -(self.rot() @ p)  # the corner is at the contact point
-        if reason == "notch" and self.hook_notch:
+        if reason == "notch" and self.hook_notch and self.concave:
             return self.hook()
         if reason != "released":
             return ("free", reason)
@@ -470,8 +473,9 @@ class _Exit:
     def hook(self):
         """The corner caught in a notch (at the contact, ``X`` already there): the part turns about
         it by the smallest angle that lays the hull edge it rode the face on along the travel
-        direction, where the fence no longer pushes it, and is let go (docs/structured.md, "A
-        candidate for the notch": the "flush" rule)."""
+        direction, and is let go (docs/structured.md, "A candidate for the notch": the "flush"
+        rule). An empirical rule, adopted on its scores against the simulator: it does not check
+        whether the corner's further path meets the part again, and it often does."""
         self.phases += "N"
         hull = self.geom.hull
         e = self.rot() @ (hull[(self.edge + 1) % len(hull)] - hull[self.edge])
