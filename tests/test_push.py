@@ -10,7 +10,7 @@ import pytest
 from feeder.errors import FeederError
 from feeder.labels import metrics as L
 from feeder.mechanics.distribution import YAW_SAMPLES, analytic_distribution, fence_response
-from feeder.mechanics.exitturn import exit_turn
+from feeder.mechanics.exitturn import corner_push, exit_turn
 from feeder.mechanics.features import PUSH_FEATURE_NAMES, fourier_coefficients, push_features
 from feeder.mechanics.fence import (
     default_scene,
@@ -225,6 +225,25 @@ def test_rectangle_turns_towards_the_travel_direction_after_the_tip():
     assert -45.0 < turn.delta_deg < -25.0
     left = exit_turn(g, int(push_function(g, MU, -1).edges[0]), 45.0, -1, MU)
     assert left.delta_deg > 0.0  # mirrored on the left
+
+
+def test_a_corner_met_head_on_turns_the_part_away_from_its_side_and_mirrors():
+    """A 40 x 20 mm rectangle riding the belt with its long edge leading meets a fence's tip
+    corner 15 mm right of its centroid: the corner holds back the right end of the leading edge,
+    so the part turns clockwise (negative) before anything else touches it, and it meets the
+    corner where its path first crosses the outline (the leading edge, 10 mm ahead of the
+    centroid). Mirrored (the fence on the left, the corner 15 mm left) it turns the other way by
+    the same angle. A corner beside the part does not touch it."""
+    g = push_geometry(rect(0.04, 0.02))
+    right = corner_push(g, 80.0, 1, MU, 0.0, -0.015)
+    left = corner_push(g, 80.0, -1, MU, 0.0, 0.015)
+    assert right.phases.startswith("C") and right.delta_deg < 0.0
+    assert left.delta_deg == pytest.approx(-right.delta_deg, abs=1e-9)
+    assert left.offset == pytest.approx((-right.offset[0], right.offset[1]), abs=1e-12)
+    # the centroid stays behind the corner (upstream) and on its own side
+    assert right.offset[1] < 0.0 and right.offset[0] < 0.0
+    assert corner_push(g, 80.0, 1, MU, 0.0, -0.05) is None  # 5 cm to the left: the 2 cm half-length misses it
+    assert corner_push(g, 80.0, 1, MU, 90.0, -0.015) is None  # turned lengthwise: a 1 cm half-width misses it
 
 
 # --------------------------------------------------------------------------------------------

@@ -522,7 +522,36 @@ def exit_turn(part, edge: int, fence_angle_deg: float, side: int, mu: float, hoo
     along = ex.rot() @ (geom.hull[(edge + 1) % len(geom.hull)] - a)
     ex.X = -(ex.rot() @ a)  # hull edge on the face line, first vertex at the tip ...
     ex.X = ex.X - max(0.0, float(along @ ex.t)) * ex.t  # ... and its downstream end there
-    state: tuple = ("flush",)
+    state = _follow(ex, ("flush",))
+    reason = state[1] if state[0] == "free" else "phases"
+    return ExitTurn(math.degrees(ex.yaw - yaw0), (float(ex.X[0]), float(ex.X[1])), reason, ex.phases)
+
+
+def corner_push(part, fence_angle_deg: float, side: int, mu: float, yaw_deg: float, lateral: float):
+    """A part riding the belt at yaw ``yaw_deg``, its centroid ``lateral`` metres (world x) from a
+    fence's tip corner, meets that corner head on (a curved fence whose tip reaches into the lane:
+    the part grazes it instead of meeting the face). The corner pushes the outline where it first
+    meets it, with the exit turn's phases from there (``C`` first; the face at local angle
+    ``fence_angle_deg`` if a vertex lands on it). Returns the :class:`ExitTurn` (``delta_deg``
+    from ``yaw_deg``, ``offset`` the centroid from the corner when let go), or None if the
+    corner's path misses the outline."""
+    geom = as_geometry(part)
+    yaw0 = math.radians(float(yaw_deg))
+    ex = _Exit(geom, fence_angle_deg, side, mu, yaw0, 0, False)
+    ex.X = np.array([float(lateral), -2.0 * geom.circumradius])  # the whole part upstream of the corner
+    hit = ex.ray(ex.rot().T @ -ex.X, ex.rot().T @ np.array(_PUSHER_VELOCITY))
+    if hit is None:
+        return None
+    j, sj, dist = hit
+    ex.X = ex.X - dist * np.array(_PUSHER_VELOCITY)
+    state = _follow(ex, ("C", j, sj))
+    reason = state[1] if state[0] == "free" else "phases"
+    return ExitTurn(math.degrees(ex.yaw - yaw0), (float(ex.X[0]), float(ex.X[1])), reason, ex.phases)
+
+
+def _follow(ex: _Exit, state: tuple) -> tuple:
+    """Run the exit state machine from ``state`` until the part is let go (``("free", why)``) or
+    the phase limit."""
     seen: set = set()
     for _ in range(EXIT_MAX_PHASES):
         if state[0] == "flush":
@@ -540,5 +569,4 @@ def exit_turn(part, edge: int, fence_angle_deg: float, side: int, mu: float, hoo
             state = ex.both(state[1], state[2], state[3])
         else:
             break
-    reason = state[1] if state[0] == "free" else "phases"
-    return ExitTurn(math.degrees(ex.yaw - yaw0), (float(ex.X[0]), float(ex.X[1])), reason, ex.phases)
+    return state
