@@ -282,12 +282,14 @@ def study():
     [("rect-a3", "strips3", "straight:30|none", False), ("lshape-a", "cut_in", "straight:45|none", True)],
 )
 def test_verdicts_on_two_small_parts(study, part, other, config, pieces_label):
-    """The same drops under two decompositions: the pieces move every drop by 1.7-3.5 degrees, 20 x
-    and more their nudged floor and more than twice half a label bin (the paired test fails), and on
-    the rectangle (cut in three strips) the label too; pads move the drops by 0.08-0.17 degrees
-    through the pieces' fence contacts, above their measured floor of 0.003 degrees or less but
-    within the label's resolution (half a bin): they pass. With six drops the L's label floor (a
-    second offset) is 14 degrees of W1, which the pieces' 2 degrees pass."""
+    """The same drops under two decompositions, in the default scene (round fence tips since
+    2026-11-29): the pieces move every drop by 1.2-4.2 degrees, 10-90 x their nudged floor, 7-14 x
+    what pads move them and more than twice half a label bin (the paired test fails), and on the
+    rectangle (cut in three strips) the label too; pads move the drops by 0.18-0.30 degrees through
+    the pieces' fence contacts, above their measured floor of 0.0001 degrees or less but within the
+    label's resolution (half a bin): they pass. The thresholds below sit at half the smaller measured
+    ratio (under the square tip these were written for, 20 x and 10 x held). With six drops the L's
+    label floor (a second offset) is 14 degrees of W1, which the pieces' 1.2 degrees pass."""
     scene, preset, labels = study
     bench = _bench(part, [other], config, models=("pieces", "pads8", "pads8+outline"))
     raw = D.simulate_all(bench, 0, "parts", scene, preset, 1)
@@ -303,8 +305,8 @@ def test_verdicts_on_two_small_parts(study, part, other, config, pieces_label):
     assert np.array_equal(by["library"], by[other], equal_nan=True)
     pieces, pads = rows.loc["pieces"], rows.loc["pads8"]
     assert (pieces["same_basin"], pads["same_basin"]) == (1.0, 1.0)
-    assert pieces["median_dyaw_deg"] > 20 * pieces["own_floor_median_dyaw_deg"]
-    assert pieces["median_dyaw_deg"] > 1.0 and pieces["median_dyaw_deg"] > 10 * pads["median_dyaw_deg"]
+    assert pieces["median_dyaw_deg"] > 5 * pieces["own_floor_median_dyaw_deg"]
+    assert pieces["median_dyaw_deg"] > 1.0 and pieces["median_dyaw_deg"] > 4 * pads["median_dyaw_deg"]
     assert pads["median_dyaw_deg"] > 2 * pads["own_floor_median_dyaw_deg"]  # measurable, below a bin
     assert not pieces["passes_paired"] and pads["passes_paired"]
     assert bool(pieces["passes_label"]) is pieces_label and pads["passes_label"]

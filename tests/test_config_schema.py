@@ -26,21 +26,12 @@ def test_shipped_configs_are_valid(config):
     validate(copy.deepcopy(config), schema=SCHEMA)
 
 
-def test_a_round_fence_tip_is_a_valid_setting():
-    validate(_set(copy.deepcopy(_load("config.yaml")), "scene.fences.tip", "round"), schema=SCHEMA)
-
-
-def test_the_round_tip_overlay_is_the_default_study_with_round_tips_in_its_own_folder():
-    merged = merged_config(ROOT, "config/round_tip.yaml")
-    validate(copy.deepcopy(merged), schema=SCHEMA)
+def test_a_square_fence_tip_is_a_valid_setting_and_the_default_is_round():
     default = _load("config.yaml")
-    assert merged["scene"]["fences"]["tip"] == "round" and "tip" not in default["scene"]["fences"]
-    assert merged["results"] != default["results"]
-    assert merged["models"]["export_dir"].startswith(merged["results"] + "/")  # never over models/
-    # nothing else differs: the same grid, budget and physics
-    merged["scene"]["fences"].pop("tip")
-    merged["models"]["export_dir"] = default["models"]["export_dir"]
-    assert {k: v for k, v in merged.items() if k != "results"} == {k: v for k, v in default.items() if k != "results"}
+    assert default["scene"]["fences"]["tip"] == "round"  # issue #39's re-baseline
+    validate(_set(copy.deepcopy(default), "scene.fences.tip", "square"), schema=SCHEMA)
+    with pytest.raises(WorkflowError):
+        validate(_set(copy.deepcopy(default), "scene.fences.tip", "pointed"), schema=SCHEMA)
 
 
 def _set(config, dotted, value):

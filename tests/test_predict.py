@@ -507,7 +507,9 @@ def test_the_hole_note_only_where_the_answer_cannot_see_the_hole(model_dir, tmp_
         part = tmp_path / f"{name}.stl"
         part.write_bytes(stl_bytes(outline_mm(spec), 5.0, name, holes=holes))
         out = tmp_path / f"{name}.csv"
-        argv = ["--model", "analytic", "--part", str(part), "--loc1", "straight:40", "--loc2", "none"]
+        # straight:30: the hole's shift of the centre of mass moves a resting yaw of mass 0.35 by a degree
+        # (at straight:40, under the round fence tip, its answer moves by only 0.004)
+        argv = ["--model", "analytic", "--part", str(part), "--loc1", "straight:30", "--loc2", "none"]
         assert P.main([*argv, "--out", str(out)]) == 0
         assert "through-hole" not in capsys.readouterr().err
         pmfs[name] = pd.read_csv(out).pmf.to_numpy()
