@@ -288,12 +288,16 @@ def _split(model, cuts):
 
 
 @pytest.mark.slow
-def test_pads_make_the_outcome_independent_of_how_the_outline_is_cut(monkeypatch):
+def test_pads_make_the_outcome_independent_of_how_the_outline_is_cut(monkeypatch, request):
     """The same 40 x 20 mm rectangle as one piece and as three strips, same initial yaws, through
     a straight and a curved fence. With the pieces on the belt the strips change where the weight
     rests and so the outcome; with pads it is the same rectangle whatever the cut."""
     from feeder.bench.designs import paired_basins
 
+    if SCENE["fences"].get("tip", "square") == "round":  # measured at stop 65 (2026-11-29), issue #39
+        request.applymarker(
+            pytest.mark.xfail(strict=True, reason="round fence tip: with pads 1 of the 4 drops changes basin")
+        )
     yaws = np.array([20.0, 75.0, 160.0, 250.0])
     loc1, loc2 = parse_location("straight:30"), parse_location("curved:40")
     finals = {}
