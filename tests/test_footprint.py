@@ -15,6 +15,7 @@ from test_sim import _world  # the world of tests/test_sim.py, here with a padde
 
 from feeder.errors import FeederError
 from feeder.lane.fences import parse_location
+from feeder.lane.geometry import fence_tip
 from feeder.parts.geometry import PartGeometry
 from feeder.sim import body as simbody
 from feeder.sim import drops as sim
@@ -294,7 +295,7 @@ def test_pads_make_the_outcome_independent_of_how_the_outline_is_cut(monkeypatch
     rests and so the outcome; with pads it is the same rectangle whatever the cut."""
     from feeder.bench.designs import paired_basins
 
-    if SCENE["fences"].get("tip", "square") == "round":  # measured at stop 65 (2026-11-29), issue #39
+    if fence_tip(SCENE) == "round":  # measured at stop 65 (2026-11-29), issue #39
         request.applymarker(
             pytest.mark.xfail(strict=True, reason="round fence tip: with pads 1 of the 4 drops changes basin")
         )
