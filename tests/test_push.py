@@ -3,13 +3,14 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
 
 from feeder.errors import FeederError
 from feeder.labels import metrics as L
-from feeder.mechanics.distribution import YAW_SAMPLES, analytic_distribution, fence_response
+from feeder.mechanics.distribution import YAW_SAMPLES, analytic_distribution, fence_response, jam_probability
 from feeder.mechanics.exitturn import corner_push, exit_turn
 from feeder.mechanics.features import PUSH_FEATURE_NAMES, fourier_coefficients, push_features
 from feeder.mechanics.fence import (
@@ -319,7 +320,36 @@ def test_curved_fence_at_zero_does_not_reach_a_small_part():
 def test_steep_curved_fences_jam_in_the_friction_cone():
     dist = analytic_distribution(rect(0.04, 0.02), "curved:70", "none", SCENE, samples=720)
     assert dist.jam["loc1"] > 0.5 and dist.margin["loc1"] < 0.0
-    assert analytic_distribution(rect(0.04, 0.02), "straight:30", "none", SCENE, samples=720).jam["loc1"] == 0.0
+    hard = analytic_distribution(rect(0.04, 0.02), "straight:30", "none", SCENE, samples=720, jam_spread_deg=0.0)
+    assert hard.jam["loc1"] == 0.0 and hard.ok_mass == 1.0
+    # soft jams: straight:30 lies 38.2° outside the cone, a jam share of Phi(-38.2 / 3) ~ 2e-37
+    soft = analytic_distribution(rect(0.04, 0.02), "straight:30", "none", SCENE, samples=720, jam_spread_deg=3.0)
+    assert 0.0 < soft.jam["loc1"] < 1e-30
+    soft = analytic_distribution(rect(0.04, 0.02), "curved:70", "none", SCENE, samples=720, jam_spread_deg=3.0)
+    assert 0.5 < soft.jam["loc1"] < dist.jam["loc1"] and soft.ok_mass > dist.ok_mass
+
+
+def test_jam_probability_by_hand():
+    # Phi(0) = 1/2 on the cone's edge; Phi(-1) = 0.158655 one spread inside the slide side
+    np.testing.assert_allclose(jam_probability([0.0, 3.0, -3.0], 3.0), [0.5, 0.15865525, 0.84134475], rtol=1e-7)
+    np.testing.assert_array_equal(jam_probability([-1e-9, 0.0, 2.0], 0.0), [1.0, 0.0, 0.0])
+    for bad in (-1.0, float("nan"), float("inf")):
+        with pytest.raises(FeederError, match="jam_spread_deg"):
+            jam_probability(1.0, bad)
+
+
+def test_soft_jams_weigh_a_straight_fence_on_the_cones_edge():
+    # a straight fence at 90 - atan(0.4) = 68.2°: every drop touches it with margin 0, so each
+    # keeps half its weight; the PMF (over the ok drops) is that of the slide rule
+    edge = math.degrees(math.atan2(1.0, 0.4))
+    fence = replace(fence_models("straight:30", "none", SCENE)[0], exit_deg=edge, slot_deg=edge)
+    part = rect(0.04, 0.02)
+    soft = analytic_distribution(part, None, None, SCENE, fences=[fence], samples=720, jam_spread_deg=3.0)
+    slide = analytic_distribution(part, None, None, SCENE, fences=[fence], samples=720, jams=False)
+    assert soft.jam["loc1"] == pytest.approx(0.5 * soft.touch["loc1"], abs=1e-12)
+    assert soft.ok_mass == pytest.approx(1.0 - 0.5 * soft.touch["loc1"], abs=1e-12)
+    pmfs = [analytic_pmf(part, None, None, SCENE, distribution=d) for d in (soft, slide)]
+    np.testing.assert_allclose(*pmfs)
 
 
 # --------------------------------------------------------------------------------------------
@@ -369,15 +399,32 @@ def test_a_fence_that_no_drop_reaches_gives_finite_features():
     """Hard case from the wider library (randblob-15, straight:25 | curved:50): the curved fence
     upstream jams every drop (its margin is -1.4 deg), so the straight fence downstream meets an
     empty set. Its margin is the margin at its exit angle, not the mean of nothing (NaN, which
-    stopped the dataset build)."""
+    stopped the dataset build). Under the hard jam rule (``jam_spread_deg=0``): soft jams let a
+    little weight through a margin of -1.4 deg."""
     from pathlib import Path
 
     from feeder.parts.geometry import load_part
 
     part = load_part(Path(__file__).resolve().parents[1] / "parts" / "randblob-15.stl")
-    dist = analytic_distribution(part, "straight:25", "curved:50")
+    dist = analytic_distribution(part, "straight:25", "curved:50", jam_spread_deg=0.0)
     mu = fence_mu(default_scene())
     assert dist.margin["loc1"] == pytest.approx(float(friction_margin_deg(25.0, mu)))
     assert dist.jam["loc2"] == 1.0 and dist.ok_mass == 0.0
     assert dist.touch["loc1"] == 0.0 and dist.jam["loc1"] == 0.0
     assert np.isfinite(push_features(part, "straight:25", "curved:50")).all()
+
+
+def test_a_jammed_distribution_without_its_fences_is_refused():
+    """A distribution where every drop jams has no PMF of its own; analytic_pmf gives the PMF of
+    the configuration without jams, which it needs the fences for. Given only the distribution it
+    once returned the PMF of no fence at all (uniform): now a clear error."""
+    part = rect(0.04, 0.02)
+    jammed = analytic_distribution(part, "curved:70", "none", SCENE, samples=720, jam_spread_deg=0.0)
+    assert jammed.weights.sum() == 0.0
+    with pytest.raises(FeederError, match="every drop of the given distribution jams"):
+        analytic_pmf(part, None, None, SCENE, distribution=jammed)
+    got = analytic_pmf(part, "curved:70", "none", SCENE, distribution=jammed)
+    want = analytic_pmf(
+        part, None, None, SCENE, distribution=analytic_distribution(part, "curved:70", "none", SCENE, jams=False)
+    )
+    np.testing.assert_array_equal(got, want)

@@ -79,8 +79,9 @@ def cell_weights(y0: np.ndarray, period: float) -> np.ndarray:
 
 def analytic_final(geom, fences, yaws, mu, memo) -> tuple[np.ndarray, list[float]]:
     """Final yaw of each drop (NaN: jammed) through ``fences`` in order, and each fence's touched
-    share; the drops are tracked through ``_apply`` by their weights (index + 1). ValueError when
-    a fence rolls the part (its drops leave at a density, not one yaw each)."""
+    share; the drops are tracked through ``_apply`` by their weights (index + 1), under the hard
+    jam rule (each drop's likeliest end). ValueError when a fence rolls the part (its drops leave
+    at a density, not one yaw each)."""
     yaw = np.asarray(yaws, dtype=np.float64).copy()
     x = np.zeros_like(yaw)
     tag = np.arange(1.0, yaw.size + 1.0)
@@ -90,7 +91,7 @@ def analytic_final(geom, fences, yaws, mu, memo) -> tuple[np.ndarray, list[float
             memo[m] = D.fence_response(geom, m, mu, True)
         if memo[m].push.rolls:
             raise ValueError("a fence rolls the part: no yaw per drop")
-        yaw, x, tag, (t, _, _) = D._apply(geom, memo[m], mu, yaw, x, tag, True)
+        yaw, x, tag, (t, _, _) = D._apply(geom, memo[m], mu, yaw, x, tag, True, 0.0)  # hard: a drop's likeliest end
         touched.append(t)
     out = np.full(len(yaws), np.nan)
     out[np.rint(tag).astype(int) - 1] = yaw
@@ -288,7 +289,8 @@ def budget_scores(dataset: Path, parts_dir: Path, scales: list[float], scene: di
                     geoms[part] = as_geometry(load_part(parts_dir / f"{part}.stl"))
                 loc1, loc2 = parse_config_id(str(config_id))
                 dist = D.analytic_distribution(geoms[part], loc1, loc2, scene, responses=memos.setdefault(part, {}))
-                pmf = analytic_pmf(geoms[part], None, None, frame_deg=float(data["frame_deg"][i]), distribution=dist)
+                frame = float(data["frame_deg"][i])  # every drop jams: the PMF without jams (its loc1/loc2)
+                pmf = analytic_pmf(geoms[part], loc1, loc2, scene, frame_deg=frame, distribution=dist)
                 cw1 = float(circular_w1(np.cumsum(pmf), data["cdf"][i]))
                 rows.append((scale, part, str(config_id), str(data["split"][i]), cw1))
         finally:

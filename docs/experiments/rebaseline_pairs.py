@@ -187,7 +187,7 @@ def label_rows(old_npz: Path, new_npz: Path, parts_dir: Path | None, scenes: tup
                 for run, scene in enumerate(scenes):
                     memo = memos.setdefault((run, part), {})
                     dist = analytic_distribution(geoms[part], loc1, loc2, scene, responses=memo)
-                    pmf = analytic_pmf(geoms[part], None, None, frame_deg=frame, distribution=dist)
+                    pmf = analytic_pmf(geoms[part], loc1, loc2, scene, frame_deg=frame, distribution=dist)
                     cdfs.append(np.cumsum(pmf))
                 row["analytic_old_cw1_deg"] = float(circular_w1(cdfs[0], ca))
                 row["analytic_new_cw1_deg"] = float(circular_w1(cdfs[0], cb))

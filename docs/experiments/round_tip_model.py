@@ -119,6 +119,8 @@ def main(argv: list[str]) -> int:
                 per_drop[name] = np.where(ok & np.isfinite(ana) & (d < AGREE_DEG), 1.0, 0.0)
             if run is not None:
                 dist = analytic_distribution(geom, loc1, loc2, scene, fences=fm)
+                if dist.weights.sum() <= 0.0:  # every drop jams: the PMF without jams (as analytic_pmf)
+                    dist = analytic_distribution(geom, loc1, loc2, scene, fences=fm, jams=False)
                 cdf = np.cumsum(analytic_pmf(geom, None, None, distribution=dist))
                 rec[f"{name}_cw1_deg"] = float(circular_w1(cdf, np.cumsum(run)))
         pmfs.append(rec)

@@ -20,6 +20,14 @@ Configurations (:func:`analytic_distribution`)
     radians (a unit push at moment arm ``a`` turns it by ``a / (c² + a²) ≤ 1 / (2c)`` on the
     limit surface), so a part that would need more (a shallow curved fence reaching only its
     edge: ``curved:0``) turns that far towards its stable edge and leaves unaligned.
+    With ``jam_spread_deg`` > 0 jams are soft: a drop that touches a fence jams with probability
+    ``Φ(−margin / jam_spread_deg)`` of its entry's friction margin (one half on the cone's edge),
+    and leaves with the rest of its weight. The disc estimate of the entry angle is rough, and near
+    the cone's edge the simulator lets many drops through that the quasi-static rule holds, and
+    holds some it lets go (one curved fence at 50°: simulated jam share 0.83 where the margin is
+    −5° to −2°, 0.47 at −2° to 0°, 0.29 at 0° to 2°). Measured against the hard rule on the
+    study's labels, the soft rule's gain is within noise (``JAM_SPREAD_DEG``), so the default is
+    ``0``: the hard rule (a drop jams iff its margin is negative), each drop's likeliest outcome.
     A round fence tip (``scene.fences.tip: round``) is a disc: the exit turn pushes the outline
     grown by the disc's radius (:func:`feeder.mechanics.hull.dilate`) with the disc's centre as
     the corner (friction taken there, not ``r`` nearer the part where it acts: an approximation);
@@ -32,6 +40,7 @@ import math
 from dataclasses import dataclass, replace
 
 import numpy as np
+from scipy.special import ndtr
 
 from feeder.circular import FULL_TURN_DEG, HALF_TURN_DEG, wrap360
 from feeder.errors import FeederError
@@ -54,6 +63,10 @@ TIP_ARC_QUAD_SEGS = 16
 EDGE_MATCH_DEG = 0.01  # a grown hull edge keeps its normal to this (outline vertices within the hull's
 # collinearity tolerance of a hull edge split it: 0.002° at most over the library)
 YAW_SAMPLES = 7200  # evenly spaced initial yaws (0.05° apart): a basin's mass is off by < 1/7200
+# Spread (degrees of friction margin) of the jam rule; 0: the hard rule. Soft spreads were measured
+# and not adopted: chosen on the training split (3°), no split gains by an interval that excludes 0
+# (docs/experiments/soft_jams.py, results/tables/soft_jams_summary.csv; docs/structured.md, "Soft jams").
+JAM_SPREAD_DEG = 0.0
 # Contact normals at which a rolling part (no stable edge) may leave a fence: 0.5° apart.
 ROLL_SAMPLES = 720
 
@@ -127,9 +140,23 @@ def _support_towards(geom: PushGeometry, yaw_deg: np.ndarray, side: int) -> np.n
     return radius_function(geom, world - yaw_deg)
 
 
-def _apply(geom, resp: FenceResponse, mu: float, yaw, x, w, jams: bool = True):
+def jam_probability(margin_deg, spread_deg: float) -> np.ndarray:
+    """Probability that a drop touching a fence with friction margin ``margin_deg`` jams:
+    ``Φ(−margin / spread)``, and for ``spread_deg == 0`` the hard rule (1 inside the friction
+    cone, margin < 0, else 0)."""
+    m = np.asarray(margin_deg, dtype=np.float64)
+    if not (math.isfinite(spread_deg) and spread_deg >= 0.0):
+        raise FeederError(f"jam_spread_deg must be finite and >= 0, got {spread_deg!r}")
+    if spread_deg == 0.0:
+        return (m < 0.0).astype(np.float64)
+    return ndtr(-m / spread_deg)
+
+
+def _apply(geom, resp: FenceResponse, mu: float, yaw, x, w, jams: bool = True, spread: float = JAM_SPREAD_DEG):
     """One fence on the drops (yaws, lateral centroid positions, weights); returns the new
-    arrays and (touch share, jam share, mean entry margin) of the arriving weight. The margin is
+    arrays and (touch share, jam share, mean entry margin) of the arriving weight. A touching
+    drop jams with :func:`jam_probability` of its margin (``spread``) and goes on with the rest
+    of its weight; drops left with no weight are dropped. The margin is
     over the drops that touch, else over all arriving drops, else (nothing arrives: an upstream
     fence jammed every drop) the margin at the fence's exit angle."""
     m = resp.model
@@ -145,8 +172,10 @@ def _apply(geom, resp: FenceResponse, mu: float, yaw, x, w, jams: bool = True):
         touch &= ~graze
         entry = np.minimum(entry, m.slot_deg)
     margin = friction_margin_deg(entry, mu)
-    jam = touch & (margin < 0.0) if jams else np.zeros(yaw.shape, dtype=bool)
+    p_jam = np.where(touch, jam_probability(margin, spread), 0.0) if jams else np.zeros(yaw.shape)
+    jam = p_jam >= 1.0  # every bit of the drop's weight jams
     push = touch & ~jam
+    passed = w * (1.0 - p_jam)  # the weight that goes on
     total = float(w.sum())
     if w[touch].sum() > 0:
         mean_margin = np.average(margin[touch], weights=w[touch])
@@ -156,7 +185,7 @@ def _apply(geom, resp: FenceResponse, mu: float, yaw, x, w, jams: bool = True):
         mean_margin = friction_margin_deg(m.exit_deg, mu)
     stats = (
         float(w[touch].sum()) / total if total > 0 else 0.0,
-        float(w[jam].sum()) / total if total > 0 else 0.0,
+        float((w[p_jam > 0.0] * p_jam[p_jam > 0.0]).sum()) / total if total > 0 else 0.0,
         float(mean_margin),
     )
     if push.any() and resp.push.rolls:  # every pushed drop leaves at the rolling density
@@ -165,7 +194,7 @@ def _apply(geom, resp: FenceResponse, mu: float, yaw, x, w, jams: bool = True):
         keep = ~(jam | push)
         yaw = np.concatenate([yaw[keep], wrap360(normal - phi)])
         x = np.concatenate([x[keep], m.tip[0] - radius_function(geom, phi) * math.cos(math.radians(normal))])
-        w = np.concatenate([w[keep], float(w[push].sum()) * rolling_density(geom, mu, side, phi)])
+        w = np.concatenate([w[keep], float(passed[push].sum()) * rolling_density(geom, mu, side, phi)])
         return yaw, x, w, stats
     if push.any():
         # the exit face decides the basin (its push function at the entry angle did worse on the
@@ -183,8 +212,8 @@ def _apply(geom, resp: FenceResponse, mu: float, yaw, x, w, jams: bool = True):
         yaw = yaw.copy()
         x = x.copy()
         yaw[push], x[push] = new_yaw, new_x
-    keep = ~jam
-    return yaw[keep], x[keep], w[keep], stats
+    keep = passed > 0.0
+    return yaw[keep], x[keep], passed[keep], stats
 
 
 def analytic_distribution(
@@ -199,13 +228,15 @@ def analytic_distribution(
     fences: list[FenceModel] | None = None,
     jams: bool = True,
     responses: dict | None = None,
+    jam_spread_deg: float = JAM_SPREAD_DEG,
 ) -> Distribution:
     """Push ``samples`` evenly spaced initial yaws (centred parts) through the configuration.
 
     ``mu``: part–fence friction (default :func:`fence_mu` of ``scene``); ``exit_turns``: apply the
     exit turn (False: parts leave a fence flush with it); ``fences``: an explicit list of fence
     models in the order met (overrides loc1/loc2); ``jams``: False pushes drops in the friction
-    cone as if they slid (their jam share is still reported); ``responses``: a memo of
+    cone as if they slid; ``jam_spread_deg``: the soft jam rule's spread (0: the hard rule,
+    :func:`jam_probability`); ``responses``: a memo of
     :func:`fence_response` for this one part, filled and reused across calls (the exit-turn
     integration is most of the cost, and configurations of a part share fences): give each part
     its own dict."""
@@ -228,7 +259,7 @@ def analytic_distribution(
             resp = fence_response(geom, m, mu, exit_turns)
             if responses is not None:
                 responses[key] = resp
-        yaw, x, w, (t, j, mg) = _apply(geom, resp, mu, yaw, x, w, jams)
+        yaw, x, w, (t, j, mg) = _apply(geom, resp, mu, yaw, x, w, jams, jam_spread_deg)
         touch[m.location], jam[m.location], margin[m.location] = t, j, mg
     ok = float(w.sum())
     return Distribution(wrap360(yaw), w, ok, touch, jam, margin)

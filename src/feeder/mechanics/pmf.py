@@ -51,6 +51,11 @@ def analytic_pmf(
         raise FeederError(f"frame_deg must be finite, got {frame_deg!r}")
     dist = distribution or analytic_distribution(part, loc1, loc2, scene, mu=mu, exit_turns=exit_turns)
     if dist.weights.sum() <= 0.0:
+        if loc1 is None and loc2 is None:  # no fence to push the drops through again: not a uniform PMF
+            raise FeederError(
+                "every drop of the given distribution jams: pass its loc1/loc2 (the PMF is then that of the "
+                "configuration without jams) or a distribution without jams"
+            )
         dist = analytic_distribution(part, loc1, loc2, scene, mu=mu, exit_turns=exit_turns, jams=False)
     hist = bin_masses(dist.yaws + frame_deg, dist.weights, int(bins))
     hist /= hist.sum()
