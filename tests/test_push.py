@@ -317,6 +317,24 @@ def test_curved_fence_at_zero_does_not_reach_a_small_part():
     np.testing.assert_allclose(analytic_pmf(small, "curved:0", "none", SCENE, smooth_deg=0.0), 1.0 / PMF_BINS)
 
 
+def test_the_turn_budget_scale_multiplies_a_binding_budget():
+    """curved:0 reaches only the edge of a 80 x 30 mm rectangle: every drop it touches turns by its
+    budget overlap / (2c), short of its stable edge; twice the budget turns each twice as far, and
+    the drops it misses stay as they were."""
+    part = rect(0.08, 0.03)
+    n = 72
+    start = (np.arange(n) + 0.5) * (360.0 / n)
+    turns = []
+    for scale in (1.0, 2.0):
+        dist = analytic_distribution(part, "curved:0", "none", SCENE, samples=n, turn_budget_scale=scale)
+        turns.append((dist.yaws - start + 180.0) % 360.0 - 180.0)
+    assert np.count_nonzero(turns[0]) > n // 4
+    np.testing.assert_allclose(turns[1], 2.0 * turns[0], atol=1e-9)
+    for bad in (0.0, -1.0, float("nan")):
+        with pytest.raises(FeederError, match="turn_budget_scale"):
+            analytic_distribution(part, "curved:0", "none", SCENE, samples=n, turn_budget_scale=bad)
+
+
 def test_steep_curved_fences_jam_in_the_friction_cone():
     dist = analytic_distribution(rect(0.04, 0.02), "curved:70", "none", SCENE, samples=720)
     assert dist.jam["loc1"] > 0.5 and dist.margin["loc1"] < 0.0

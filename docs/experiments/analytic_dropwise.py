@@ -18,11 +18,12 @@ modelled exit turn of its basin stopped (``released``: the complete model; ``not
 
 Optionally (``--budget-scales``) it also scores the analytic PMF of every kept configuration of a
 dataset against its label with the turn budget (the ``overlap / (2c)`` bound on how far a fence can
-turn a part) multiplied by each scale; the package is not changed (a copy of ``_apply`` with the
-factor is executed in the module's namespace).
+turn a part) multiplied by each scale (``analytic_distribution``'s ``turn_budget_scale``), and
+writes beside BUDGET_CSV a ``_summary.csv`` per split: the mean and the difference from scale 1,
+paired by configuration, with a 95 % bootstrap interval over parts (choose on ``train`` alone).
 
     python docs/experiments/analytic_dropwise.py SIM_DIR PARTS_DIR OUT_CSV_GZ \
-        [--one-fence-csv CSV] [--from-rows] [--dataset DATASET --budget-scales 1,2,4 --budget-csv OUT_CSV]
+        [--one-fence-csv CSV] [--from-rows] [--dataset DATASET --budget-scales 1,1.5,2,3 --budget-csv BUDGET_CSV]
 
 ``--from-rows`` reads OUT_CSV_GZ as written before and only summarises it (seconds).
 
@@ -38,7 +39,6 @@ import feeder  # noqa: F401 - first, before numpy loads: OpenBLAS's AVX2 kernel 
 # isort: on
 import argparse
 import gzip
-import inspect
 import json
 import sys
 from pathlib import Path
@@ -61,7 +61,6 @@ from feeder.parts.geometry import load_part
 STEEP_DEG = 45.0  # a straight fence at least this steep counts as steep in the summary
 AGREE_DEG = 5.0  # two final yaws this close (modulo the symmetry period) are the same outcome
 YAW_SAME_DEG = 1e-6  # a modelled final yaw this close to the initial one: the model left the drop untouched
-BUDGET_LINE = "budget = np.degrees(overlap / (2.0 * geom.limit_radius))"
 
 
 def cell_weights(y0: np.ndarray, period: float) -> np.ndarray:
@@ -270,33 +269,53 @@ def summarise(df: pd.DataFrame) -> None:
 
 
 def budget_scores(dataset: Path, parts_dir: Path, scales: list[float], scene: dict) -> pd.DataFrame:
-    src = inspect.getsource(D._apply)
-    if BUDGET_LINE not in src:
-        sys.exit("feeder.mechanics.distribution._apply no longer computes the turn budget as this script expects")
-    ns = dict(vars(D))
-    exec(src.replace(BUDGET_LINE, "budget = BUDGET_SCALE * " + BUDGET_LINE.split(" = ", 1)[1]), ns)
+    """The analytic PMF's circular W1 to the label of every kept configuration of ``dataset`` with
+    the turn budget multiplied by each scale (``analytic_distribution``'s ``turn_budget_scale``); a
+    configuration where every drop jams is scored with its PMF without jams, as ``analytic_pmf``
+    gives it."""
     data = load_dataset(dataset)
     geoms: dict = {}
     rows = []
+    memos: dict = {}  # the exit turns do not depend on the budget: one memo per part for every scale
     for scale in scales:
-        ns["BUDGET_SCALE"] = scale
-        D._apply, original = ns["_apply"], D._apply
-        try:
-            memos: dict = {}
-            for i, (part, config_id) in enumerate(zip(data["part"], data["config_id"])):
-                part = str(part)
-                if part not in geoms:
-                    geoms[part] = as_geometry(load_part(parts_dir / f"{part}.stl"))
-                loc1, loc2 = parse_config_id(str(config_id))
-                dist = D.analytic_distribution(geoms[part], loc1, loc2, scene, responses=memos.setdefault(part, {}))
-                frame = float(data["frame_deg"][i])  # every drop jams: the PMF without jams (its loc1/loc2)
-                pmf = analytic_pmf(geoms[part], loc1, loc2, scene, frame_deg=frame, distribution=dist)
-                cw1 = float(circular_w1(np.cumsum(pmf), data["cdf"][i]))
-                rows.append((scale, part, str(config_id), str(data["split"][i]), cw1))
-        finally:
-            D._apply = original
+        for i, (part, config_id) in enumerate(zip(data["part"], data["config_id"])):
+            part = str(part)
+            if part not in geoms:
+                geoms[part] = as_geometry(load_part(parts_dir / f"{part}.stl"))
+            loc1, loc2 = parse_config_id(str(config_id))
+            memo = memos.setdefault(part, {})
+            dist = D.analytic_distribution(geoms[part], loc1, loc2, scene, responses=memo, turn_budget_scale=scale)
+            if dist.weights.sum() <= 0.0:  # every drop jams: the PMF without jams
+                dist = D.analytic_distribution(
+                    geoms[part], loc1, loc2, scene, responses=memo, turn_budget_scale=scale, jams=False
+                )
+            pmf = analytic_pmf(geoms[part], None, None, frame_deg=float(data["frame_deg"][i]), distribution=dist)
+            cw1 = float(circular_w1(np.cumsum(pmf), data["cdf"][i]))
+            rows.append((scale, part, str(config_id), str(data["split"][i]), cw1))
         print(f"turn budget x {scale:g}: mean circular W1 {np.mean([r[-1] for r in rows if r[0] == scale]):.2f} deg")
     return pd.DataFrame(rows, columns=["budget_scale", "part", "config_id", "split", "circular_w1_deg"])
+
+
+def budget_summary(raw: pd.DataFrame) -> pd.DataFrame:
+    """Per split (and pooled: all but ``train``, ``held_out``; ``parts`` and ``wide``, the parts no
+    Main fit trains on, ``parts_and_wide``) and scale: the mean circular
+    W1 and its difference from scale 1, paired by configuration, with a 95 % bootstrap interval
+    over parts. The scale is to be chosen on ``train`` alone."""
+    from soft_jams import paired_interval
+
+    rng = np.random.default_rng(0)
+    raw = raw.rename(columns={"circular_w1_deg": "cw1"})
+    groups = [(split, raw[raw.split == split]) for split in sorted(raw.split.unique())]
+    groups.append(("held_out", raw[raw.split != "train"]))
+    groups.append(("parts_and_wide", raw[raw.split.isin(["parts", "wide"])]))  # parts no Main fit trains on
+    rows = []
+    for name, g in groups:
+        base = g[g.budget_scale == 1.0]
+        for scale, h in g.groupby("budget_scale"):
+            diff = paired_interval(base, h, "cw1", rng) if scale != 1.0 else (0.0, 0.0, 0.0)
+            rows.append((name, scale, h.part.nunique(), len(h), h.cw1.mean(), *diff))
+    cols = ["split", "budget_scale", "parts", "configs", "cw1_mean", "diff_vs_1", "diff_lo", "diff_hi"]
+    return pd.DataFrame(rows, columns=cols)
 
 
 def main(argv: list[str]) -> int:
@@ -331,8 +350,13 @@ def main(argv: list[str]) -> int:
         if len(scenes) != 1:
             sys.exit(f"--budget-scales needs simulation files of one scene, got {len(scenes)}")
         scales = [float(s) for s in args.budget_scales.split(",")]
+        if 1.0 not in scales:
+            sys.exit("--budget-scales must include 1 (the derived bound, the reference of every comparison)")
         raw = budget_scores(args.dataset, args.parts_dir, scales, scenes[0])
         write_csv(args.budget_csv, raw)
+        summary = budget_summary(raw)
+        write_csv(args.budget_csv.with_name(args.budget_csv.stem + "_summary.csv"), summary)
+        print(summary.round(3).to_string(index=False))
         raw["fences"] = [fence_types(c) for c in raw.config_id]
         for key in ("split", "fences"):
             print(raw.pivot_table(index=key, columns="budget_scale", values="circular_w1_deg").round(2).to_string())
