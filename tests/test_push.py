@@ -439,8 +439,9 @@ def test_a_jammed_distribution_without_its_fences_is_refused():
     part = rect(0.04, 0.02)
     jammed = analytic_distribution(part, "curved:70", "none", SCENE, samples=720, jam_spread_deg=0.0)
     assert jammed.weights.sum() == 0.0
-    with pytest.raises(FeederError, match="every drop of the given distribution jams"):
-        analytic_pmf(part, None, None, SCENE, distribution=jammed)
+    for no_fence in (None, "none"):
+        with pytest.raises(FeederError, match="every drop of the given distribution jams"):
+            analytic_pmf(part, no_fence, no_fence, SCENE, distribution=jammed)
     got = analytic_pmf(part, "curved:70", "none", SCENE, distribution=jammed)
     want = analytic_pmf(
         part, None, None, SCENE, distribution=analytic_distribution(part, "curved:70", "none", SCENE, jams=False)

@@ -24,9 +24,8 @@ Writes OUT_CSV (the PMF rows: variant, part, configuration, split, circular W1) 
 
 Result on the round-tip study (stop 67): drop by drop the entry agrees a little more often (0.538 →
 0.549 of all initial yaws; one curved fence at 10°–40° +0.04 to +0.09), but its analytic PMF is
-worse on the training split (+0.58°) and on Test (+0.63°); better on Fences (−3.4°) and Parts
-(−0.8°). The halfway angle is within noise overall. Chosen on the training split: the exit chord
-stays.
+worse on the training split (+0.58° [0.05, 1.14]); Test +0.63° [−0.32, 1.66], Fences −3.4° [−7.5,
+0.0]. The halfway angle excludes 0 nowhere. Chosen on the training split: the exit chord stays.
 """
 
 from __future__ import annotations

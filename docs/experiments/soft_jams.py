@@ -98,9 +98,8 @@ def score(data: dict, configs: pd.DataFrame, parts_dir: Path, spreads: list[floa
                 w1 = np.nan
                 if c.row >= 0:
                     frame = float(data["frame_deg"][c.row])
-                    pmf = analytic_pmf(geom, None, None, scene, frame_deg=frame, distribution=dist)
-                    if dist.weights.sum() <= 0.0:  # every drop jams: the PMF without jams (analytic_pmf)
-                        pmf = analytic_pmf(geom, loc1, loc2, scene, frame_deg=frame)
+                    # every drop jams: analytic_pmf gives the configuration's PMF without jams
+                    pmf = analytic_pmf(geom, loc1, loc2, scene, frame_deg=frame, distribution=dist)
                     w1 = float(circular_w1(np.cumsum(pmf), data["cdf"][c.row]))
                 rows.append((s, part, c.config_id, c.split, c.row >= 0, w1, float(dist.ok_mass), float(c.ok_true)))
         print(f"{part}: {len(group)} configurations", file=sys.stderr, flush=True)

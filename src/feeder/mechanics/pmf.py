@@ -10,6 +10,7 @@ import numpy as np
 from feeder.circular import FULL_TURN_DEG, normalize_yaw, wrapped_gaussian_smooth
 from feeder.errors import FeederError
 from feeder.mechanics.distribution import Distribution, analytic_distribution
+from feeder.mechanics.fence import as_fence
 
 PMF_BINS = 360  # labels.bins: 1° bins over [0, 360), as feeder.labels.metrics.histogram
 DEFAULT_SMOOTH_DEG = 2.0  # circular Gaussian sigma of the analytic PMF (degrees)
@@ -42,7 +43,10 @@ def analytic_pmf(
     """The analytic PMF of a configuration over ``bins`` equal yaw bins of [0, 360) in the label
     frame (``yaw + frame_deg``), over the ok (not jammed) drops, smoothed by a wrapped Gaussian of
     ``smooth_deg`` degrees (0: none). When every drop jams, the PMF of the same configuration
-    without jams is returned (the label of such a configuration is excluded anyway)."""
+    without jams is returned (the label of such a configuration is excluded anyway): with
+    ``distribution`` given, that needs its ``loc1``/``loc2`` (a FeederError without them), and it
+    is built with the defaults of :func:`analytic_distribution` but ``mu`` and ``exit_turns`` (a
+    caller whose distribution used other fences or settings builds its own)."""
     if int(bins) != bins or bins < 1:
         raise FeederError(f"bins must be a positive integer, got {bins!r}")
     if not (math.isfinite(smooth_deg) and smooth_deg >= 0):
@@ -51,7 +55,7 @@ def analytic_pmf(
         raise FeederError(f"frame_deg must be finite, got {frame_deg!r}")
     dist = distribution or analytic_distribution(part, loc1, loc2, scene, mu=mu, exit_turns=exit_turns)
     if dist.weights.sum() <= 0.0:
-        if loc1 is None and loc2 is None:  # no fence to push the drops through again: not a uniform PMF
+        if not (as_fence(loc1).present or as_fence(loc2).present):  # no fence to push the drops through again
             raise FeederError(
                 "every drop of the given distribution jams: pass its loc1/loc2 (the PMF is then that of the "
                 "configuration without jams) or a distribution without jams"
