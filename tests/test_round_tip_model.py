@@ -158,7 +158,8 @@ EXIT_ATOL_DEG = 1e-6
 def _square_values(parts_dir: Path = ROOT / "parts") -> dict:
     """What a square tip gives: per pinned configuration, each fence's exit yaws and offsets and
     the analytic PMF. Recorded with the code before the cap existed (a5a48c7), under the hard jam
-    rule of that code (``jam_spread_deg=0``; soft jams came later)."""
+    rule and the unscaled turn budget of that code (``jam_spread_deg=0``, ``turn_budget_scale=1``;
+    soft jams and the scale came later)."""
     from feeder.mechanics.distribution import analytic_distribution
     from feeder.mechanics.pmf import analytic_pmf
     from feeder.parts.geometry import load_part
@@ -171,7 +172,11 @@ def _square_values(parts_dir: Path = ROOT / "parts") -> dict:
             "exit_deg": [r.exit_deg.tolist() for r in fences],
             "exit_offset": [r.exit_offset.tolist() for r in fences],
             "pmf": analytic_pmf(
-                geom, loc1, loc2, SCENE, distribution=analytic_distribution(geom, loc1, loc2, SCENE, jam_spread_deg=0.0)
+                geom,
+                loc1,
+                loc2,
+                SCENE,
+                distribution=analytic_distribution(geom, loc1, loc2, SCENE, jam_spread_deg=0.0, turn_budget_scale=1.0),
             ).tolist(),
         }
     return out
