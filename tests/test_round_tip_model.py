@@ -266,3 +266,51 @@ def test_the_hook_on_the_left_side_turns_the_other_way():
     assert turned  # some edge's exit reaches a notch
     for t in turned:
         assert t.reason == "notch" and t.delta_deg == pytest.approx(45.0, abs=1e-9)
+
+
+@pytest.mark.parametrize("angle", [30.0, 55.0])
+def test_where_the_tip_force_acts_matters_only_through_friction(angle):
+    """The tip's forces taken on the part (``contact_offset``: the cap's radius further in along each
+    contact's normal) move a normal force along its own line, which changes neither its moment nor
+    the normal velocity: frictionless, the exit turn is the same to rounding. With friction the
+    moment of the friction force changes, and so does the turn (measured and not adopted:
+    docs/experiments/tip_contact.py)."""
+    from feeder.mechanics.exitturn import exit_turn
+
+    geom = push_geometry(_rect(0.06, 0.02))
+    cap = fence_models(f"straight:{angle:g}", "none", ROUND)[0]
+    grown = dilate(geom, cap.cap_radius, 16)
+    for edge in range(len(grown.hull)):
+        at_centre = exit_turn(grown, edge, angle, cap.side, 0.0, hook=True)
+        on_part = exit_turn(grown, edge, angle, cap.side, 0.0, hook=True, contact_offset=cap.cap_radius)
+        assert on_part.delta_deg == pytest.approx(at_centre.delta_deg, abs=1e-9)
+        assert on_part.reason == at_centre.reason
+    moved = [
+        abs(
+            exit_turn(grown, e, angle, cap.side, MU, hook=True, contact_offset=cap.cap_radius).delta_deg
+            - exit_turn(grown, e, angle, cap.side, MU, hook=True).delta_deg
+        )
+        for e in range(len(grown.hull))
+    ]
+    assert max(moved) > 0.1
+
+
+@pytest.mark.parametrize("offset", [-0.001, float("nan"), float("inf")])
+def test_a_bad_contact_offset_is_a_feeder_error(offset):
+    from feeder.mechanics.exitturn import exit_turn
+
+    with pytest.raises(FeederError, match="contact_offset"):
+        exit_turn(push_geometry(_rect(0.06, 0.02)), 0, 30.0, 1, MU, contact_offset=offset)
+
+
+def test_the_default_takes_the_tip_force_at_its_centre():
+    """``fence_response`` by default is the model the study's dataset was built with (forces at the
+    cap's centre); ``tip_force_at_contact=True`` is the variant measured against it."""
+    from feeder.mechanics import distribution as D
+
+    geom = push_geometry(_rect(0.06, 0.02))
+    cap = fence_models("straight:45", "none", ROUND)[0]
+    assert D.TIP_FORCE_AT_CONTACT is False
+    default = fence_response(geom, cap, MU)
+    np.testing.assert_array_equal(default.exit_deg, fence_response(geom, cap, MU, True, False).exit_deg)
+    assert not np.array_equal(default.exit_deg, fence_response(geom, cap, MU, True, True).exit_deg)

@@ -30,8 +30,9 @@ Configurations (:func:`analytic_distribution`)
     ``0``: the hard rule (a drop jams iff its margin is negative), each drop's likeliest outcome.
     A round fence tip (``scene.fences.tip: round``) is a disc: the exit turn pushes the outline
     grown by the disc's radius (:func:`feeder.mechanics.hull.dilate`) with the disc's centre as
-    the corner (friction taken there, not ``r`` nearer the part where it acts: an approximation);
-    the face still meets the outline itself.
+    the corner, its forces taken there (taken on the part, ``r`` further in where they act, the
+    model scores about 3° worse against the simulator: :data:`TIP_FORCE_AT_CONTACT`); the face
+    still meets the outline itself.
 """
 
 from __future__ import annotations
@@ -73,6 +74,10 @@ JAM_SPREAD_DEG = 0.0
 # results/tables/analytic_turn_budget_round_summary.csv; docs/structured.md, "Soft jams, the entry
 # angle again, and the turn budget". The default since stop 68 (PUSH_FEATURES_VERSION 2).
 TURN_BUDGET_SCALE = 1.5
+# Where a round tip's forces act in the exit turn: False, at the tip's centre, where the grown outline
+# touches (the first model of the round tip); True, on the part, the tip's radius further in along
+# each contact's normal (the moment of friction and the slip taken there).
+TIP_FORCE_AT_CONTACT = False
 # Contact normals at which a rolling part (no stable edge) may leave a fence: 0.5° apart.
 ROLL_SAMPLES = 720
 
@@ -90,15 +95,19 @@ class FenceResponse:
     exit_reason: tuple = ()  # (S,) why each exit turn stopped (ExitTurn.reason; "" without one)
 
 
-def fence_response(part, model: FenceModel, mu: float, exit_turns: bool = True) -> FenceResponse:
-    """The push function and resting/exit yaws of each stable edge on ``model``."""
+def fence_response(
+    part, model: FenceModel, mu: float, exit_turns: bool = True, tip_force_at_contact: bool = TIP_FORCE_AT_CONTACT
+) -> FenceResponse:
+    """The push function and resting/exit yaws of each stable edge on ``model``
+    (``tip_force_at_contact``: :data:`TIP_FORCE_AT_CONTACT`)."""
     geom = as_geometry(part)
     push = push_function(geom, mu, model.side)
     rest = resting_yaw(push.normals_deg, model.exit_deg, model.side)
     # no exit turn where the exit face holds the part (in the friction cone): it jams there
     turning = exit_turns and float(friction_margin_deg(model.exit_deg, mu)) > 0.0
     grown = dilate(geom, model.cap_radius, TIP_ARC_QUAD_SEGS) if turning and model.cap is not None else None
-    turns = [_exit(geom, grown, model, int(k), mu) if turning else None for k in push.edges]
+    offset = model.cap_radius if tip_force_at_contact else 0.0
+    turns = [_exit(geom, grown, model, int(k), mu, offset) if turning else None for k in push.edges]
     delta = np.array([t.delta_deg if t else 0.0 for t in turns])
     reasons = tuple(t.reason if t else "" for t in turns)
     if turning:
@@ -109,19 +118,21 @@ def fence_response(part, model: FenceModel, mu: float, exit_turns: bool = True) 
     return FenceResponse(model, push, rest, wrap360(rest + delta), offset, reasons)
 
 
-def _exit(geom: PushGeometry, grown: PushGeometry | None, model: FenceModel, edge: int, mu: float):
+def _exit(
+    geom: PushGeometry, grown: PushGeometry | None, model: FenceModel, edge: int, mu: float, offset: float = 0.0
+):
     """The exit turn of hull edge ``edge`` leaving ``model``'s tip; its offset is from ``model.tip``.
     Around a round tip (``grown``: the outline grown by its radius): the grown outline's edge of
     the same normal, flush on the line through the disc's centre, which is the corner (the offset
     moved from it to ``model.tip``), and a corner caught in a notch hooks there (``exit_turn``'s
-    ``hook``)."""
+    ``hook``); ``offset``: how far further in the forces act (``exit_turn``'s ``contact_offset``)."""
     if grown is None:
         return exit_turn(geom, edge, model.exit_deg, model.side, mu)
     gap = np.abs(np.mod(grown.normals_deg - geom.normals_deg[edge] + HALF_TURN_DEG, FULL_TURN_DEG) - HALF_TURN_DEG)
     match = int(np.argmin(gap))
     if gap[match] > EDGE_MATCH_DEG:  # pragma: no cover - dilate keeps every hull edge's normal
         raise FeederError(f"hull edge {edge} has no edge of the same normal once grown by the tip's radius")
-    turn = exit_turn(grown, match, model.exit_deg, model.side, mu, hook=True)
+    turn = exit_turn(grown, match, model.exit_deg, model.side, mu, hook=True, contact_offset=offset)
     shift = (model.cap[0] - model.tip[0], model.cap[1] - model.tip[1])
     return replace(turn, offset=(turn.offset[0] + shift[0], turn.offset[1] + shift[1]))
 
@@ -247,6 +258,7 @@ def analytic_distribution(
     responses: dict | None = None,
     jam_spread_deg: float = JAM_SPREAD_DEG,
     turn_budget_scale: float = TURN_BUDGET_SCALE,
+    tip_force_at_contact: bool = TIP_FORCE_AT_CONTACT,
 ) -> Distribution:
     """Push ``samples`` evenly spaced initial yaws (centred parts) through the configuration.
 
@@ -255,7 +267,8 @@ def analytic_distribution(
     models in the order met (overrides loc1/loc2); ``jams``: False pushes drops in the friction
     cone as if they slid; ``jam_spread_deg``: the soft jam rule's spread (0: the hard rule,
     :func:`jam_probability`); ``turn_budget_scale``: a factor (> 0) on how far a fence can turn a
-    part that it pushes sideways by an overlap (``TURN_BUDGET_SCALE``); ``responses``: a memo of
+    part that it pushes sideways by an overlap (``TURN_BUDGET_SCALE``); ``tip_force_at_contact``:
+    where a round tip's forces act in the exit turn (:data:`TIP_FORCE_AT_CONTACT`); ``responses``: a memo of
     :func:`fence_response` for this one part, filled and reused across calls (the exit-turn
     integration is most of the cost, and configurations of a part share fences): give each part
     its own dict."""
@@ -274,10 +287,10 @@ def analytic_distribution(
     w = np.full(n, 1.0 / n)
     touch, jam, margin = {}, {}, {}
     for m in fences:
-        key = (m, mu, bool(exit_turns))
+        key = (m, mu, bool(exit_turns), bool(tip_force_at_contact))
         resp = None if responses is None else responses.get(key)
         if resp is None:
-            resp = fence_response(geom, m, mu, exit_turns)
+            resp = fence_response(geom, m, mu, exit_turns, bool(tip_force_at_contact))
             if responses is not None:
                 responses[key] = resp
         yaw, x, w, (t, j, mg) = _apply(geom, resp, mu, yaw, x, w, jams, jam_spread_deg, turn_budget_scale)

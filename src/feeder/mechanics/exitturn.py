@@ -28,6 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from feeder.errors import FeederError
 from feeder.mechanics.fence import resting_yaw
 from feeder.mechanics.hull import PushGeometry, as_geometry
 
@@ -162,9 +163,20 @@ class _Exit:
     yaw; the pusher moves at ``_PUSHER_VELOCITY`` relative to the belt."""
 
     def __init__(
-        self, geom: PushGeometry, alpha_deg: float, side: int, mu: float, yaw_rad: float, edge: int, hook: bool
+        self,
+        geom: PushGeometry,
+        alpha_deg: float,
+        side: int,
+        mu: float,
+        yaw_rad: float,
+        edge: int,
+        hook: bool,
+        contact_offset: float = 0.0,
     ):
         a = math.radians(alpha_deg)
+        # each contact acts this far further in along its inward normal than the point the
+        # geometry tracks (a round tip's radius, with ``geom`` the outline grown by it)
+        self.reach = float(contact_offset)
         self.edge, self.hook_notch = edge, hook  # the hull edge that left the face; turn in a notch
         self.concave = False  # the corner stopped at a concave vertex (not by circling the outline)
         self.t = np.array([-side * math.sin(a), math.cos(a)])
@@ -219,7 +231,7 @@ class _Exit:
         q = [float(q_all[k]) for k in sup]
         last = sup[-1]
         crossing = [int(k) for k in on if self.passed[k] and self.adjacent(last, int(k))]
-        qf = float(self.X @ self.t) + self.mu * float(self.X @ self.nf)  # foot shifted mu·d downstream
+        qf = float(self.X @ self.t) + self.mu * (float(self.X @ self.nf) - self.reach)  # foot shifted mu·d downstream
         if qf <= q[0] and len(sup) > 1:
             return ("F", sup[0])
         if crossing and qf >= q[-1]:  # the edge through the tip carries the foot: the corner takes over
@@ -254,7 +266,7 @@ class _Exit:
             self.steps_left -= 1
 
             def deriv(X, yaw, v=v):
-                r = self.rot(yaw) @ P[v]
+                r = self.rot(yaw) @ P[v] + self.reach * nf  # where the face's force acts
                 tw = _contact_twist(r[0], r[1], nf[0], nf[1], t[0], t[1], self.mu, self.c2)
                 return None if tw is None else (np.array([tw[0], tw[1]]) - _PUSHER_VELOCITY, tw[2])
 
@@ -292,7 +304,7 @@ class _Exit:
                 self.yaw += self.hand * delta
                 self.X = pv - self.rot() @ P[v]
                 qk = float((self.X + self.rot() @ P[k]) @ t)
-                qf = float(self.X @ t) + self.mu * float(self.X @ nf)
+                qf = float(self.X @ t) + self.mu * (float(self.X @ nf) - self.reach)
                 if self.adjacent(v, k) and qk > float(pv @ t) and qf > qk:
                     v = k  # rolling on a polygonal curve: the foot is past the new vertex too
                     continue
@@ -315,7 +327,8 @@ class _Exit:
                 R = self.rot(yaw)
                 ew = R @ e
                 r = R @ (a + s * e)
-                tw = _contact_twist(r[0], r[1], -ew[1], ew[0], ew[0], ew[1], self.mu, self.c2)
+                f = r + self.reach * np.array([-ew[1], ew[0]])  # where the corner's force acts
+                tw = _contact_twist(f[0], f[1], -ew[1], ew[0], ew[0], ew[1], self.mu, self.c2)
                 if tw is None:
                     return None
                 vx, vy, w = tw
@@ -378,7 +391,8 @@ class _Exit:
             ew = R @ e
             en = np.array([-ew[1], ew[0]])
             rv, rc = R @ P[v], R @ (a + s * e)
-            return _two_contact_twist(rv, nf, t, rc, en, ew, self.mu, self.c2), rv, rc, en, ew
+            fv, fc = rv + self.reach * nf, rc + self.reach * en  # where the forces act
+            return _two_contact_twist(fv, nf, t, fc, en, ew, self.mu, self.c2), rv, rc, en, ew
 
         def onto(X, yaw, a, e):
             """X moved back onto both constraints (v on the face, the corner on edge k's line)
@@ -399,12 +413,14 @@ class _Exit:
             e = e / length
             tw, rv, rc, en, ew = twist(self.yaw, s, a, e)
             if tw is None:  # one lets go: the one whose motion alone leaves the other free
-                tc = _contact_twist(rc[0], rc[1], en[0], en[1], ew[0], ew[1], self.mu, self.c2)
+                fc = rc + self.reach * en
+                tc = _contact_twist(fc[0], fc[1], en[0], en[1], ew[0], ew[1], self.mu, self.c2)
                 if tc is not None:
                     vel = np.array([tc[0] - tc[2] * rv[1], tc[1] + tc[2] * rv[0]])
                     if float((vel - vp) @ nf) >= 0.0:
                         return ("C", k, s)
-                tf = _contact_twist(rv[0], rv[1], nf[0], nf[1], t[0], t[1], self.mu, self.c2)
+                fv = rv + self.reach * nf
+                tf = _contact_twist(fv[0], fv[1], nf[0], nf[1], t[0], t[1], self.mu, self.c2)
                 if tf is not None:
                     vel = np.array([tf[0] - tf[2] * rc[1], tf[1] + tf[2] * rc[0]])
                     if float((vel - vp) @ en) >= 0.0:
@@ -504,7 +520,9 @@ class _Exit:
         return j, float(u[j] * np.hypot(*e[j])), float(lam[j])
 
 
-def exit_turn(part, edge: int, fence_angle_deg: float, side: int, mu: float, hook: bool = False) -> ExitTurn:
+def exit_turn(
+    part, edge: int, fence_angle_deg: float, side: int, mu: float, hook: bool = False, contact_offset: float = 0.0
+) -> ExitTurn:
     """The turn of a part leaving the tip of a fence (local angle ``fence_angle_deg``) resting
     flush on hull edge ``edge`` (a stable edge of :func:`push_function` with the same ``mu`` and
     ``side``). Quasi-static phases, with the actual outline: the part slides flush until the foot
@@ -514,10 +532,15 @@ def exit_turn(part, edge: int, fence_angle_deg: float, side: int, mu: float, hoo
     supported vertex pivots on the face (``F``) until it passes the tip or another vertex lands
     on the face (flush again). ``hook``: where the corner reaches a notch, turn the part about it
     until hull edge ``edge`` lies along the travel direction (:meth:`_Exit.hook`; the model of a
-    round tip), instead of letting it go as it is."""
+    round tip), instead of letting it go as it is. ``contact_offset``: with ``part`` an outline grown
+    by a round tip's radius (:func:`feeder.mechanics.hull.dilate`), that radius: every contact force
+    then acts that far further in along its normal, on the part itself (the grown outline only
+    places the contacts), for its moment and its slip; 0: where the grown outline touches."""
     geom = as_geometry(part)
+    if not (math.isfinite(contact_offset) and contact_offset >= 0.0):
+        raise FeederError(f"contact_offset must be finite and >= 0, got {contact_offset!r}")
     yaw0 = math.radians(float(resting_yaw(geom.normals_deg[edge], fence_angle_deg, side)))
-    ex = _Exit(geom, fence_angle_deg, side, mu, yaw0, int(edge), bool(hook))
+    ex = _Exit(geom, fence_angle_deg, side, mu, yaw0, int(edge), bool(hook), float(contact_offset))
     a = geom.hull[edge]
     along = ex.rot() @ (geom.hull[(edge + 1) % len(geom.hull)] - a)
     ex.X = -(ex.rot() @ a)  # hull edge on the face line, first vertex at the tip ...
