@@ -123,6 +123,20 @@ def file_scene(meta: dict) -> dict:
     return meta.get("settings", {}).get("scene") or default_scene()
 
 
+def sim_files(sim_dir: Path, parts_dir: Path):
+    """Every simulation file of ``sim_dir`` (parts, then files, in name order) with what the drop
+    comparisons read: ``(part, geometry, path, scene, period, initial yaws, final yaws, statuses)``;
+    the scene is the file's own (:func:`file_scene`), the period its design's symmetry period."""
+    for part_dir in sorted(p for p in sim_dir.iterdir() if p.is_dir()):
+        geom = as_geometry(load_part(parts_dir / f"{part_dir.name}.stl"))
+        for path in sorted(part_dir.glob("*.npz")):
+            with np.load(path, allow_pickle=False) as z:
+                meta = json.loads(str(z["meta"]))
+                y0, yf, status = z["initial_yaw_deg"], z["final_yaw_deg"], z["status"]
+            period = 360.0 / int(meta["design"].get("symmetry_order", 1))
+            yield part_dir.name, geom, path, meta, file_scene(meta), period, y0, yf, status
+
+
 def dropwise(sim_dir: Path, parts_dir: Path) -> tuple[pd.DataFrame, list[str], list[dict]]:
     """The drop rows, the configurations left out (a fence rolls the part) and the distinct
     scenes of the files (each file is modelled with its own scene: a round tip's cap included)."""

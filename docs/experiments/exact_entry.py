@@ -27,7 +27,6 @@ import feeder  # noqa: F401 - first, before numpy loads: OpenBLAS's AVX2 kernel 
 # isort: on
 import argparse
 import gzip
-import json
 import sys
 from pathlib import Path
 
@@ -37,11 +36,9 @@ import pandas as pd
 import feeder.mechanics.distribution as D
 from feeder.io import write_bytes, write_csv
 from feeder.mechanics.fence import fence_models, fence_mu, friction_margin_deg
-from feeder.mechanics.hull import as_geometry
-from feeder.parts.geometry import load_part
 
 sys.path.insert(0, str(Path(__file__).parent))
-from analytic_dropwise import cell_weights, file_scene  # noqa: E402
+from analytic_dropwise import cell_weights, sim_files  # noqa: E402
 
 
 def _rotated(hull: np.ndarray, yaw_deg: np.ndarray) -> np.ndarray:
@@ -113,25 +110,17 @@ def decisions(geom, model, mu, yaw, x):
 
 def rows_for(sim_dir: Path, parts_dir: Path) -> pd.DataFrame:
     rows = []
-    for part_dir in sorted(p for p in sim_dir.iterdir() if p.is_dir()):
-        geom = as_geometry(load_part(parts_dir / f"{part_dir.name}.stl"))
-        for path in sorted(part_dir.glob("*.npz")):
-            with np.load(path, allow_pickle=False) as z:
-                meta = json.loads(str(z["meta"]))
-                y0, status = z["initial_yaw_deg"], z["status"]
-            scene = file_scene(meta)
-            fences = fence_models(meta["loc1"], meta["loc2"], scene)
-            if not fences or not fences[0].curved:
-                continue
+    for part, geom, path, meta, scene, period, y0, _, status in sim_files(sim_dir, parts_dir):
+        fences = fence_models(meta["loc1"], meta["loc2"], scene)
+        if fences and fences[0].curved:
             m = fences[0]
             mu = fence_mu(scene)
-            period = 360.0 / int(meta["design"].get("symmetry_order", 1))
             w = cell_weights(y0, period)
             d = decisions(geom, m, mu, np.asarray(y0, dtype=np.float64), np.zeros(len(y0)))
             for i in range(len(y0)):
                 rows.append(
                     (
-                        part_dir.name,
+                        part,
                         path.stem,
                         f"curved:{m.fence.angle:g}",
                         len(fences),

@@ -44,7 +44,7 @@ from feeder.mechanics.pmf import analytic_pmf
 from feeder.parts.geometry import load_part
 
 sys.path.insert(0, str(Path(__file__).parent))
-from analytic_dropwise import cell_weights, file_scene  # noqa: E402
+from analytic_dropwise import cell_weights, sim_files  # noqa: E402
 from soft_jams import paired_interval  # noqa: E402
 
 SETTINGS = (False, True)  # tip_force_at_contact: the reference first
@@ -100,62 +100,32 @@ def summary(raw: pd.DataFrame) -> pd.DataFrame:
 def drops(sim_dir: Path, parts_dir: Path) -> pd.DataFrame:
     """One-fence configurations: per drop the simulated and both modelled final yaws."""
     rows = []
-    for part_dir in sorted(p for p in sim_dir.iterdir() if p.is_dir()):
-        geom = as_geometry(load_part(parts_dir / f"{part_dir.name}.stl"))
-        memo: dict = {}
-        for path in sorted(part_dir.glob("*.npz")):
-            with np.load(path, allow_pickle=False) as z:
-                meta = json.loads(str(z["meta"]))
-                y0, yf, status = z["initial_yaw_deg"], z["final_yaw_deg"], z["status"]
-            scene = file_scene(meta)
-            fences = fence_models(meta["loc1"], meta["loc2"], scene)
-            if len(fences) != 1:
-                continue
-            m, mu = fences[0], fence_mu(scene)
-            period = 360.0 / int(meta["design"].get("symmetry_order", 1))
-            w = cell_weights(y0, period)
-            finals = []
-            for at_contact in SETTINGS:
-                key = (m, at_contact)
-                if key not in memo:
-                    memo[key] = D.fence_response(geom, m, mu, True, at_contact)
-                if memo[key].push.rolls:
-                    break
-                tag = np.arange(1.0, len(y0) + 1.0)
-                yaw, _, tag, _ = D._apply(geom, memo[key], mu, np.asarray(y0, float), np.zeros(len(y0)), tag, True, 0.0)
-                out = np.full(len(y0), np.nan)
-                out[np.rint(tag).astype(int) - 1] = yaw
-                finals.append(out)
-            if len(finals) != 2:
-                continue
-            for i in range(len(y0)):
-                rows.append(
-                    (
-                        part_dir.name,
-                        path.stem,
-                        f"{m.fence.type}:{m.fence.angle:g}",
-                        m.side,
-                        period,
-                        w[i],
-                        status[i],
-                        yf[i],
-                        finals[0][i],
-                        finals[1][i],
-                    )
-                )
-    cols = [
-        "part",
-        "config_id",
-        "fence",
-        "side",
-        "period",
-        "weight",
-        "status",
-        "final_yaw_deg",
-        "centre_yaw_deg",
-        "contact_yaw_deg",
-    ]
-    return pd.DataFrame(rows, columns=cols)
+    memo: dict = {}
+    for part, geom, path, meta, scene, period, y0, yf, status in sim_files(sim_dir, parts_dir):
+        fences = fence_models(meta["loc1"], meta["loc2"], scene)
+        if len(fences) != 1:
+            continue
+        m, mu = fences[0], fence_mu(scene)
+        finals = []
+        for at_contact in SETTINGS:
+            key = (part, m, mu, at_contact)
+            if key not in memo:
+                memo[key] = D.fence_response(geom, m, mu, True, at_contact)
+            if memo[key].push.rolls:
+                break
+            tag = np.arange(1.0, len(y0) + 1.0)
+            yaw, _, tag, _ = D._apply(geom, memo[key], mu, np.asarray(y0, float), np.zeros(len(y0)), tag, True, 0.0)
+            out = np.full(len(y0), np.nan)
+            out[np.rint(tag).astype(int) - 1] = yaw
+            finals.append(out)
+        if len(finals) != 2:
+            continue
+        w = cell_weights(y0, period)
+        fence = f"{m.fence.type}:{m.fence.angle:g}"
+        for i in range(len(y0)):
+            rows.append((part, path.stem, fence, m.side, period, w[i], status[i], yf[i], finals[0][i], finals[1][i]))
+    cols = ["part", "config_id", "fence", "side", "period", "weight", "status", "final_yaw_deg"]
+    return pd.DataFrame(rows, columns=cols + ["centre_yaw_deg", "contact_yaw_deg"])
 
 
 def drop_table(df: pd.DataFrame) -> pd.DataFrame:
@@ -185,10 +155,7 @@ def main(argv: list[str]) -> int:
     dt = drop_table(drops(a.sim_dir, a.parts_dir))
     write_csv(a.out_csv.with_name(a.out_csv.stem + "_drops.csv"), dt)
     print(dt.round(3).to_string(index=False))
-    scenes = set()
-    for path in sorted(a.sim_dir.glob("*/*.npz")):
-        with np.load(path, allow_pickle=False) as z:
-            scenes.add(json.dumps(file_scene(json.loads(str(z["meta"]))), sort_keys=True))
+    scenes = {json.dumps(scene, sort_keys=True) for _, _, _, _, scene, *_ in sim_files(a.sim_dir, a.parts_dir)}
     if len(scenes) != 1:
         sys.exit(f"simulation files of {len(scenes)} scenes")
     raw = scores(a.dataset, a.parts_dir, json.loads(scenes.pop()))
