@@ -118,9 +118,7 @@ def fence_response(
     return FenceResponse(model, push, rest, wrap360(rest + delta), offset, reasons)
 
 
-def _exit(
-    geom: PushGeometry, grown: PushGeometry | None, model: FenceModel, edge: int, mu: float, offset: float = 0.0
-):
+def _exit(geom: PushGeometry, grown: PushGeometry | None, model: FenceModel, edge: int, mu: float, offset: float = 0.0):
     """The exit turn of hull edge ``edge`` leaving ``model``'s tip; its offset is from ``model.tip``.
     Around a round tip (``grown``: the outline grown by its radius): the grown outline's edge of
     the same normal, flush on the line through the disc's centre, which is the corner (the offset
