@@ -106,8 +106,8 @@ def fence_response(
     # no exit turn where the exit face holds the part (in the friction cone): it jams there
     turning = exit_turns and float(friction_margin_deg(model.exit_deg, mu)) > 0.0
     grown = dilate(geom, model.cap_radius, TIP_ARC_QUAD_SEGS) if turning and model.cap is not None else None
-    offset = model.cap_radius if tip_force_at_contact else 0.0
-    turns = [_exit(geom, grown, model, int(k), mu, offset) if turning else None for k in push.edges]
+    reach = model.cap_radius if tip_force_at_contact else 0.0  # how far further in the tip's forces act
+    turns = [_exit(geom, grown, model, int(k), mu, reach) if turning else None for k in push.edges]
     delta = np.array([t.delta_deg if t else 0.0 for t in turns])
     reasons = tuple(t.reason if t else "" for t in turns)
     if turning:
@@ -118,19 +118,19 @@ def fence_response(
     return FenceResponse(model, push, rest, wrap360(rest + delta), offset, reasons)
 
 
-def _exit(geom: PushGeometry, grown: PushGeometry | None, model: FenceModel, edge: int, mu: float, offset: float = 0.0):
+def _exit(geom: PushGeometry, grown: PushGeometry | None, model: FenceModel, edge: int, mu: float, reach: float = 0.0):
     """The exit turn of hull edge ``edge`` leaving ``model``'s tip; its offset is from ``model.tip``.
     Around a round tip (``grown``: the outline grown by its radius): the grown outline's edge of
     the same normal, flush on the line through the disc's centre, which is the corner (the offset
     moved from it to ``model.tip``), and a corner caught in a notch hooks there (``exit_turn``'s
-    ``hook``); ``offset``: how far further in the forces act (``exit_turn``'s ``contact_offset``)."""
+    ``hook``); ``reach``: how far further in the forces act (``exit_turn``'s ``contact_offset``)."""
     if grown is None:
         return exit_turn(geom, edge, model.exit_deg, model.side, mu)
     gap = np.abs(np.mod(grown.normals_deg - geom.normals_deg[edge] + HALF_TURN_DEG, FULL_TURN_DEG) - HALF_TURN_DEG)
     match = int(np.argmin(gap))
     if gap[match] > EDGE_MATCH_DEG:  # pragma: no cover - dilate keeps every hull edge's normal
         raise FeederError(f"hull edge {edge} has no edge of the same normal once grown by the tip's radius")
-    turn = exit_turn(grown, match, model.exit_deg, model.side, mu, hook=True, contact_offset=offset)
+    turn = exit_turn(grown, match, model.exit_deg, model.side, mu, hook=True, contact_offset=reach)
     shift = (model.cap[0] - model.tip[0], model.cap[1] - model.tip[1])
     return replace(turn, offset=(turn.offset[0] + shift[0], turn.offset[1] + shift[1]))
 
