@@ -320,13 +320,14 @@ def test_curved_fence_at_zero_does_not_reach_a_small_part():
 def test_the_turn_budget_scale_multiplies_a_binding_budget():
     """curved:0 reaches only the edge of a 80 x 30 mm rectangle: every drop it touches turns by its
     budget overlap / (2c), short of its stable edge; twice the budget turns each twice as far, and
-    the drops it misses stay as they were."""
+    the drops it misses stay as they were (without the arc ride, which would start the turn from the
+    ridden yaw: tests/test_arcride.py)."""
     part = rect(0.08, 0.03)
     n = 72
     start = (np.arange(n) + 0.5) * (360.0 / n)
     turns = []
     for scale in (1.0, 2.0):
-        dist = analytic_distribution(part, "curved:0", "none", SCENE, samples=n, turn_budget_scale=scale)
+        dist = analytic_distribution(part, "curved:0", "none", SCENE, samples=n, turn_budget_scale=scale, arc_ride=None)
         turns.append((dist.yaws - start + 180.0) % 360.0 - 180.0)
     assert np.count_nonzero(turns[0]) > n // 4
     np.testing.assert_allclose(turns[1], 2.0 * turns[0], atol=1e-9)

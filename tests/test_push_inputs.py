@@ -207,7 +207,9 @@ def test_push_block_time_and_memo(world):
         feats, pmf = push_block(outline, loc1, loc2, SCENE, frame_deg=12.0, pmf_smooth_deg=1.0, responses=memo)
         np.testing.assert_array_equal(feats, push_features(outline, loc1, loc2, SCENE, frame_deg=12.0))
         np.testing.assert_array_equal(pmf, analytic_pmf(outline, loc1, loc2, SCENE, frame_deg=12.0, smooth_deg=1.0))
-    assert len(memo) == 3  # curved40 at loc1, straight20 at loc2, straight30 at loc1: the repeat adds none
+    responses = [k for k in memo if k[0] != "arc_ride"]
+    assert len(responses) == 3  # curved40 at loc1, straight20 at loc2, straight30 at loc1: the repeat adds none
+    assert len(memo) == 4  # and the rides along curved40's arc (feeder.mechanics.arcride.arc_yaw)
     parts, cids = np.array(["ell", "ell"]), np.array(["straight30_none", "straight30_none"])
     raw, pmf, secs = D.push_arrays(parts, cids, {"ell": outline}, {"ell": 0.0}, SCENE, 360, 1.0)
     np.testing.assert_array_equal(raw[0], raw[1])

@@ -158,8 +158,8 @@ EXIT_ATOL_DEG = 1e-6
 def _square_values(parts_dir: Path = ROOT / "parts") -> dict:
     """What a square tip gives: per pinned configuration, each fence's exit yaws and offsets and
     the analytic PMF. Recorded with the code before the cap existed (a5a48c7), under the hard jam
-    rule and the unscaled turn budget of that code (``jam_spread_deg=0``, ``turn_budget_scale=1``;
-    soft jams and the scale came later)."""
+    rule, the unscaled turn budget and the exit chord's basins of that code (``jam_spread_deg=0``,
+    ``turn_budget_scale=1``, ``arc_ride=None``; soft jams, the scale and the arc ride came later)."""
     from feeder.mechanics.distribution import analytic_distribution
     from feeder.mechanics.pmf import analytic_pmf
     from feeder.parts.geometry import load_part
@@ -176,7 +176,9 @@ def _square_values(parts_dir: Path = ROOT / "parts") -> dict:
                 loc1,
                 loc2,
                 SCENE,
-                distribution=analytic_distribution(geom, loc1, loc2, SCENE, jam_spread_deg=0.0, turn_budget_scale=1.0),
+                distribution=analytic_distribution(
+                    geom, loc1, loc2, SCENE, jam_spread_deg=0.0, turn_budget_scale=1.0, arc_ride=None
+                ),
             ).tolist(),
         }
     return out

@@ -45,6 +45,7 @@ from scipy.special import ndtr
 
 from feeder.circular import FULL_TURN_DEG, HALF_TURN_DEG, wrap360
 from feeder.errors import FeederError
+from feeder.mechanics.arcride import arc_yaw
 from feeder.mechanics.exitturn import exit_turn
 from feeder.mechanics.fence import (
     FenceModel,
@@ -78,6 +79,15 @@ TURN_BUDGET_SCALE = 1.5
 # touches (the first model of the round tip); True, on the part, the tip's radius further in along
 # each contact's normal (the moment of friction and the slip taken there).
 TIP_FORCE_AT_CONTACT = False
+# How a curved fence picks a drop's basin: None, the push function at the exit chord from the yaw the
+# drop arrives with; "basin", from the yaw it has turned to riding the arc
+# (feeder.mechanics.arcride.arc_yaw), the turn budget still counted from the arriving yaw; "state",
+# the same with the budget counted from the ridden yaw. "state" is the default since stop 69
+# (PUSH_FEATURES_VERSION 3): best on the training split, and on the held-out splits pooled it gains
+# by an interval that excludes 0 (docs/experiments/arc_ride.py, results/tables/arc_ride_pmf.csv;
+# docs/structured.md, "The arc a part rides").
+ARC_RIDE = "state"
+ARC_RIDE_MODES = (None, "basin", "state")
 # Contact normals at which a rolling part (no stable edge) may leave a fence: 0.5° apart.
 ROLL_SAMPLES = 720
 
@@ -177,12 +187,15 @@ def _apply(
     jams: bool = True,
     spread: float = JAM_SPREAD_DEG,
     budget_scale: float = TURN_BUDGET_SCALE,
+    arc_ride: str | None = ARC_RIDE,
+    memo: dict | None = None,
 ):
     """One fence on the drops (yaws, lateral centroid positions, weights); returns the new
     arrays and (touch share, jam share, mean entry margin) of the arriving weight. A touching
     drop jams with :func:`jam_probability` of its margin (``spread``) and goes on with the rest
     of its weight; drops left with no weight are dropped. ``budget_scale`` multiplies the turn
-    budget. The margin is
+    budget; ``arc_ride`` how a curved fence picks the basin (:data:`ARC_RIDE`), its rides kept in
+    ``memo`` (the part's own dict, as :func:`analytic_distribution`'s ``responses``). The margin is
     over the drops that touch, else over all arriving drops, else (nothing arrives: an upstream
     fence jammed every drop) the margin at the fence's exit angle."""
     m = resp.model
@@ -225,15 +238,24 @@ def _apply(
     if push.any():
         # the exit face decides the basin (its push function at the entry angle did worse on the
         # simulated two-fence configurations: the disc estimate of the entry is rough)
-        phi = fence_normal_deg(m.exit_deg, side) - yaw[push]
-        idx = resp.push.basin_index(phi)
+        start = yaw[push]  # the yaw the turn starts from
+        phi = fence_normal_deg(m.exit_deg, side) - start
+        if arc_ride is not None and m.curved:  # the yaw it has turned to riding the arc, where it touches it
+            rode = arc_yaw(geom, m, start, x[push], mu, memo)
+            rode = np.where(np.isfinite(rode), rode, start)
+            idx = resp.push.basin_index(fence_normal_deg(m.exit_deg, side) - rode)
+            if arc_ride == "state":
+                start = rode
+                phi = fence_normal_deg(m.exit_deg, side) - start
+        else:
+            idx = resp.push.basin_index(phi)
         # the turn the fence can give: a sideways push by the overlap turns the part by at most
         # overlap / (2c) (unit push at moment arm a turns it by a / (c² + a²) <= 1 / (2c))
         overlap = side * x[push] + reach[push] - m.inner
         budget = budget_scale * np.degrees(overlap / (2.0 * geom.limit_radius))
         need = np.mod(resp.push.normals_deg[idx] - phi + HALF_TURN_DEG, FULL_TURN_DEG) - HALF_TURN_DEG
         full = np.abs(need) <= budget
-        new_yaw = np.where(full, resp.exit_deg[idx], yaw[push] - np.sign(need) * budget)
+        new_yaw = np.where(full, resp.exit_deg[idx], start - np.sign(need) * budget)
         new_x = np.where(full, m.tip[0] + resp.exit_offset[idx, 0], x[push] - side * overlap)
         yaw = yaw.copy()
         x = x.copy()
@@ -257,6 +279,7 @@ def analytic_distribution(
     jam_spread_deg: float = JAM_SPREAD_DEG,
     turn_budget_scale: float = TURN_BUDGET_SCALE,
     tip_force_at_contact: bool = TIP_FORCE_AT_CONTACT,
+    arc_ride: str | None = ARC_RIDE,
 ) -> Distribution:
     """Push ``samples`` evenly spaced initial yaws (centred parts) through the configuration.
 
@@ -266,7 +289,8 @@ def analytic_distribution(
     cone as if they slid; ``jam_spread_deg``: the soft jam rule's spread (0: the hard rule,
     :func:`jam_probability`); ``turn_budget_scale``: a factor (> 0) on how far a fence can turn a
     part that it pushes sideways by an overlap (``TURN_BUDGET_SCALE``); ``tip_force_at_contact``:
-    where a round tip's forces act in the exit turn (:data:`TIP_FORCE_AT_CONTACT`); ``responses``: a memo of
+    where a round tip's forces act in the exit turn (:data:`TIP_FORCE_AT_CONTACT`); ``arc_ride``:
+    how a curved fence picks a drop's basin (:data:`ARC_RIDE`); ``responses``: a memo of
     :func:`fence_response` for this one part, filled and reused across calls (the exit-turn
     integration is most of the cost, and configurations of a part share fences): give each part
     its own dict."""
@@ -277,6 +301,8 @@ def analytic_distribution(
         fences = fence_models(loc1, loc2, scene)
     if not (math.isfinite(turn_budget_scale) and turn_budget_scale > 0.0):
         raise FeederError(f"turn_budget_scale must be finite and > 0, got {turn_budget_scale!r}")
+    if arc_ride not in ARC_RIDE_MODES:
+        raise FeederError(f"arc_ride must be one of {ARC_RIDE_MODES}, got {arc_ride!r}")
     n = int(samples)
     if n < 1:
         raise FeederError(f"samples must be a positive integer, got {samples!r}")
@@ -291,7 +317,9 @@ def analytic_distribution(
             resp = fence_response(geom, m, mu, exit_turns, bool(tip_force_at_contact))
             if responses is not None:
                 responses[key] = resp
-        yaw, x, w, (t, j, mg) = _apply(geom, resp, mu, yaw, x, w, jams, jam_spread_deg, turn_budget_scale)
+        yaw, x, w, (t, j, mg) = _apply(
+            geom, resp, mu, yaw, x, w, jams, jam_spread_deg, turn_budget_scale, arc_ride, responses
+        )
         touch[m.location], jam[m.location], margin[m.location] = t, j, mg
     ok = float(w.sum())
     return Distribution(wrap360(yaw), w, ok, touch, jam, margin)

@@ -49,7 +49,8 @@ _PER_LOCATION = ("present", "touch", "jam", "margin_deg")
 _SCALARS = ("ok_mass", "peak_mass", "entropy_bits", "stable_edges", "largest_basin")
 # Bump by hand when the feature block's values change for the same names (a model trained on
 # the old values would read the new ones wrongly): part of feeder.labels.dataset.features_version.
-PUSH_FEATURES_VERSION = 2  # 2: the turn budget x1.5 (feeder.mechanics.distribution.TURN_BUDGET_SCALE)
+PUSH_FEATURES_VERSION = 3  # 2: the turn budget x1.5 (feeder.mechanics.distribution.TURN_BUDGET_SCALE);
+# 3: a curved fence's basin from the ridden arc (feeder.mechanics.distribution.ARC_RIDE)
 PUSH_FEATURE_NAMES: tuple[str, ...] = (
     *(f"{part}_c{k}" for k in range(1, FOURIER_K + 1) for part in ("re", "im")),
     *(f"{loc}_{name}" for loc in LOCATIONS for name in _PER_LOCATION),
