@@ -8,11 +8,12 @@ Configurations (:func:`analytic_distribution`)
     reaches it laterally (its support towards the fence beyond the fence's innermost point, from
     the drop's lateral position, which the exit from an upstream fence moves): curved fences at
     small angles miss the centre line. A straight fence pushes with the push function at ``θ``. A
-    curved fence is taken as the straight fence of its last chord (an approximation: the part
-    rides the arc, turning with it, and leaves along that chord); the local angle where a disc of
-    the part's support radius first meets the arc (*entry*) only decides whether the part jams
-    (using the push function at the entry angle to choose the basin did worse on the simulated
-    two-fence configurations). A part whose disc would meet the circle beyond the tip only
+    curved fence is taken as the straight fence of its last chord, whose push function picks the
+    basin from the yaw the part has turned to riding the arc (:mod:`feeder.mechanics.arcride`,
+    :data:`ARC_RIDE`; the part meets the arc where it is steeper and turns as it flattens); the
+    local angle where a disc of the part's support radius first meets the arc (*entry*) only
+    decides whether the part jams (using the push function at the entry angle to choose the basin
+    did worse on the simulated two-fence configurations). A part whose disc would meet the circle beyond the tip only
     grazes the tip corner and is left unchanged (an approximation: on ``curved:80`` the
     simulator turns such parts).
     A fence turns a part only as far as it pushes it: pushed sideways by the overlap ``o``
