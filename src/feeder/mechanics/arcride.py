@@ -111,6 +111,15 @@ def _ride(geom, model: FenceModel, yaw_deg: np.ndarray, x: np.ndarray, mu: float
     sweep = slot - model.side * np.linspace(0.0, span, 181)
     top = float(np.max(centre[1] + ro * np.sin(sweep)))  # the arc's most downstream point
     ends = [centre + ro * np.array([math.cos(a), math.sin(a)]) for a in (sweep[0], sweep[-1])]
+
+    def along(pts: np.ndarray) -> np.ndarray:  # polar angle of points about the centre, from the slot end
+        return (
+            np.mod(
+                model.side * (slot - np.arctan2(pts[:, 1] - centre[1], pts[:, 0] - centre[0])) + math.pi, 2.0 * math.pi
+            )
+            - math.pi
+        )
+
     yaw = np.radians(yaw_deg)
     pos = np.stack([x, np.full(n, centre[1] - ro - 2.0 * c)], axis=1)  # just upstream of the arc
     out = np.full(n, np.nan)
@@ -126,9 +135,8 @@ def _ride(geom, model: FenceModel, yaw_deg: np.ndarray, x: np.ndarray, mu: float
             [cs * hull[None, :, 0] - sn * hull[None, :, 1], sn * hull[None, :, 0] + cs * hull[None, :, 1]], axis=2
         )
         p, d = _closest_on_polygons(verts, centre)
-        ang = np.arctan2(p[:, 1] - centre[1], p[:, 0] - centre[0])
-        along = np.mod(model.side * (slot - ang) + math.pi, 2.0 * math.pi) - math.pi  # from the slot end
-        contact = (d < ro) & (along >= 0.0) & (along <= span)
+        on = along(p)
+        contact = (d < ro) & (on >= 0.0) & (on <= span)
         v = np.zeros((idx.size, 3))
         if contact.any():
             k = np.flatnonzero(contact)
@@ -141,10 +149,10 @@ def _ride(geom, model: FenceModel, yaw_deg: np.ndarray, x: np.ndarray, mu: float
         travel = np.full(idx.size, ds)
         free = ~contact
         if free.any():
-            rel = pos[idx[free]] - centre
-            r = np.hypot(rel[:, 0], rel[:, 1])
-            along_c = np.mod(model.side * (slot - np.arctan2(rel[:, 1], rel[:, 0])) + math.pi, 2.0 * math.pi) - math.pi
-            inside = (along_c >= 0.0) & (along_c <= span)
+            at = pos[idx[free]]
+            r = np.hypot(at[:, 0] - centre[0], at[:, 1] - centre[1])
+            on_c = along(at)
+            inside = (on_c >= 0.0) & (on_c <= span)
             gap = np.where(
                 inside,
                 np.abs(r - ro),
