@@ -59,6 +59,7 @@ from feeder.mechanics.fence import (
 )
 from feeder.mechanics.hull import PushGeometry, as_geometry, dilate, radius_function
 from feeder.mechanics.pushfunction import PushFunction, push_function, rolling_density
+from feeder.mechanics.turnrate import TurnCost, turn_cost, unwrap_into
 
 # Chords per quarter turn of the arcs that round the outline's corners for a round fence tip
 # (feeder.mechanics.hull.dilate): docs/structured.md, "A round tip in the analytic model".
@@ -89,6 +90,12 @@ TIP_FORCE_AT_CONTACT = False
 # docs/structured.md, "The arc a part rides").
 ARC_RIDE = "state"
 ARC_RIDE_MODES = (None, "basin", "state")
+# How fast a fence turns a part within its turn budget: None, at the bound's rate 1 / (2c) wherever it
+# is (the budget's degrees are turned degrees, the short way to the stable edge); "moment", at the rate
+# of the contact's own moment arm (feeder.mechanics.turnrate: slow where the line of force passes near
+# the centroid), turning the way the push function flows.
+TURN_RATE = None
+TURN_RATE_MODES = (None, "moment")
 # Contact normals at which a rolling part (no stable edge) may leave a fence: 0.5° apart.
 ROLL_SAMPLES = 720
 
@@ -104,6 +111,7 @@ class FenceResponse:
     exit_deg: np.ndarray  # (S,) yaw after the exit turn
     exit_offset: np.ndarray  # (S, 2) centroid relative to the tip corner when released
     exit_reason: tuple = ()  # (S,) why each exit turn stopped (ExitTurn.reason; "" without one)
+    turn: TurnCost | None = None  # the budget each turn on the exit face takes (None: the part rolls)
 
 
 def fence_response(
@@ -126,7 +134,8 @@ def fence_response(
     else:  # flush at the tip: the centroid sits at its height from the face, over the foot
         normal = np.radians(fence_normal_deg(model.exit_deg, model.side))
         offset = -np.outer(geom.heights[push.edges], [math.cos(normal), math.sin(normal)])
-    return FenceResponse(model, push, rest, wrap360(rest + delta), offset, reasons)
+    turn = None if push.rolls else turn_cost(geom, model.exit_deg, model.side, mu)
+    return FenceResponse(model, push, rest, wrap360(rest + delta), offset, reasons, turn)
 
 
 def _exit(geom: PushGeometry, grown: PushGeometry | None, model: FenceModel, edge: int, mu: float, reach: float = 0.0):
@@ -190,13 +199,15 @@ def _apply(
     budget_scale: float = TURN_BUDGET_SCALE,
     arc_ride: str | None = ARC_RIDE,
     memo: dict | None = None,
+    turn_rate: str | None = TURN_RATE,
 ):
     """One fence on the drops (yaws, lateral centroid positions, weights); returns the new
     arrays and (touch share, jam share, mean entry margin) of the arriving weight. A touching
     drop jams with :func:`jam_probability` of its margin (``spread``) and goes on with the rest
     of its weight; drops left with no weight are dropped. ``budget_scale`` multiplies the turn
     budget; ``arc_ride`` how a curved fence picks the basin (:data:`ARC_RIDE`), its rides kept in
-    ``memo`` (the part's own dict, as :func:`analytic_distribution`'s ``responses``). The margin is
+    ``memo`` (the part's own dict, as :func:`analytic_distribution`'s ``responses``); ``turn_rate``
+    how fast it turns within the budget (:data:`TURN_RATE`). The margin is
     over the drops that touch, else over all arriving drops, else (nothing arrives: an upstream
     fence jammed every drop) the margin at the fence's exit angle."""
     m = resp.model
@@ -254,9 +265,16 @@ def _apply(
         # overlap / (2c) (unit push at moment arm a turns it by a / (c² + a²) <= 1 / (2c))
         overlap = side * x[push] + reach[push] - m.inner
         budget = budget_scale * np.degrees(overlap / (2.0 * geom.limit_radius))
-        need = np.mod(resp.push.normals_deg[idx] - phi + HALF_TURN_DEG, FULL_TURN_DEG) - HALF_TURN_DEG
-        full = np.abs(need) <= budget
-        new_yaw = np.where(full, resp.exit_deg[idx], start - np.sign(need) * budget)
+        if turn_rate == "moment":  # the way the push function flows, at the contact's own rate
+            here = unwrap_into(phi, resp.push.lower_deg[idx])
+            need = unwrap_into(resp.push.normals_deg[idx], resp.push.lower_deg[idx]) - here
+            full = resp.turn.between(here, here + need) <= budget
+            turned = resp.turn.advance(here, need, budget) - here
+        else:
+            need = np.mod(resp.push.normals_deg[idx] - phi + HALF_TURN_DEG, FULL_TURN_DEG) - HALF_TURN_DEG
+            full = np.abs(need) <= budget
+            turned = np.sign(need) * budget
+        new_yaw = np.where(full, resp.exit_deg[idx], start - turned)
         new_x = np.where(full, m.tip[0] + resp.exit_offset[idx, 0], x[push] - side * overlap)
         yaw = yaw.copy()
         x = x.copy()
@@ -281,6 +299,7 @@ def analytic_distribution(
     turn_budget_scale: float = TURN_BUDGET_SCALE,
     tip_force_at_contact: bool = TIP_FORCE_AT_CONTACT,
     arc_ride: str | None = ARC_RIDE,
+    turn_rate: str | None = TURN_RATE,
 ) -> Distribution:
     """Push ``samples`` evenly spaced initial yaws (centred parts) through the configuration.
 
@@ -291,7 +310,8 @@ def analytic_distribution(
     :func:`jam_probability`); ``turn_budget_scale``: a factor (> 0) on how far a fence can turn a
     part that it pushes sideways by an overlap (``TURN_BUDGET_SCALE``); ``tip_force_at_contact``:
     where a round tip's forces act in the exit turn (:data:`TIP_FORCE_AT_CONTACT`); ``arc_ride``:
-    how a curved fence picks a drop's basin (:data:`ARC_RIDE`); ``responses``: a memo of
+    how a curved fence picks a drop's basin (:data:`ARC_RIDE`); ``turn_rate``: how fast a fence turns a
+    part within its budget (:data:`TURN_RATE`); ``responses``: a memo of
     :func:`fence_response` for this one part, filled and reused across calls (the exit-turn
     integration is most of the cost, and configurations of a part share fences): give each part
     its own dict."""
@@ -304,6 +324,8 @@ def analytic_distribution(
         raise FeederError(f"turn_budget_scale must be finite and > 0, got {turn_budget_scale!r}")
     if arc_ride not in ARC_RIDE_MODES:
         raise FeederError(f"arc_ride must be one of {ARC_RIDE_MODES}, got {arc_ride!r}")
+    if turn_rate not in TURN_RATE_MODES:
+        raise FeederError(f"turn_rate must be one of {TURN_RATE_MODES}, got {turn_rate!r}")
     n = int(samples)
     if n < 1:
         raise FeederError(f"samples must be a positive integer, got {samples!r}")
@@ -319,7 +341,7 @@ def analytic_distribution(
             if responses is not None:
                 responses[key] = resp
         yaw, x, w, (t, j, mg) = _apply(
-            geom, resp, mu, yaw, x, w, jams, jam_spread_deg, turn_budget_scale, arc_ride, responses
+            geom, resp, mu, yaw, x, w, jams, jam_spread_deg, turn_budget_scale, arc_ride, responses, turn_rate
         )
         touch[m.location], jam[m.location], margin[m.location] = t, j, mg
     ok = float(w.sum())

@@ -1,0 +1,246 @@
+"""How far and how fast does a fence turn a part? (issue #39, unseen parts)
+
+Two questions on one measurement. Both came from crescent-b on ``straight:15``: in the simulator
+it keeps the yaw it arrives with over φ ≈ 227–257° of its outer arc, and drops from a further 200°
+of yaws stop at the first of those orientations. The analytic model finds no stable edge on that
+arc under the fence's friction (``mu = 0.4``: the foot shifted by ``mu · d`` falls just past each
+short edge) and sends every drop round to the chord between the horns (about 105° of circular W1).
+
+1. Is the friction that turns a part the friction that jams it? ``push:S`` scales the push
+   function's friction alone by ``S``; ``turn:S`` scales it wherever the part turns (push function,
+   rolling density, arc ride, exit turn); the jam rule keeps the scene's ``mu``.
+2. Does a part turn at the rate of its own moment arm? The turn budget lets a fence turn a part by
+   ``o / (2c)`` for an overlap ``o``, the fastest rate any contact turns it, and the short way to
+   its stable edge. ``moment:B`` turns it at the contact's own rate
+   (:mod:`feeder.mechanics.turnrate`: slow where the line of force passes near the centroid), the
+   way the push function flows, within the budget ×``B``; ``bound:B`` is the bound's rule ×``B``.
+
+``base`` is the default model. Measured as ``arc_ride.py`` does:
+
+``drops``: every simulated drop of a configuration whose fences roll the part in no mode, pushed
+through the model from its own initial yaw (hard jams; agree within ``AGREE_DEG`` modulo the
+period, or both jam; weighted by its share of the initial yaws); summary by fence types.
+
+``pmf``: the analytic PMF's circular W1 to the label of every kept configuration, per split,
+paired by configuration with a 95 % bootstrap over parts (choose on ``train`` alone).
+
+    python docs/experiments/fence_turns.py drops SIM_DIR PARTS_DIR OUT_CSV_GZ --modes base,moment:3
+    python docs/experiments/fence_turns.py pmf DATASET PARTS_DIR OUT_CSV_GZ --modes base,push:0.75
+    python docs/experiments/fence_turns.py summary DROPS_CSV_GZ PMF_CSV_GZ OUT_PREFIX
+
+About 5 minutes a mode for ``pmf`` and 3 for ``drops`` on one core. Nothing is fitted.
+"""
+
+from __future__ import annotations
+
+# isort: off
+import feeder  # noqa: F401 - first, before numpy loads: OpenBLAS's AVX2 kernel (feeder/__init__.py)
+
+# isort: on
+import argparse
+import contextlib
+import sys
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from analytic_dropwise import AGREE_DEG, cell_weights, sim_files  # noqa: E402
+from soft_jams import paired_interval  # noqa: E402
+
+import feeder.mechanics.distribution as D  # noqa: E402
+from feeder.labels.dataset import load_dataset  # noqa: E402
+from feeder.labels.metrics import circular_w1  # noqa: E402
+from feeder.lane.fences import parse_config_id  # noqa: E402
+from feeder.learn.evaluate import fence_types  # noqa: E402
+from feeder.mechanics.fence import fence_models, fence_mu  # noqa: E402
+from feeder.mechanics.hull import as_geometry  # noqa: E402
+from feeder.mechanics.pmf import analytic_pmf  # noqa: E402
+from feeder.parts.geometry import load_part  # noqa: E402
+
+_ORIG = {name: getattr(D, name) for name in ("push_function", "rolling_density", "arc_yaw", "exit_turn")}
+
+
+def options(name: str) -> dict:
+    """``analytic_distribution``'s turn options of a mode: ``moment:B``/``bound:B``, the turn rate
+    (:data:`feeder.mechanics.distribution.TURN_RATE`) with the turn budget ×B; else the defaults."""
+    what, _, scale = name.partition(":")
+    if what in ("moment", "bound"):
+        return dict(turn_rate="moment" if what == "moment" else None, turn_budget_scale=float(scale))
+    return dict(turn_rate=D.TURN_RATE, turn_budget_scale=D.TURN_BUDGET_SCALE)
+
+
+@contextlib.contextmanager
+def mode(name: str):
+    """Patch ``feeder.mechanics.distribution`` so the named friction uses ``mu · S``."""
+    what, _, scale = name.partition(":")
+    if what in ("base", "moment", "bound"):
+        yield
+        return
+    s = float(scale)
+    patched = {"push_function": lambda g, mu, side: _ORIG["push_function"](g, mu * s, side)}
+    if what == "turn":
+        patched["rolling_density"] = lambda g, mu, side, phi: _ORIG["rolling_density"](g, mu * s, side, phi)
+        patched["arc_yaw"] = lambda g, m, y, x, mu, memo=None: _ORIG["arc_yaw"](g, m, y, x, mu * s, memo)
+        patched["exit_turn"] = lambda g, e, a, side, mu, **kw: _ORIG["exit_turn"](g, e, a, side, mu * s, **kw)
+    elif what != "push":
+        raise SystemExit(f"unknown mode {name!r}")
+    for k, f in patched.items():
+        setattr(D, k, f)
+    try:
+        yield
+    finally:
+        for k in patched:
+            setattr(D, k, _ORIG[k])
+
+
+def final_yaws(geom, fences, yaws, mu, memo, name: str = "base") -> np.ndarray:
+    """Final yaw of each drop (NaN: jammed) through ``fences`` in order under mode ``name``, hard
+    jams; ValueError where a fence rolls the part."""
+    opt = options(name)
+    yaw = np.asarray(yaws, dtype=np.float64).copy()
+    x = np.zeros_like(yaw)
+    tag = np.arange(1.0, yaw.size + 1.0)
+    for m in fences:
+        if m not in memo:
+            memo[m] = D.fence_response(geom, m, mu, True)
+        if memo[m].push.rolls:
+            raise ValueError("a fence rolls the part: no yaw per drop")
+        yaw, x, tag, _ = D._apply(
+            geom, memo[m], mu, yaw, x, tag, True, 0.0, opt["turn_budget_scale"], D.ARC_RIDE, memo, opt["turn_rate"]
+        )
+    out = np.full(len(yaws), np.nan)
+    out[np.rint(tag).astype(int) - 1] = yaw
+    return out
+
+
+def drops(sim_dir: Path, parts_dir: Path, modes: list[str]) -> pd.DataFrame:
+    rows = []
+    memos: dict = {m: {} for m in modes}
+    for part, geom, path, meta, scene, period, y0, yf, status in sim_files(sim_dir, parts_dir):
+        loc1, loc2 = meta["loc1"], meta["loc2"]
+        fences = fence_models(loc1, loc2, scene)
+        mu = fence_mu(scene)
+        out = {}
+        try:
+            for m in modes:
+                with mode(m):
+                    out[m] = final_yaws(geom, fences, y0, mu, memos[m].setdefault((part, mu), {}), m)
+        except ValueError:
+            continue
+        w = cell_weights(np.mod(y0, period), period)
+        rows.append(
+            pd.DataFrame(
+                dict(
+                    part=part,
+                    config_id=path.stem,
+                    loc1=loc1,
+                    loc2=loc2,
+                    period=period,
+                    initial_yaw_deg=y0,
+                    weight=w,
+                    status=status.astype(str),
+                    final_yaw_deg=yf,
+                    **{f"yaw_{m}": out[m] for m in modes},
+                )
+            )
+        )
+    return pd.concat(rows, ignore_index=True)
+
+
+def pmfs(dataset: Path, parts_dir: Path, modes: list[str]) -> pd.DataFrame:
+    data = load_dataset(dataset)
+    geoms: dict = {}
+    memos: dict = {m: {} for m in modes}
+    rows = []
+    for i, (part, config_id) in enumerate(zip(data["part"], data["config_id"])):
+        part, config_id = str(part), str(config_id)
+        if part not in geoms:
+            geoms[part] = as_geometry(load_part(parts_dir / f"{part}.stl"))
+        loc1, loc2 = parse_config_id(config_id)
+        for m in modes:
+            memo = memos[m].setdefault(part, {})
+            with mode(m):
+                dist = D.analytic_distribution(geoms[part], loc1, loc2, responses=memo, **options(m))
+                if dist.weights.sum() <= 0.0:  # every drop jams: the PMF without jams
+                    dist = D.analytic_distribution(geoms[part], loc1, loc2, responses=memo, jams=False, **options(m))
+            pmf = analytic_pmf(geoms[part], loc1, loc2, frame_deg=float(data["frame_deg"][i]), distribution=dist)
+            cw1 = float(circular_w1(np.cumsum(pmf), data["cdf"][i]))
+            rows.append((m, part, config_id, str(data["split"][i]), cw1))
+    return pd.DataFrame(rows, columns=["mode", "part", "config_id", "split", "circular_w1_deg"])
+
+
+def _gap(a, b, period):
+    return np.abs(np.mod(a - b + period / 2.0, period) - period / 2.0)
+
+
+def drop_summary(d: pd.DataFrame, modes: list[str]) -> pd.DataFrame:
+    ok = d.status == "ok"
+    for m in modes:
+        y = d[f"yaw_{m}"]
+        d[f"agree_{m}"] = (ok & y.notna() & (_gap(d.final_yaw_deg, y.fillna(0.0), d.period) <= AGREE_DEG)) | (
+            ~ok & y.isna()
+        )
+    d["wn"] = d.weight / d.groupby(["part", "config_id"]).weight.transform("sum")
+    d["group"] = [fence_types(c) for c in d.config_id]
+    per = d.groupby(["group", "part", "config_id"]).apply(
+        lambda g: pd.Series({m: float((g.wn * g[f"agree_{m}"]).sum()) for m in modes}), include_groups=False
+    )
+    per = per.reset_index()
+    out = per.groupby("group")[modes].mean()
+    out.insert(0, "configs", per.groupby("group").size())
+    tot = per[modes].mean().to_frame().T
+    tot.insert(0, "configs", len(per))
+    tot.index = ["all"]
+    return pd.concat([out, tot]).reset_index(names="fences")
+
+
+def pmf_summary(raw: pd.DataFrame, modes: list[str]) -> pd.DataFrame:
+    rng = np.random.default_rng(0)
+    raw = raw.rename(columns={"circular_w1_deg": "cw1"})
+    groups = [(s, raw[raw.split == s]) for s in sorted(raw.split.unique())]
+    groups.append(("held_out", raw[raw.split != "train"]))
+    rows = []
+    for name, g in groups:
+        base = g[g["mode"] == "base"]
+        for m in modes:
+            h = g[g["mode"] == m]
+            diff = paired_interval(base, h, "cw1", rng) if m != "base" else (0.0, 0.0, 0.0)
+            rows.append((name, m, h.part.nunique(), len(h), h.cw1.mean(), *diff))
+    cols = ["split", "mode", "parts", "configs", "cw1_mean", "diff_vs_base", "diff_lo", "diff_hi"]
+    return pd.DataFrame(rows, columns=cols)
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("what", choices=["drops", "pmf", "summary"])
+    ap.add_argument("a", type=Path)
+    ap.add_argument("b", type=Path)
+    ap.add_argument("out", type=Path)
+    ap.add_argument("--modes", default="base,push:0.5,push:0.75,turn:0.5,turn:0.75")
+    args = ap.parse_args(argv)
+    modes = args.modes.split(",")
+    if args.what == "drops":
+        d = drops(args.a, args.b, modes)
+        d.to_csv(args.out, index=False)
+        print(drop_summary(d, modes).to_string(index=False))
+    elif args.what == "pmf":
+        raw = pmfs(args.a, args.b, modes)
+        raw.to_csv(args.out, index=False)
+        print(pmf_summary(raw, modes).to_string(index=False))
+    else:
+        d = pd.read_csv(args.a)
+        modes = [c[4:] for c in d.columns if c.startswith("yaw_")]
+        ds = drop_summary(d, modes)
+        raw = pd.read_csv(args.b)
+        ps = pmf_summary(raw, sorted(raw["mode"].unique(), key=lambda m: (m != "base", m)))
+        ds.to_csv(f"{args.out}_drops.csv", index=False)
+        ps.to_csv(f"{args.out}_pmf.csv", index=False)
+        print(ds.to_string(index=False))
+        print(ps.to_string(index=False))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
