@@ -135,6 +135,21 @@ def test_friction_turns_every_basin_boundary_by_atan_mu_against_the_side():
     np.testing.assert_allclose(fl.upper_deg, f0.upper_deg + lam)
 
 
+def test_the_boundary_friction_turns_the_boundaries_alone():
+    """``boundary_mu`` turns the basin boundaries by its own friction angle and leaves which edges
+    are stable to ``mu``; left out, it is ``mu`` (the same object field by field)."""
+    f0 = push_function(rect(0.04, 0.02), 0.0, 1)
+    fb = push_function(rect(0.04, 0.02), MU, 1, boundary_mu=0.2)
+    np.testing.assert_allclose(fb.upper_deg, f0.upper_deg - math.degrees(math.atan(0.2)))
+    thin = rect(0.06, 0.02)  # at mu its short edges are unstable whatever turns the boundaries
+    assert len(push_function(thin, MU, 1, boundary_mu=0.0).edges) == 2
+    a, b = push_function(thin, MU, -1), push_function(thin, MU, -1, boundary_mu=MU)
+    for field in ("edges", "normals_deg", "lower_deg", "upper_deg", "measures"):
+        assert np.array_equal(getattr(a, field), getattr(b, field))
+    with pytest.raises(FeederError, match="boundary friction"):
+        push_function(thin, MU, 1, boundary_mu=-1.0)
+
+
 def test_friction_makes_the_short_edges_of_a_thin_rectangle_unstable():
     # 3:1: the foot shifted by mu * d = 0.4 * 30 mm lies beyond the 10 mm half edge
     assert len(push_function(rect(0.06, 0.02)).edges) == 4

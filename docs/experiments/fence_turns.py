@@ -14,6 +14,8 @@ short edge) and sends every drop round to the chord between the horns (about 105
    its stable edge. ``moment:B`` turns it at the contact's own rate
    (:mod:`feeder.mechanics.turnrate`: slow where the line of force passes near the centroid), the
    way the push function flows, within the budget ×``B``; ``bound:B`` is the bound's rule ×``B``.
+3. Are the basin boundaries where the push function puts them? ``bounds:K`` turns them from the
+   vertex directions by ``K · atan(mu)`` instead of ``atan(mu)`` (stability unchanged).
 
 ``base`` is the default model. Measured as ``arc_ride.py`` does:
 
@@ -39,6 +41,7 @@ import feeder  # noqa: F401 - first, before numpy loads: OpenBLAS's AVX2 kernel 
 # isort: on
 import argparse
 import contextlib
+import math
 import sys
 from pathlib import Path
 
@@ -79,12 +82,19 @@ def mode(name: str):
         yield
         return
     s = float(scale)
-    patched = {"push_function": lambda g, mu, side: _ORIG["push_function"](g, mu * s, side)}
+    if what == "bounds":  # the boundaries turned from the vertex directions by S · atan(mu)
+        patched = {
+            "push_function": lambda g, mu, side: _ORIG["push_function"](
+                g, mu, side, boundary_mu=math.tan(s * math.atan(mu))
+            )
+        }
+    else:
+        patched = {"push_function": lambda g, mu, side: _ORIG["push_function"](g, mu * s, side)}
     if what == "turn":
         patched["rolling_density"] = lambda g, mu, side, phi: _ORIG["rolling_density"](g, mu * s, side, phi)
         patched["arc_yaw"] = lambda g, m, y, x, mu, memo=None: _ORIG["arc_yaw"](g, m, y, x, mu * s, memo)
         patched["exit_turn"] = lambda g, e, a, side, mu, **kw: _ORIG["exit_turn"](g, e, a, side, mu * s, **kw)
-    elif what != "push":
+    elif what not in ("push", "bounds"):
         raise SystemExit(f"unknown mode {name!r}")
     for k, f in patched.items():
         setattr(D, k, f)

@@ -74,15 +74,21 @@ class PushFunction:
         return self.normals_deg[self.basin_index(phi_deg)]
 
 
-def push_function(part, mu: float = 0.0, side: int = 1) -> PushFunction:
+def push_function(part, mu: float = 0.0, side: int = 1, boundary_mu: float | None = None) -> PushFunction:
     """The push function of a part's hull against a straight fence (see the module doc).
 
     ``mu``: part–fence friction coefficient (0: Goldberg's frictionless function); ``side``: +1
     for a fence on the right of the travel direction, −1 on the left (matters only when ``mu >
-    0``: the friction shifts the foot downstream)."""
+    0``: the friction shifts the foot downstream); ``boundary_mu``: the friction whose cone turns
+    the basin boundaries from the vertex directions (None: ``mu``; another value only to measure
+    how much the boundaries matter, docs/experiments/fence_turns.py)."""
     geom = as_geometry(part)
     if not (math.isfinite(mu) and mu >= 0.0):
         raise FeederError(f"fence friction must be finite and >= 0, got {mu!r}")
+    if boundary_mu is None:
+        boundary_mu = mu
+    elif not (math.isfinite(boundary_mu) and boundary_mu >= 0.0):
+        raise FeederError(f"boundary friction must be finite and >= 0, got {boundary_mu!r}")
     if side not in (1, -1):
         raise FeederError(f"fence side must be +1 (right) or -1 (left), got {side!r}")
     n = len(geom.hull)
@@ -94,7 +100,7 @@ def push_function(part, mu: float = 0.0, side: int = 1) -> PushFunction:
     if not stable.any():  # the part rolls: r' - side·mu·r keeps one sign all round
         empty = np.empty(0)
         return PushFunction(np.empty(0, dtype=np.int64), empty, empty, empty, empty)
-    lam = math.degrees(math.atan(mu))
+    lam = math.degrees(math.atan(boundary_mu))
     vert_deg = np.degrees(np.arctan2(geom.hull[:, 1], geom.hull[:, 0]))
     # unstable points: inside vertex j's normal cone [normal(j-1), normal(j)] where the flow turns
     # from decreasing φ (after edge j-1) to increasing φ (before edge j), at the vertex direction
