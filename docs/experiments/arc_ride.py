@@ -163,21 +163,21 @@ def drop_summary(d: pd.DataFrame, modes: list[str]) -> pd.DataFrame:
     return pd.concat([out, tot]).reset_index(names="fences")
 
 
-def pmf_summary(raw: pd.DataFrame, modes: list[str]) -> pd.DataFrame:
+def pmf_summary(raw: pd.DataFrame, modes: list[str], base: str = "none") -> pd.DataFrame:
     """Per split (and the held-out splits pooled): mean circular W1 per mode and its difference
-    from ``none``, paired by configuration, 95 % bootstrap over parts."""
+    from mode ``base``, paired by configuration, 95 % bootstrap over parts."""
     rng = np.random.default_rng(0)
     raw = raw.rename(columns={"circular_w1_deg": "cw1"})
     groups = [(s, raw[raw.split == s]) for s in sorted(raw.split.unique())]
     groups.append(("held_out", raw[raw.split != "train"]))
     rows = []
     for name, g in groups:
-        base = g[g["mode"] == "none"]
+        ref = g[g["mode"] == base]
         for m in modes:
             h = g[g["mode"] == m]
-            diff = paired_interval(base, h, "cw1", rng) if m != "none" else (0.0, 0.0, 0.0)
+            diff = paired_interval(ref, h, "cw1", rng) if m != base else (0.0, 0.0, 0.0)
             rows.append((name, m, h.part.nunique(), len(h), h.cw1.mean(), *diff))
-    cols = ["split", "mode", "parts", "configs", "cw1_mean", "diff_vs_none", "diff_lo", "diff_hi"]
+    cols = ["split", "mode", "parts", "configs", "cw1_mean", f"diff_vs_{base}", "diff_lo", "diff_hi"]
     return pd.DataFrame(rows, columns=cols)
 
 

@@ -50,9 +50,10 @@ import pandas as pd
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from analytic_dropwise import AGREE_DEG, cell_weights, sim_files  # noqa: E402
-from soft_jams import paired_interval  # noqa: E402
+from arc_ride import _gap, pmf_summary  # noqa: E402
 
 import feeder.mechanics.distribution as D  # noqa: E402
+from feeder.io import write_csv  # noqa: E402
 from feeder.labels.dataset import load_dataset  # noqa: E402
 from feeder.labels.metrics import circular_w1  # noqa: E402
 from feeder.lane.fences import parse_config_id  # noqa: E402
@@ -181,10 +182,6 @@ def pmfs(dataset: Path, parts_dir: Path, modes: list[str]) -> pd.DataFrame:
     return pd.DataFrame(rows, columns=["mode", "part", "config_id", "split", "circular_w1_deg"])
 
 
-def _gap(a, b, period):
-    return np.abs(np.mod(a - b + period / 2.0, period) - period / 2.0)
-
-
 def drop_summary(d: pd.DataFrame, modes: list[str]) -> pd.DataFrame:
     ok = d.status == "ok"
     for m in modes:
@@ -206,22 +203,6 @@ def drop_summary(d: pd.DataFrame, modes: list[str]) -> pd.DataFrame:
     return pd.concat([out, tot]).reset_index(names="fences")
 
 
-def pmf_summary(raw: pd.DataFrame, modes: list[str]) -> pd.DataFrame:
-    rng = np.random.default_rng(0)
-    raw = raw.rename(columns={"circular_w1_deg": "cw1"})
-    groups = [(s, raw[raw.split == s]) for s in sorted(raw.split.unique())]
-    groups.append(("held_out", raw[raw.split != "train"]))
-    rows = []
-    for name, g in groups:
-        base = g[g["mode"] == "base"]
-        for m in modes:
-            h = g[g["mode"] == m]
-            diff = paired_interval(base, h, "cw1", rng) if m != "base" else (0.0, 0.0, 0.0)
-            rows.append((name, m, h.part.nunique(), len(h), h.cw1.mean(), *diff))
-    cols = ["split", "mode", "parts", "configs", "cw1_mean", "diff_vs_base", "diff_lo", "diff_hi"]
-    return pd.DataFrame(rows, columns=cols)
-
-
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("what", choices=["drops", "pmf", "summary"])
@@ -238,15 +219,15 @@ def main(argv=None) -> int:
     elif args.what == "pmf":
         raw = pmfs(args.a, args.b, modes)
         raw.to_csv(args.out, index=False)
-        print(pmf_summary(raw, modes).to_string(index=False))
+        print(pmf_summary(raw, modes, "base").to_string(index=False))
     else:
         d = pd.read_csv(args.a)
         modes = [c[4:] for c in d.columns if c.startswith("yaw_")]
         ds = drop_summary(d, modes)
         raw = pd.read_csv(args.b)
-        ps = pmf_summary(raw, sorted(raw["mode"].unique(), key=lambda m: (m != "base", m)))
-        ds.to_csv(f"{args.out}_drops.csv", index=False)
-        ps.to_csv(f"{args.out}_pmf.csv", index=False)
+        ps = pmf_summary(raw, sorted(raw["mode"].unique(), key=lambda m: (m != "base", m)), "base")
+        write_csv(f"{args.out}_drops.csv", ds)
+        write_csv(f"{args.out}_pmf.csv", ps)
         print(ds.to_string(index=False))
         print(ps.to_string(index=False))
     return 0
