@@ -23,7 +23,7 @@ from feeder.mechanics.fence import (
 )
 from feeder.mechanics.hull import as_geometry, push_geometry, radius_function
 from feeder.mechanics.pmf import DEFAULT_SMOOTH_DEG, PMF_BINS, analytic_pmf
-from feeder.mechanics.pushfunction import push_function, rolling_density
+from feeder.mechanics.pushfunction import contact_patch, push_function, rolling_density
 
 MU = 0.4  # the scene's part-fence friction, 0.8 x 0.5
 
@@ -148,6 +148,77 @@ def test_the_boundary_friction_turns_the_boundaries_alone():
         assert np.array_equal(getattr(a, field), getattr(b, field))
     with pytest.raises(FeederError, match="boundary friction"):
         push_function(thin, MU, 1, boundary_mu=-1.0)
+
+
+def regular_polygon(n: int, radius: float) -> np.ndarray:
+    t = 2 * np.pi * np.arange(n) / n
+    return radius * np.column_stack([np.cos(t), np.sin(t)])
+
+
+def test_contact_patch_of_a_hexagon_by_hand():
+    """A regular hexagon of circumradius R: edges R long, each neighbour turned by 60°. Its far
+    vertex lies R·sin 60° below the edge's line, R·cos 60° back; a gap g below that reaches
+    g / tan 60° past each end, and any gap beyond it the whole neighbour (the next edge runs back
+    towards the edge's start, so it adds nothing)."""
+    r = 0.01
+    hexagon = regular_polygon(6, r)
+    lo, hi = contact_patch(hexagon, 0.0)
+    np.testing.assert_allclose(lo, 0.0, atol=1e-15)
+    np.testing.assert_allclose(hi, r)
+    g = 0.001
+    lo, hi = contact_patch(hexagon, g)
+    np.testing.assert_allclose(lo, -g / math.sqrt(3.0))
+    np.testing.assert_allclose(hi, r + g / math.sqrt(3.0))
+    lo, hi = contact_patch(hexagon, r)  # past the neighbour's far vertex (depth 0.866 R)
+    np.testing.assert_allclose(lo, -0.5 * r)
+    np.testing.assert_allclose(hi, 1.5 * r)
+    lo, hi = contact_patch(rect(0.04, 0.02), 0.001)  # right-angled corners: nothing within the gap
+    np.testing.assert_allclose(lo, 0.0, atol=1e-15)
+    np.testing.assert_allclose(hi, [0.04, 0.02, 0.04, 0.02])
+    with pytest.raises(FeederError, match="patch gap"):
+        contact_patch(hexagon, -1e-4)
+
+
+def test_a_contact_patch_holds_a_polygonised_disc_that_rolls_on_its_edges():
+    """A 16-gon rolls at mu = 0.4: the shifted foot (L/2 + mu·h = 0.59 R) is past every edge
+    (L = 0.39 R). It holds once the patch reaches past the shift, within the neighbouring edge, at
+    gap (mu·h − L/2)·tan θ (θ = 22.5°, the turn between neighbours); a gap of 0 is the edge
+    itself, field by field."""
+    n, r = 16, 0.02
+    disc = push_geometry(regular_polygon(n, r))
+    assert push_function(disc, MU, 1).rolls
+    threshold = (MU * disc.heights[0] - 0.5 * disc.lengths[0]) * math.tan(2 * math.pi / n)
+    assert push_function(disc, MU, 1, patch_gap=0.99 * threshold).rolls
+    held = push_function(disc, MU, -1, patch_gap=1.01 * threshold)
+    assert len(held.edges) == n  # every edge holds: each keeps the drops of its own cone
+    np.testing.assert_allclose(held.measures, 1.0 / n)
+    thin = rect(0.06, 0.02)
+    a, b = push_function(thin, MU, 1), push_function(thin, MU, 1, patch_gap=0.0)
+    for field in ("edges", "normals_deg", "lower_deg", "upper_deg", "measures"):
+        assert np.array_equal(getattr(a, field), getattr(b, field))
+
+
+def test_a_held_edge_stops_the_drops_flowing_past_it_and_keeps_its_own_cell():
+    """A half 16-gon (radius 20 mm) on its chord, fence on the right, mu = 0.4: the arc edge of
+    normal 118.125° is stable and its basin reaches far below it. With a 0.1 mm patch the arc
+    edge below it (106.875°) holds too: every drop that flowed up through it stops there, its cell
+    ending half way to 118.125° (112.5°); the stable edge keeps what lies above. Nothing else
+    moves."""
+    t = np.linspace(0.0, np.pi, 17)
+    half = push_geometry(0.02 * np.column_stack([np.cos(t), np.sin(t)]))
+    base = push_function(half, MU, 1)
+    held = push_function(half, MU, 1, patch_gap=1e-4)
+    s = int(np.argmin(np.abs(base.normals_deg - 118.125)))
+    h = int(np.argmin(np.abs(held.normals_deg - 106.875)))
+    assert abs(held.normals_deg[h] - 106.875) < 1e-9 and abs(base.normals_deg[s] - 118.125) < 1e-9
+    assert len(held.edges) == len(base.edges) + 1
+    np.testing.assert_allclose(held.lower_deg[h], base.lower_deg[s])
+    np.testing.assert_allclose(held.upper_deg[h], 112.5)
+    np.testing.assert_allclose(held.measures[h + 1], (base.upper_deg[s] - 112.5) / 360.0)
+    others_base = np.delete(np.arange(len(base.edges)), s)
+    others_held = np.delete(np.arange(len(held.edges)), [h, h + 1])
+    np.testing.assert_allclose(held.measures[others_held], base.measures[others_base])
+    assert held.measures.sum() == pytest.approx(1.0)
 
 
 def test_friction_makes_the_short_edges_of_a_thin_rectangle_unstable():

@@ -111,7 +111,6 @@ class FenceResponse:
     exit_deg: np.ndarray  # (S,) yaw after the exit turn
     exit_offset: np.ndarray  # (S, 2) centroid relative to the tip corner when released
     exit_reason: tuple = ()  # (S,) why each exit turn stopped (ExitTurn.reason; "" without one)
-    turn: TurnCost | None = None  # the budget each turn on the exit face takes (None: the part rolls)
 
 
 def fence_response(
@@ -134,8 +133,19 @@ def fence_response(
     else:  # flush at the tip: the centroid sits at its height from the face, over the foot
         normal = np.radians(fence_normal_deg(model.exit_deg, model.side))
         offset = -np.outer(geom.heights[push.edges], [math.cos(normal), math.sin(normal)])
-    turn = None if push.rolls else turn_cost(geom, model.exit_deg, model.side, mu)
-    return FenceResponse(model, push, rest, wrap360(rest + delta), offset, reasons, turn)
+    return FenceResponse(model, push, rest, wrap360(rest + delta), offset, reasons)
+
+
+def _turn_cost(geom: PushGeometry, model: FenceModel, mu: float, memo: dict | None) -> TurnCost:
+    """The budget each turn on ``model``'s exit face takes (``turn_rate="moment"`` only), kept in
+    ``memo`` (the part's own dict) when given."""
+    key = ("turn_cost", model, mu)
+    if memo is not None and key in memo:
+        return memo[key]
+    cost = turn_cost(geom, model.exit_deg, model.side, mu)
+    if memo is not None:
+        memo[key] = cost
+    return cost
 
 
 def _exit(geom: PushGeometry, grown: PushGeometry | None, model: FenceModel, edge: int, mu: float, reach: float = 0.0):
@@ -268,8 +278,9 @@ def _apply(
         if turn_rate == "moment":  # the way the push function flows, at the contact's own rate
             here = unwrap_into(phi, resp.push.lower_deg[idx])
             need = unwrap_into(resp.push.normals_deg[idx], resp.push.lower_deg[idx]) - here
-            full = resp.turn.between(here, here + need) <= budget
-            turned = resp.turn.advance(here, need, budget) - here
+            cost = _turn_cost(geom, m, mu, memo)
+            full = cost.between(here, here + need) <= budget
+            turned = cost.advance(here, need, budget) - here
         else:
             need = np.mod(resp.push.normals_deg[idx] - phi + HALF_TURN_DEG, FULL_TURN_DEG) - HALF_TURN_DEG
             full = np.abs(need) <= budget

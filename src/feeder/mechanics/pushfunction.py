@@ -74,14 +74,49 @@ class PushFunction:
         return self.normals_deg[self.basin_index(phi_deg)]
 
 
-def push_function(part, mu: float = 0.0, side: int = 1, boundary_mu: float | None = None) -> PushFunction:
+def contact_patch(part, gap: float) -> tuple[np.ndarray, np.ndarray]:
+    """Where each hull edge's contact patch ends, along the edge from its first vertex: the extreme
+    positions (``lo <= 0``, ``hi >= length``) of the hull's boundary within ``gap`` of the edge's
+    line. The hull is convex, so that part of the boundary is one arc holding the edge: a flat edge
+    between sharp corners keeps ``[0, length]`` for a small gap, while an edge of a polygonised
+    arc of radius ``R`` gains about ``sqrt(2 R gap)`` each way. ``gap`` 0 gives ``[0, length]``."""
+    geom = as_geometry(part)
+    gap = float(gap)
+    if not (math.isfinite(gap) and gap >= 0.0):
+        raise FeederError(f"contact patch gap must be finite and >= 0, got {gap!r}")
+    hull = geom.hull
+    nxt = np.roll(hull, -1, axis=0)
+    e = (nxt - hull) / geom.lengths[:, None]
+    normals = np.column_stack([e[:, 1], -e[:, 0]])
+    # (edge i, vertex j): depth below edge i's line, and position along edge i from its first vertex
+    depth = geom.heights[:, None] - normals @ hull.T
+    pos = e @ hull.T - np.sum(e * hull, axis=1)[:, None]
+    d_a, d_b = depth, np.roll(depth, -1, axis=1)  # each boundary segment j -> j + 1
+    p_a, p_b = pos, np.roll(pos, -1, axis=1)
+    # the part of segment j within the gap: depth is linear along it, so clip at depth == gap
+    t_cross = np.clip((gap - d_a) / np.where(d_b != d_a, d_b - d_a, 1.0), 0.0, 1.0)
+    a_in, b_in = d_a <= gap, d_b <= gap
+    q_a = np.where(a_in, p_a, p_a + t_cross * (p_b - p_a))  # the segment's first point within the gap
+    q_b = np.where(b_in, p_b, p_a + t_cross * (p_b - p_a))  # its last
+    any_in = a_in | b_in
+    lo = np.min(np.where(any_in, np.minimum(q_a, q_b), np.inf), axis=1)
+    hi = np.max(np.where(any_in, np.maximum(q_a, q_b), -np.inf), axis=1)
+    return np.minimum(lo, 0.0), np.maximum(hi, geom.lengths)
+
+
+def push_function(
+    part, mu: float = 0.0, side: int = 1, boundary_mu: float | None = None, patch_gap: float | None = None
+) -> PushFunction:
     """The push function of a part's hull against a straight fence (see the module doc).
 
     ``mu``: part–fence friction coefficient (0: Goldberg's frictionless function); ``side``: +1
     for a fence on the right of the travel direction, −1 on the left (matters only when ``mu >
     0``: the friction shifts the foot downstream); ``boundary_mu``: the friction whose cone turns
     the basin boundaries from the vertex directions (None: ``mu``; another value only to measure
-    how much the boundaries matter, docs/experiments/fence_turns.py)."""
+    how much the boundaries matter, docs/experiments/fence_turns.py); ``patch_gap``: the part also
+    holds on an edge where the shifted foot lies inside that edge's :func:`contact_patch` of the
+    gap (the contact resists a small moment), see :func:`_hold` (None: no patch; measured by
+    docs/experiments/fence_turns.py, not a default)."""
     geom = as_geometry(part)
     if not (math.isfinite(mu) and mu >= 0.0):
         raise FeederError(f"fence friction must be finite and >= 0, got {mu!r}")
@@ -97,6 +132,12 @@ def push_function(part, mu: float = 0.0, side: int = 1, boundary_mu: float | Non
     flow_up_into = shifted > tol  # r' - side·mu·r < 0 just below the normal: φ increases to it
     flow_down_into = shifted < geom.lengths - tol  # > 0 just above: φ decreases to it
     stable = flow_up_into & flow_down_into
+    if patch_gap is not None:
+        lo, hi = contact_patch(geom, patch_gap)
+        hold = (shifted > lo + tol) & (shifted < hi - tol) & ~stable
+        if hold.any():
+            base = push_function(geom, mu, side, boundary_mu)
+            return _hold(geom, base, np.flatnonzero(hold), flow_up_into[0] if base.rolls else True)
     if not stable.any():  # the part rolls: r' - side·mu·r keeps one sign all round
         empty = np.empty(0)
         return PushFunction(np.empty(0, dtype=np.int64), empty, empty, empty, empty)
@@ -136,6 +177,63 @@ def push_function(part, mu: float = 0.0, side: int = 1, boundary_mu: float | Non
     lower[0] -= FULL_TURN_DEG  # the last boundary, one turn back
     measures = (upper - lower) / FULL_TURN_DEG
     return PushFunction(edges, normals, lower, upper, measures / measures.sum())
+
+
+def _hold(geom, base: PushFunction, held: np.ndarray, rolls_up: bool) -> PushFunction:
+    """``base`` with the hull edges ``held`` (unstable in it) holding the part: a drop whose contact
+    normal lies in a held edge's cell (half way to each neighbouring edge's normal) stays on that
+    edge, and a drop flowing towards its basin's stable edge stops on the first held cell in its
+    way. A part that rolls in ``base`` rolls towards increasing ``φ`` iff ``rolls_up``."""
+    normals = geom.normals_deg
+    n = len(normals)
+    before = wrap360(normals - np.roll(normals, 1))  # the cone from the previous edge's normal
+    after = np.roll(before, -1)
+    cell_lo = {int(k): float(normals[k] - 0.5 * before[k]) for k in held}
+    cell_hi = {int(k): float(normals[k] + 0.5 * after[k]) for k in held}
+    regions: list[tuple[float, float, int]] = []  # (lower, upper, hull edge), unwrapped
+    if base.rolls:
+        order = sorted((int(k) for k in held), key=lambda k: normals[k])
+        for i, k in enumerate(order):
+            if rolls_up:  # from the previous held cell's end to this one's
+                prev = order[i - 1]
+                lo = cell_hi[prev] - (FULL_TURN_DEG if i == 0 or len(order) == 1 else 0.0)
+                regions.append((lo, cell_hi[k], k))
+            else:
+                nxt = order[(i + 1) % len(order)]
+                up = cell_lo[nxt] + (FULL_TURN_DEG if i == len(order) - 1 else 0.0)
+                regions.append((cell_lo[k], up, k))
+    else:
+        for s, edge in enumerate(base.edges):
+            lo_s, up_s = float(base.lower_deg[s]), float(base.upper_deg[s])
+            mid = lo_s + float(wrap360(base.normals_deg[s] - lo_s))
+            inside = [(lo_s + float(wrap360(normals[k] - lo_s)), int(k)) for k in held]
+            below = sorted((a, k) for a, k in inside if a < mid)
+            above = sorted(((a, k) for a, k in inside if mid < a < up_s), reverse=True)
+            start = lo_s
+            for a, k in below:  # flowing up to the stable edge: stops at the first held cell
+                end = min(a + (cell_hi[k] - normals[k]), mid)
+                regions.append((start, end, k))
+                start = end
+            stop = up_s
+            tail = []
+            for a, k in above:  # flowing down to it
+                begin = max(a - (normals[k] - cell_lo[k]), start)
+                tail.append((begin, stop, k))
+                stop = begin
+            regions.append((start, stop, int(edge)))
+            regions.extend(reversed(tail))
+    regions = [r for r in regions if r[1] > r[0]]
+    regions.sort(key=lambda r: float(wrap360(normals[r[2]])))
+    edges = np.array([k for _, _, k in regions], dtype=np.int64)
+    normal_of = np.array([float(wrap360(normals[k])) for k in edges])
+    bounds = normal_of + np.array([float(wrap360(up - normals[k])) for _, up, k in regions])
+    upper = bounds.copy()
+    lower = np.roll(bounds, 1)
+    lower[0] -= FULL_TURN_DEG
+    measures = (upper - lower) / FULL_TURN_DEG
+    if n and not np.all(measures > 0.0):  # pragma: no cover - regions partition the turn
+        raise FeederError("held basins do not partition the turn")
+    return PushFunction(edges, normal_of, lower, upper, measures / measures.sum())
 
 
 def rolling_density(part, mu: float, side: int, phi_deg) -> np.ndarray:
