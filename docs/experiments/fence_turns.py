@@ -17,6 +17,11 @@ short edge) and sends every drop round to the chord between the horns (about 105
 3. Are the basin boundaries where the push function puts them? ``bounds:K`` turns them from the
    vertex directions by ``K · atan(mu)`` instead of ``atan(mu)`` (stability unchanged).
 
+4. Does a contact patch hold a rolling arc? (stop 71) ``patch:G``: an edge the push function
+   finds unstable holds where the shifted foot lies within the hull's boundary ``G`` mm from the
+   edge's line (``push_function(..., patch_gap=...)``); ``arcpatch:G`` the same, edges longer than
+   :data:`ARC_EDGE_MAX` circumradii keeping themselves as their patch.
+
 ``base`` is the default model. Measured as ``arc_ride.py`` does:
 
 ``drops``: every simulated drop of a configuration whose fences roll the part in no mode, pushed
@@ -24,7 +29,8 @@ through the model from its own initial yaw (hard jams; agree within ``AGREE_DEG`
 period, or both jam; weighted by its share of the initial yaws); summary by fence types.
 
 ``pmf``: the analytic PMF's circular W1 to the label of every kept configuration, per split,
-paired by configuration with a 95 % bootstrap over parts (choose on ``train`` alone).
+paired by configuration with a 95 % bootstrap over parts, restarted for each mode (choose on
+``train`` alone).
 
     python docs/experiments/fence_turns.py drops SIM_DIR PARTS_DIR OUT_CSV_GZ --modes base,moment:3
     python docs/experiments/fence_turns.py pmf DATASET PARTS_DIR OUT_CSV_GZ --modes base,push:0.75
@@ -53,6 +59,7 @@ from analytic_dropwise import AGREE_DEG, cell_weights, sim_files  # noqa: E402
 from arc_ride import _gap, pmf_summary  # noqa: E402
 
 import feeder.mechanics.distribution as D  # noqa: E402
+import feeder.mechanics.pushfunction as PF  # noqa: E402
 from feeder.io import write_csv  # noqa: E402
 from feeder.labels.dataset import load_dataset  # noqa: E402
 from feeder.labels.metrics import circular_w1  # noqa: E402
@@ -63,7 +70,10 @@ from feeder.mechanics.hull import as_geometry  # noqa: E402
 from feeder.mechanics.pmf import analytic_pmf  # noqa: E402
 from feeder.parts.geometry import load_part  # noqa: E402
 
+MM = 1e-3  # metres per millimetre (patch:S gives the gap in mm)
+ARC_EDGE_MAX = 0.15  # arcpatch:S: edges longer than this (circumradii) are flat, their patch the edge
 _ORIG = {name: getattr(D, name) for name in ("push_function", "rolling_density", "arc_yaw", "exit_turn")}
+_ORIG["contact_patch"] = PF.contact_patch
 
 
 def options(name: str) -> dict:
@@ -83,7 +93,11 @@ def mode(name: str):
         yield
         return
     s = float(scale)
-    if what == "bounds":  # the boundaries turned from the vertex directions by S · atan(mu)
+    if what in ("patch", "arcpatch"):  # also held where the shifted foot lies within the patch of gap S mm
+        patched = {"push_function": lambda g, mu, side: _ORIG["push_function"](g, mu, side, patch_gap=s * MM)}
+        if what == "arcpatch":  # edges longer than ARC_EDGE_MAX circumradii keep the edge as their patch
+            patched["contact_patch"] = _arc_patch
+    elif what == "bounds":  # the boundaries turned from the vertex directions by S · atan(mu)
         patched = {
             "push_function": lambda g, mu, side: _ORIG["push_function"](
                 g, mu, side, boundary_mu=math.tan(s * math.atan(mu))
@@ -95,15 +109,23 @@ def mode(name: str):
         patched["rolling_density"] = lambda g, mu, side, phi: _ORIG["rolling_density"](g, mu * s, side, phi)
         patched["arc_yaw"] = lambda g, m, y, x, mu, memo=None: _ORIG["arc_yaw"](g, m, y, x, mu * s, memo)
         patched["exit_turn"] = lambda g, e, a, side, mu, **kw: _ORIG["exit_turn"](g, e, a, side, mu * s, **kw)
-    elif what not in ("push", "bounds"):
+    elif what not in ("push", "bounds", "patch", "arcpatch"):
         raise SystemExit(f"unknown mode {name!r}")
     for k, f in patched.items():
-        setattr(D, k, f)
+        setattr(PF if k == "contact_patch" else D, k, f)
     try:
         yield
     finally:
         for k in patched:
-            setattr(D, k, _ORIG[k])
+            setattr(PF if k == "contact_patch" else D, k, _ORIG[k])
+
+
+def _arc_patch(geom, gap):
+    """:func:`feeder.mechanics.pushfunction.contact_patch`, the edge itself for edges longer than
+    :data:`ARC_EDGE_MAX` circumradii (a patch only on polygonised arcs)."""
+    lo, hi = _ORIG["contact_patch"](geom, gap)
+    flat = geom.lengths > ARC_EDGE_MAX * geom.circumradius
+    return np.where(flat, 0.0, lo), np.where(flat, geom.lengths, hi)
 
 
 def final_yaws(geom, fences, yaws, mu, memo, name: str = "base") -> np.ndarray:
@@ -203,6 +225,19 @@ def drop_summary(d: pd.DataFrame, modes: list[str]) -> pd.DataFrame:
     return pd.concat([out, tot]).reset_index(names="fences")
 
 
+def pmf_summary_per_mode(raw: pd.DataFrame) -> pd.DataFrame:
+    """:func:`pmf_summary` of each mode against ``base`` on its own (the bootstrap restarted per
+    mode, so a mode's interval does not depend on which other modes the table holds), sorted by
+    split and mode."""
+    modes = sorted(m for m in raw["mode"].unique() if m != "base")
+    parts = [pmf_summary(raw[raw["mode"] == "base"], ["base"], "base")]
+    parts += [pmf_summary(raw[raw["mode"].isin(["base", m])], [m], "base") for m in modes]
+    out = pd.concat(parts, ignore_index=True)
+    order = {s: i for i, s in enumerate(out.split.unique())}
+    key = out.split.map(order) * (len(modes) + 1) + out["mode"].map({m: i for i, m in enumerate(["base", *modes])})
+    return out.iloc[np.argsort(key.to_numpy(), kind="stable")].reset_index(drop=True)
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("what", choices=["drops", "pmf", "summary"])
@@ -225,7 +260,7 @@ def main(argv=None) -> int:
         modes = [c[4:] for c in d.columns if c.startswith("yaw_")]
         ds = drop_summary(d, modes)
         raw = pd.read_csv(args.b)
-        ps = pmf_summary(raw, sorted(raw["mode"].unique(), key=lambda m: (m != "base", m)), "base")
+        ps = pmf_summary_per_mode(raw)
         write_csv(f"{args.out}_drops.csv", ds)
         write_csv(f"{args.out}_pmf.csv", ps)
         print(ds.to_string(index=False))
