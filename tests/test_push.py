@@ -434,6 +434,43 @@ def test_steep_curved_fences_jam_in_the_friction_cone():
     assert 0.5 < soft.jam["loc1"] < dist.jam["loc1"] and soft.ok_mass > dist.ok_mass
 
 
+GRAZES = ("corner", "face", "swing")
+
+
+def test_a_drop_grazing_a_steep_curved_fence_is_left_or_pushed_by_its_last_chord():
+    """curved:80's tip stops 7 mm short of the centre line and its circle lies beyond the tip for a
+    centred 40 x 20 mm rectangle: with ``graze="corner"`` it is left as it came (the PMF stays
+    uniform); with ``"face"`` the last chord (82.8°) pushes it as a straight fence of that angle
+    would, to a yaw flush with the chord, and none jams although the chord lies in the cone;
+    ``"swing"`` turns those yaws on about the tip."""
+    part = rect(0.04, 0.02)
+    n = 720
+    left = analytic_distribution(part, "curved:80", "none", SCENE, samples=n)
+    np.testing.assert_allclose(np.sort(left.yaws), (np.arange(n) + 0.5) * 360.0 / n)
+    assert left.touch["loc1"] == 0.0
+    face = analytic_distribution(part, "curved:80", "none", SCENE, samples=n, graze="face")
+    (model,) = fence_models("curved:80", "none", SCENE)
+    assert face.touch["loc1"] == 1.0 and face.jam["loc1"] == 0.0 and face.ok_mass == pytest.approx(1.0)
+    assert friction_margin_deg(model.exit_deg, MU) < 0.0  # the chord alone would hold it
+    flush = np.mod(resting_yaw(push_function(part, MU, model.side).normals_deg, model.exit_deg, model.side), 90.0)
+    turned = np.isin(np.round(np.mod(face.yaws, 90.0), 6), np.round(flush, 6))
+    assert turned.mean() > 0.5  # most end flush with the chord; the rest run out of turn budget
+    # "swing": then about the tip by 2·82.8° − 90° against the side (side +1 here: yaw decreases)
+    swing = analytic_distribution(part, "curved:80", "none", SCENE, samples=n, graze="swing")
+    assert swing.touch["loc1"] == 1.0 and swing.jam["loc1"] == 0.0
+    np.testing.assert_allclose(
+        np.mod(swing.yaws - face.yaws + 180.0, 360.0) - 180.0, -(2.0 * model.exit_deg - 90.0), atol=1e-9
+    )
+    # curved:0's chord lies outside the cone: what grazes it is left as it came, as with "corner"
+    wide = rect(0.08, 0.03)  # some of its drops meet curved:0's circle beyond the tip
+    got = {mode: analytic_distribution(wide, "curved:0", "none", SCENE, samples=n, graze=mode) for mode in GRAZES}
+    assert got["face"].touch["loc1"] > got["corner"].touch["loc1"]
+    assert np.array_equal(got["swing"].yaws, got["corner"].yaws)
+    assert np.array_equal(got["swing"].weights, got["corner"].weights)
+    with pytest.raises(FeederError, match="graze"):
+        analytic_distribution(part, "curved:80", "none", SCENE, samples=n, graze="edge")
+
+
 def test_jam_probability_by_hand():
     # Phi(0) = 1/2 on the cone's edge; Phi(-1) = 0.158655 one spread inside the slide side
     np.testing.assert_allclose(jam_probability([0.0, 3.0, -3.0], 3.0), [0.5, 0.15865525, 0.84134475], rtol=1e-7)

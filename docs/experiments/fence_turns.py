@@ -22,6 +22,9 @@ short edge) and sends every drop round to the chord between the horns (about 105
    edge's line (``push_function(..., patch_gap=...)``); ``arcpatch:G`` the same, edges longer than
    :data:`ARC_EDGE_MAX` circumradii keeping themselves as their patch.
 
+5. What does a steep curved fence do to a part its arc misses? (stop 71) ``graze:face`` and
+   ``graze:swing``: ``analytic_distribution(..., graze=...)`` (:data:`feeder.mechanics.distribution.GRAZE`).
+
 ``base`` is the default model. Measured as ``arc_ride.py`` does:
 
 ``drops``: every simulated drop of a configuration whose fences roll the part in no mode, pushed
@@ -81,15 +84,17 @@ def options(name: str) -> dict:
     (:data:`feeder.mechanics.distribution.TURN_RATE`) with the turn budget ×B; else the defaults."""
     what, _, scale = name.partition(":")
     if what in ("moment", "bound"):
-        return dict(turn_rate="moment" if what == "moment" else None, turn_budget_scale=float(scale))
-    return dict(turn_rate=D.TURN_RATE, turn_budget_scale=D.TURN_BUDGET_SCALE)
+        return dict(turn_rate="moment" if what == "moment" else None, turn_budget_scale=float(scale), graze=D.GRAZE)
+    if what == "graze":
+        return dict(turn_rate=D.TURN_RATE, turn_budget_scale=D.TURN_BUDGET_SCALE, graze=scale)
+    return dict(turn_rate=D.TURN_RATE, turn_budget_scale=D.TURN_BUDGET_SCALE, graze=D.GRAZE)
 
 
 @contextlib.contextmanager
 def mode(name: str):
     """Patch ``feeder.mechanics.distribution`` so the named friction uses ``mu · S``."""
     what, _, scale = name.partition(":")
-    if what in ("base", "moment", "bound"):
+    if what in ("base", "moment", "bound", "graze"):
         yield
         return
     s = float(scale)
@@ -141,7 +146,19 @@ def final_yaws(geom, fences, yaws, mu, memo, name: str = "base") -> np.ndarray:
         if memo[m].push.rolls:
             raise ValueError("a fence rolls the part: no yaw per drop")
         yaw, x, tag, _ = D._apply(
-            geom, memo[m], mu, yaw, x, tag, True, 0.0, opt["turn_budget_scale"], D.ARC_RIDE, memo, opt["turn_rate"]
+            geom,
+            memo[m],
+            mu,
+            yaw,
+            x,
+            tag,
+            True,
+            0.0,
+            opt["turn_budget_scale"],
+            D.ARC_RIDE,
+            memo,
+            opt["turn_rate"],
+            opt["graze"],
         )
     out = np.full(len(yaws), np.nan)
     out[np.rint(tag).astype(int) - 1] = yaw

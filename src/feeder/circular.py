@@ -18,6 +18,7 @@ from feeder.errors import FeederError
 
 FULL_TURN_DEG = 360.0
 HALF_TURN_DEG = 180.0
+QUARTER_TURN_DEG = 90.0
 LABEL_BINS = 360  # a label's yaw bins over a full turn, where no setting says (the workflow's labels.bins)
 LABEL_SIGMA_BINS = 1.0  # its wrapped Gaussian smoothing in bins (labels.sigma_bins)
 

@@ -15,7 +15,7 @@ Configurations (:func:`analytic_distribution`)
     decides whether the part jams (using the push function at the entry angle to choose the basin
     did worse on the simulated two-fence configurations). A part whose disc would meet the circle beyond the tip only
     grazes the tip corner and is left unchanged (an approximation: on ``curved:80`` the
-    simulator turns such parts).
+    simulator turns such parts; :data:`GRAZE` holds two measured alternatives).
     A fence turns a part only as far as it pushes it: pushed sideways by the overlap ``o``
     between the part and the fence's innermost point, a part turns by at most ``o / (2c)``
     radians (a unit push at moment arm ``a`` turns it by ``a / (c² + a²) ≤ 1 / (2c)`` on the
@@ -44,7 +44,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 from scipy.special import ndtr
 
-from feeder.circular import FULL_TURN_DEG, HALF_TURN_DEG, wrap360
+from feeder.circular import FULL_TURN_DEG, HALF_TURN_DEG, QUARTER_TURN_DEG, wrap360
 from feeder.errors import FeederError
 from feeder.mechanics.arcride import arc_yaw
 from feeder.mechanics.exitturn import exit_turn
@@ -96,6 +96,15 @@ ARC_RIDE_MODES = (None, "basin", "state")
 # the centroid), turning the way the push function flows.
 TURN_RATE = None
 TURN_RATE_MODES = (None, "moment")
+# A drop whose disc would meet a curved fence's circle beyond the tip (curved:80): "corner", it only
+# grazes the tip corner and leaves as it came; "face", the last chord pushes it as a straight fence
+# of the exit angle would, and it does not jam (the corner lets it round; the simulator jams 0-5 %
+# of such drops); "swing", "face" and then a swing about the tip by 2·exit − 90° against the fence's
+# side (read off three parts' drops on curved:80: the edge flush with the chord ends as far from the
+# travel direction as the chord lies from the transverse), only where the chord lies in the friction
+# cone (curved:70-90; elsewhere as "corner"). Measured by docs/experiments/fence_turns.py.
+GRAZE = "corner"
+GRAZE_MODES = ("corner", "face", "swing")
 # Contact normals at which a rolling part (no stable edge) may leave a fence: 0.5° apart.
 ROLL_SAMPLES = 720
 
@@ -210,6 +219,7 @@ def _apply(
     arc_ride: str | None = ARC_RIDE,
     memo: dict | None = None,
     turn_rate: str | None = TURN_RATE,
+    graze: str = GRAZE,
 ):
     """One fence on the drops (yaws, lateral centroid positions, weights); returns the new
     arrays and (touch share, jam share, mean entry margin) of the arriving weight. A touching
@@ -217,7 +227,8 @@ def _apply(
     of its weight; drops left with no weight are dropped. ``budget_scale`` multiplies the turn
     budget; ``arc_ride`` how a curved fence picks the basin (:data:`ARC_RIDE`), its rides kept in
     ``memo`` (the part's own dict, as :func:`analytic_distribution`'s ``responses``); ``turn_rate``
-    how fast it turns within the budget (:data:`TURN_RATE`). The margin is
+    how fast it turns within the budget (:data:`TURN_RATE`); ``graze`` what a drop that would meet
+    a curved fence beyond its tip does (:data:`GRAZE`). The margin is
     over the drops that touch, else over all arriving drops, else (nothing arrives: an upstream
     fence jammed every drop) the margin at the fence's exit angle."""
     m = resp.model
@@ -225,15 +236,20 @@ def _apply(
     reach = _support_towards(geom, yaw, side)
     touch = side * x + reach > m.inner
     entry = np.full(yaw.shape, m.exit_deg)
+    grazing = np.zeros(yaw.shape, dtype=bool)
     if m.curved:
         # a disc of the part's support radius meets the arc's face at local angle acos(...)
         cos_a = side * (m.centre[0] - x) / (m.outer_radius + reach)
         entry = np.degrees(np.arccos(np.clip(cos_a, -1.0, 1.0)))
-        graze = entry < m.exit_deg  # would meet the circle beyond the tip: the corner only
-        touch &= ~graze
+        beyond = entry < m.exit_deg  # would meet the circle beyond the tip
+        # which of those the last chord pushes ("swing": only where it lies in the friction cone)
+        held = graze == "face" or (graze == "swing" and bool(friction_margin_deg(m.exit_deg, mu) < 0.0))
+        grazing = beyond if held else grazing
+        touch &= ~(beyond & ~grazing)  # the rest graze the tip corner only: left as they came
         entry = np.minimum(entry, m.slot_deg)
     margin = friction_margin_deg(entry, mu)
     p_jam = np.where(touch, jam_probability(margin, spread), 0.0) if jams else np.zeros(yaw.shape)
+    p_jam = np.where(grazing, 0.0, p_jam)  # the corner lets a drop the chord pushes round
     jam = p_jam >= 1.0  # every bit of the drop's weight jams
     push = touch & ~jam
     passed = w * (1.0 - p_jam)  # the weight that goes on
@@ -286,6 +302,8 @@ def _apply(
             full = np.abs(need) <= budget
             turned = np.sign(need) * budget
         new_yaw = np.where(full, resp.exit_deg[idx], start - turned)
+        if graze == "swing":
+            new_yaw = np.where(grazing[push], new_yaw - side * (2.0 * m.exit_deg - QUARTER_TURN_DEG), new_yaw)
         new_x = np.where(full, m.tip[0] + resp.exit_offset[idx, 0], x[push] - side * overlap)
         yaw = yaw.copy()
         x = x.copy()
@@ -311,6 +329,7 @@ def analytic_distribution(
     tip_force_at_contact: bool = TIP_FORCE_AT_CONTACT,
     arc_ride: str | None = ARC_RIDE,
     turn_rate: str | None = TURN_RATE,
+    graze: str = GRAZE,
 ) -> Distribution:
     """Push ``samples`` evenly spaced initial yaws (centred parts) through the configuration.
 
@@ -322,7 +341,8 @@ def analytic_distribution(
     part that it pushes sideways by an overlap (``TURN_BUDGET_SCALE``); ``tip_force_at_contact``:
     where a round tip's forces act in the exit turn (:data:`TIP_FORCE_AT_CONTACT`); ``arc_ride``:
     how a curved fence picks a drop's basin (:data:`ARC_RIDE`); ``turn_rate``: how fast a fence turns a
-    part within its budget (:data:`TURN_RATE`); ``responses``: a memo of
+    part within its budget (:data:`TURN_RATE`); ``graze``: what a drop that would meet a curved fence
+    beyond its tip does (:data:`GRAZE`); ``responses``: a memo of
     :func:`fence_response` for this one part, filled and reused across calls (the exit-turn
     integration is most of the cost, and configurations of a part share fences): give each part
     its own dict."""
@@ -337,6 +357,8 @@ def analytic_distribution(
         raise FeederError(f"arc_ride must be one of {ARC_RIDE_MODES}, got {arc_ride!r}")
     if turn_rate not in TURN_RATE_MODES:
         raise FeederError(f"turn_rate must be one of {TURN_RATE_MODES}, got {turn_rate!r}")
+    if graze not in GRAZE_MODES:
+        raise FeederError(f"graze must be one of {GRAZE_MODES}, got {graze!r}")
     n = int(samples)
     if n < 1:
         raise FeederError(f"samples must be a positive integer, got {samples!r}")
@@ -352,7 +374,7 @@ def analytic_distribution(
             if responses is not None:
                 responses[key] = resp
         yaw, x, w, (t, j, mg) = _apply(
-            geom, resp, mu, yaw, x, w, jams, jam_spread_deg, turn_budget_scale, arc_ride, responses, turn_rate
+            geom, resp, mu, yaw, x, w, jams, jam_spread_deg, turn_budget_scale, arc_ride, responses, turn_rate, graze
         )
         touch[m.location], jam[m.location], margin[m.location] = t, j, mg
     ok = float(w.sum())
