@@ -244,8 +244,8 @@ def _apply(
         beyond = entry < m.exit_deg  # would meet the circle beyond the tip
         # which of those the last chord pushes ("swing": only where it lies in the friction cone)
         held = graze == "face" or (graze == "swing" and bool(friction_margin_deg(m.exit_deg, mu) < 0.0))
-        grazing = beyond if held else grazing
-        touch &= ~(beyond & ~grazing)  # the rest graze the tip corner only: left as they came
+        grazing = beyond & held
+        touch &= ~beyond | grazing  # the rest graze the tip corner only: left as they came
         entry = np.minimum(entry, m.slot_deg)
     margin = friction_margin_deg(entry, mu)
     p_jam = np.where(touch, jam_probability(margin, spread), 0.0) if jams else np.zeros(yaw.shape)

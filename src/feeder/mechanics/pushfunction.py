@@ -185,7 +185,6 @@ def _hold(geom, base: PushFunction, held: np.ndarray, rolls_up: bool) -> PushFun
     edge, and a drop flowing towards its basin's stable edge stops on the first held cell in its
     way. A part that rolls in ``base`` rolls towards increasing ``φ`` iff ``rolls_up``."""
     normals = geom.normals_deg
-    n = len(normals)
     before = wrap360(normals - np.roll(normals, 1))  # the cone from the previous edge's normal
     after = np.roll(before, -1)
     cell_lo = {int(k): float(normals[k] - 0.5 * before[k]) for k in held}
@@ -196,7 +195,7 @@ def _hold(geom, base: PushFunction, held: np.ndarray, rolls_up: bool) -> PushFun
         for i, k in enumerate(order):
             if rolls_up:  # from the previous held cell's end to this one's
                 prev = order[i - 1]
-                lo = cell_hi[prev] - (FULL_TURN_DEG if i == 0 or len(order) == 1 else 0.0)
+                lo = cell_hi[prev] - (FULL_TURN_DEG if i == 0 else 0.0)
                 regions.append((lo, cell_hi[k], k))
             else:
                 nxt = order[(i + 1) % len(order)]
@@ -231,7 +230,7 @@ def _hold(geom, base: PushFunction, held: np.ndarray, rolls_up: bool) -> PushFun
     lower = np.roll(bounds, 1)
     lower[0] -= FULL_TURN_DEG
     measures = (upper - lower) / FULL_TURN_DEG
-    if n and not np.all(measures > 0.0):  # pragma: no cover - regions partition the turn
+    if not np.all(measures > 0.0):  # pragma: no cover - regions partition the turn
         raise FeederError("held basins do not partition the turn")
     return PushFunction(edges, normal_of, lower, upper, measures / measures.sum())
 
