@@ -25,6 +25,10 @@ short edge) and sends every drop round to the chord between the horns (about 105
 5. What does a steep curved fence do to a part its arc misses? (stop 71) ``graze:face`` and
    ``graze:swing``: ``analytic_distribution(..., graze=...)`` (:data:`feeder.mechanics.distribution.GRAZE`).
 
+6. Whole-model settings, for ``part_calibration.py`` (stop 72; :data:`WHOLE_MODEL`, ``pmf`` only):
+   ``mu:X`` the part-fence friction everywhere, ``budget:B`` the turn budget ×B, ``noexit``,
+   ``nojams``, ``ride:M`` the arc ride (``none``, ``basin``, ``state``).
+
 ``base`` is the default model. Measured as ``arc_ride.py`` does:
 
 ``drops``: every simulated drop of a configuration whose fences roll the part in no mode, pushed
@@ -74,6 +78,16 @@ from feeder.mechanics.pmf import analytic_pmf  # noqa: E402
 from feeder.parts.geometry import load_part  # noqa: E402
 
 MM = 1e-3  # metres per millimetre (patch:S gives the gap in mm)
+# Modes that set one of analytic_distribution's own arguments for the whole model (stop 72, for
+# part_calibration.py): mu:X the part-fence friction everywhere (jams included), budget:B the turn
+# budget ×B, noexit no exit turn, nojams no jam, ride:M the arc ride (none, basin, state). pmf only.
+WHOLE_MODEL = {
+    "mu": lambda s: {"mu": float(s)},
+    "budget": lambda s: {"turn_budget_scale": float(s)},
+    "noexit": lambda s: {"exit_turns": False},
+    "nojams": lambda s: {"jams": False},
+    "ride": lambda s: {"arc_ride": None if s == "none" else s},
+}
 ARC_EDGE_MAX = 0.15  # arcpatch:S: edges longer than this (circumradii) are flat, their patch the edge
 _ORIG = {name: getattr(D, name) for name in ("push_function", "rolling_density", "arc_yaw", "exit_turn")}
 _ORIG["contact_patch"] = PF.contact_patch
@@ -85,16 +99,19 @@ def options(name: str) -> dict:
     what, _, scale = name.partition(":")
     if what in ("moment", "bound"):
         return dict(turn_rate="moment" if what == "moment" else None, turn_budget_scale=float(scale), graze=D.GRAZE)
+    out = dict(turn_rate=D.TURN_RATE, turn_budget_scale=D.TURN_BUDGET_SCALE, graze=D.GRAZE)
     if what == "graze":
-        return dict(turn_rate=D.TURN_RATE, turn_budget_scale=D.TURN_BUDGET_SCALE, graze=scale)
-    return dict(turn_rate=D.TURN_RATE, turn_budget_scale=D.TURN_BUDGET_SCALE, graze=D.GRAZE)
+        out["graze"] = scale
+    elif what in WHOLE_MODEL:  # analytic_distribution's own arguments (pmf only: see final_yaws)
+        out.update(WHOLE_MODEL[what](scale))
+    return out
 
 
 @contextlib.contextmanager
 def mode(name: str):
     """Patch ``feeder.mechanics.distribution`` so the named friction uses ``mu · S``."""
     what, _, scale = name.partition(":")
-    if what in ("base", "moment", "bound", "graze"):
+    if what in ("base", "moment", "bound", "graze", *WHOLE_MODEL):
         yield
         return
     s = float(scale)
@@ -136,6 +153,8 @@ def _arc_patch(geom, gap):
 def final_yaws(geom, fences, yaws, mu, memo, name: str = "base") -> np.ndarray:
     """Final yaw of each drop (NaN: jammed) through ``fences`` in order under mode ``name``, hard
     jams; ValueError where a fence rolls the part."""
+    if name.partition(":")[0] in WHOLE_MODEL:
+        raise SystemExit(f"mode {name!r} is for pmf only (final_yaws pushes with the scene's own settings)")
     opt = options(name)
     yaw = np.asarray(yaws, dtype=np.float64).copy()
     x = np.zeros_like(yaw)
@@ -214,7 +233,9 @@ def pmfs(dataset: Path, parts_dir: Path, modes: list[str]) -> pd.DataFrame:
             with mode(m):
                 dist = D.analytic_distribution(geoms[part], loc1, loc2, responses=memo, **options(m))
                 if dist.weights.sum() <= 0.0:  # every drop jams: the PMF without jams
-                    dist = D.analytic_distribution(geoms[part], loc1, loc2, responses=memo, jams=False, **options(m))
+                    dist = D.analytic_distribution(
+                        geoms[part], loc1, loc2, responses=memo, **{**options(m), "jams": False}
+                    )
             pmf = analytic_pmf(geoms[part], loc1, loc2, frame_deg=float(data["frame_deg"][i]), distribution=dist)
             cw1 = float(circular_w1(np.cumsum(pmf), data["cdf"][i]))
             rows.append((m, part, config_id, str(data["split"][i]), cw1))
