@@ -196,14 +196,15 @@ def scored_rows(w1: pd.DataFrame, rows: pd.DataFrame, train: dict[int, pd.Index]
     return pd.DataFrame(out)
 
 
-def summary(scored: pd.DataFrame) -> pd.DataFrame:
+def summary(scored: pd.DataFrame, comparisons=COMPARISONS) -> pd.DataFrame:
+    """Per set and (model, baseline) pair of W1 columns of ``scored``: both means and their paired
+    difference, bootstrapped over configurations (each averaged over its repeats) and over parts."""
     out = []
+    columns = sorted({c for pair in comparisons for c in pair})
     for exp, d in scored.groupby("experiment", sort=False):
-        per = d.groupby(["part", "config_id"])[
-            ["analytic", "calibrated", "structured", "gated", "gated_calibrated", "analytic_protocol"]
-        ].mean()
+        per = d.groupby(["part", "config_id"])[columns].mean()
         by_part = per.groupby(level="part").mean()
-        for model, base in COMPARISONS:
+        for model, base in comparisons:
             diff, lo, hi = paired_bootstrap((per[model] - per[base]).to_numpy(), **BOOTSTRAP)
             _, lo_p, hi_p = paired_bootstrap((by_part[model] - by_part[base]).to_numpy(), **BOOTSTRAP)
             out.append(

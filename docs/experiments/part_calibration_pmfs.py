@@ -46,7 +46,7 @@ from feeder.io import write_csv  # noqa: E402
 from feeder.labels.dataset import load_dataset  # noqa: E402
 from feeder.labels.metrics import circular_w1  # noqa: E402
 from feeder.lane.fences import parse_config_id  # noqa: E402
-from feeder.learn.evaluate import fence_types, paired_bootstrap  # noqa: E402
+from feeder.learn.evaluate import fence_types  # noqa: E402
 from feeder.mechanics.hull import as_geometry  # noqa: E402
 from feeder.mechanics.pmf import analytic_pmf  # noqa: E402
 from feeder.parts.geometry import load_part  # noqa: E402
@@ -156,29 +156,6 @@ class Mixer:
         return out
 
 
-def mix_summary(d: pd.DataFrame) -> pd.DataFrame:
-    out = []
-    for exp, q in d.groupby("experiment", sort=False):
-        cols = sorted({c for pair in PAIRS for c in pair})
-        per = q.groupby(["part", "config_id"])[cols].mean()
-        for model, base in PAIRS:
-            diff, lo, hi = paired_bootstrap((per[model] - per[base]).to_numpy(), **P.BOOTSTRAP)
-            out.append(
-                dict(
-                    experiment=exp,
-                    model=model,
-                    baseline=base,
-                    configurations=len(per),
-                    model_w1=per[model].mean(),
-                    baseline_w1=per[base].mean(),
-                    diff=diff,
-                    diff_low=lo,
-                    diff_high=hi,
-                )
-            )
-    return pd.DataFrame(out)
-
-
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     sub = ap.add_subparsers(dest="what", required=True)
@@ -214,7 +191,7 @@ def main(argv=None) -> int:
     print(taus.to_string(index=False), f"\nchosen tau {tau}", file=sys.stderr)
     rows = mixer.scored(pd.read_csv(f"{args.prefix}_rows.csv"), tau)
     rows["tau_deg"] = tau
-    summ = mix_summary(rows)
+    summ = P.summary(rows, PAIRS)
     write_csv(f"{args.prefix}_mix_rows.csv", rows)
     write_csv(f"{args.prefix}_mix_taus.csv", taus)
     write_csv(f"{args.prefix}_mix_summary.csv", summ)
