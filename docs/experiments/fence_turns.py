@@ -218,6 +218,17 @@ def drops(sim_dir: Path, parts_dir: Path, modes: list[str]) -> pd.DataFrame:
     return pd.concat(rows, ignore_index=True)
 
 
+def mode_pmf(geom, config_id: str, frame_deg: float, name: str, memo: dict) -> np.ndarray:
+    """The analytic PMF of a configuration in the label frame under mode ``name`` (``memo``: the
+    part's responses under that mode); where every drop jams, the PMF without jams."""
+    loc1, loc2 = parse_config_id(config_id)
+    with mode(name):
+        dist = D.analytic_distribution(geom, loc1, loc2, responses=memo, **options(name))
+        if dist.weights.sum() <= 0.0:
+            dist = D.analytic_distribution(geom, loc1, loc2, responses=memo, **{**options(name), "jams": False})
+    return analytic_pmf(geom, loc1, loc2, frame_deg=frame_deg, distribution=dist)
+
+
 def pmfs(dataset: Path, parts_dir: Path, modes: list[str]) -> pd.DataFrame:
     data = load_dataset(dataset)
     geoms: dict = {}
@@ -227,16 +238,8 @@ def pmfs(dataset: Path, parts_dir: Path, modes: list[str]) -> pd.DataFrame:
         part, config_id = str(part), str(config_id)
         if part not in geoms:
             geoms[part] = as_geometry(load_part(parts_dir / f"{part}.stl"))
-        loc1, loc2 = parse_config_id(config_id)
         for m in modes:
-            memo = memos[m].setdefault(part, {})
-            with mode(m):
-                dist = D.analytic_distribution(geoms[part], loc1, loc2, responses=memo, **options(m))
-                if dist.weights.sum() <= 0.0:  # every drop jams: the PMF without jams
-                    dist = D.analytic_distribution(
-                        geoms[part], loc1, loc2, responses=memo, **{**options(m), "jams": False}
-                    )
-            pmf = analytic_pmf(geoms[part], loc1, loc2, frame_deg=float(data["frame_deg"][i]), distribution=dist)
+            pmf = mode_pmf(geoms[part], config_id, float(data["frame_deg"][i]), m, memos[m].setdefault(part, {}))
             cw1 = float(circular_w1(np.cumsum(pmf), data["cdf"][i]))
             rows.append((m, part, config_id, str(data["split"][i]), cw1))
     return pd.DataFrame(rows, columns=["mode", "part", "config_id", "split", "circular_w1_deg"])

@@ -7,7 +7,8 @@ script makes the PMFs, so that the calibrated answer can be mixed with the part'
 each mode of ``--modes``, to one npz (float32, rows × modes × bins; about 5 CPU-minutes per mode).
 
 ``mix``: for every Test and Fences row of ``part_calibration_rows.csv``, the calibrated PMF (the
-rule of ``part_calibration.py``, family ``base`` plus the npz's modes, margin 0.5°) and
+rule of ``part_calibration.py``, family ``base`` plus the npz's modes, the margin its Test rule
+chose, from ``part_calibration_rules.csv``) and
 ``w · label + (1 − w) · calibrated``, with ``label`` the part's nearest training label of the same
 fence types (``|Δθ1| + |Δθ2|``) and ``w = exp(−distance / τ)`` (0 with no such label). ``τ`` is
 chosen on training rows alone, each answered from the part's other training rows. The rows are
@@ -40,18 +41,14 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import fence_turns as F  # noqa: E402
 import part_calibration as P  # noqa: E402
 
-import feeder.mechanics.distribution as D  # noqa: E402
 from feeder import io  # noqa: E402
 from feeder.io import write_csv  # noqa: E402
 from feeder.labels.dataset import load_dataset  # noqa: E402
 from feeder.labels.metrics import circular_w1  # noqa: E402
-from feeder.lane.fences import parse_config_id  # noqa: E402
-from feeder.learn.evaluate import fence_types  # noqa: E402
+from feeder.learn.structured_data import nearest_rows  # noqa: E402
 from feeder.mechanics.hull import as_geometry  # noqa: E402
-from feeder.mechanics.pmf import analytic_pmf  # noqa: E402
 from feeder.parts.geometry import load_part  # noqa: E402
 
-MARGIN_DEG = 0.5  # part_calibration.py's chosen margin
 TAUS_DEG = (0.0, 5.0, 10.0, 20.0, 40.0, 80.0)  # 0: the calibrated PMF alone
 RAW_TABLES = ("fence_turns_pmf.csv.gz", "part_calibration_pmf.csv.gz")
 PAIRS = (
@@ -74,35 +71,31 @@ def mode_pmfs(dataset: Path, parts_dir: Path, modes: list[str], limit: int | Non
         part, cid = str(data["part"][i]), str(data["config_id"][i])
         if part not in geoms:
             geoms[part] = as_geometry(load_part(parts_dir / f"{part}.stl"))
-        loc1, loc2 = parse_config_id(cid)
         for j, m in enumerate(modes):
-            memo = memos[m].setdefault(part, {})
-            with F.mode(m):
-                dist = D.analytic_distribution(geoms[part], loc1, loc2, responses=memo, **F.options(m))
-                if dist.weights.sum() <= 0.0:  # every drop jams: the PMF without jams
-                    dist = D.analytic_distribution(
-                        geoms[part], loc1, loc2, responses=memo, **{**F.options(m), "jams": False}
-                    )
-            out[i, j] = analytic_pmf(geoms[part], loc1, loc2, frame_deg=float(data["frame_deg"][i]), distribution=dist)
+            out[i, j] = F.mode_pmf(geoms[part], cid, float(data["frame_deg"][i]), m, memos[m].setdefault(part, {}))
         if i % 200 == 0:
             print(f"row {i} of {n}", file=sys.stderr, flush=True)
     return out
 
 
 class Mixer:
-    def __init__(self, dataset: Path, npz: Path, tables: Path):
+    def __init__(self, dataset: Path, npzs: list[Path], tables: Path):
         self.data = load_dataset(dataset)
-        with np.load(npz, allow_pickle=False) as z:
-            self.modes = [str(m) for m in z["modes"]]
-            self.pmf = z["pmf"].astype(np.float64)
+        self.modes, pmfs = [], []
+        for path in npzs:  # their modes joined
+            with np.load(path, allow_pickle=False) as z:
+                self.modes += [str(m) for m in z["modes"]]
+                pmfs.append(z["pmf"].astype(np.float64))
+        self.pmf = np.concatenate(pmfs, axis=1)
         if P.BASE not in self.modes:
-            raise SystemExit(f"{npz} has no {P.BASE!r} mode")
+            raise SystemExit(f"no {P.BASE!r} mode in {', '.join(map(str, npzs))}")
         self.row = {(str(p), str(c)): i for i, (p, c) in enumerate(zip(self.data["part"], self.data["config_id"]))}
         w1, self.rows = P.load([tables / t for t in RAW_TABLES], tables / "structured_rows.csv")
         self.family = [P.BASE, *[m for m in self.modes if m != P.BASE]]
+        rules = pd.read_csv(tables / "part_calibration_rules.csv").fillna({"chosen_for": ""})
+        self.margin = float(rules.loc[rules.chosen_for.str.contains("test"), "margin_deg"].iloc[0])
         self.w1 = w1[self.family]
         self.train = P.training_sets(self.w1, self.rows)
-        self.angles = {c: [f.angle for f in parse_config_id(c)] for c in set(map(str, self.data["config_id"]))}
 
     def check(self, count: int = 20) -> float:
         """Largest |W1 of a stored PMF − the raw table's| over the first ``count`` rows."""
@@ -113,24 +106,22 @@ class Mixer:
                 worst = max(worst, abs(w - self.w1.loc[(part, cid), m]))
         return worst
 
-    def nearest(self, cid: str, pool: list[str]) -> tuple[float, str | None]:
-        kind, a = fence_types(cid), self.angles[cid]
-        best: tuple[float, str | None] = (np.inf, None)
-        for c in pool:
-            if c != cid and fence_types(c) == kind:
-                d = abs(a[0] - self.angles[c][0]) + abs(a[1] - self.angles[c][1])
-                if d < best[0]:
-                    best = (d, c)
-        return best
+    def nearest(self, part: str, cid: str, pool: list[str]) -> tuple[float, str | None]:
+        """The part's nearest configuration of ``pool`` of the same fence types (the protocol's
+        :func:`feeder.learn.structured_data.nearest_rows`) and its angle distance."""
+        mask = np.zeros(len(self.data["part"]), dtype=bool)
+        mask[[self.row[(part, c)] for c in pool]] = True
+        idx, dist = nearest_rows(self.data["part"], self.data["config_id"], mask, [self.row[(part, cid)]], 1)
+        return float(dist[0, 0]), None if idx[0, 0] < 0 else str(self.data["config_id"][idx[0, 0]])
 
     def answer(self, part: str, cid: str, pool: list[str], tau: float) -> tuple[float, float, str]:
         """(the mix's W1, the calibrated PMF's W1, the mode) for ``part`` at ``cid`` from its
         training configurations ``pool``."""
         mine = self.w1.loc[[(part, c) for c in pool]]
-        mode = P.choose(mine, self.family, MARGIN_DEG)
+        mode = P.choose(mine, self.family, self.margin)
         i = self.row[(part, cid)]
         cal = self.pmf[i, self.modes.index(mode)]
-        d, nb = self.nearest(cid, pool)
+        d, nb = self.nearest(part, cid, pool)
         w = 0.0 if nb is None or tau <= 0.0 else float(np.exp(-d / tau))
         mix = cal if nb is None else w * self.data["pmf"][self.row[(part, nb)]] + (1.0 - w) * cal
         cdf = self.data["cdf"][i]
@@ -175,16 +166,7 @@ def main(argv=None) -> int:
         pmf = mode_pmfs(args.dataset, args.parts_dir, modes, args.limit)
         io.write_npz(args.out, pmf=pmf, modes=np.array(modes))
         return 0
-    npz = args.npz[0]
-    if len(args.npz) > 1:  # join the modes of several files into one beside the first
-        parts = [np.load(p, allow_pickle=False) for p in args.npz]
-        npz = args.npz[0].with_name(args.npz[0].stem + "_joined.npz")
-        io.write_npz(
-            npz,
-            pmf=np.concatenate([z["pmf"] for z in parts], axis=1),
-            modes=np.concatenate([z["modes"] for z in parts]),
-        )
-    mixer = Mixer(args.dataset, npz, Path(args.prefix).parent)
+    mixer = Mixer(args.dataset, args.npz, Path(args.prefix).parent)
     print(f"stored PMFs against the raw W1 tables: {mixer.check():.2e} deg at most", file=sys.stderr)
     taus = mixer.choose_tau()
     tau = float(taus.loc[taus.w1.idxmin(), "tau_deg"])
