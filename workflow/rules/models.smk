@@ -215,7 +215,9 @@ rule neighbour:
     conda:
         "../envs/feeder.yaml"
     params:
-        settings=resolved_yaml("structured", drop=("candidates", "model", "train", "search", "analytic_scenes")),
+        settings=resolved_yaml(
+            "structured", drop=("candidates", "calibration", "model", "train", "search", "analytic_scenes")
+        ),
     shell:
         "feeder neighbour --dataset {input.dataset} --out-csv {output.csv} --out-rows {output.rows} > {log} 2>&1"
 
@@ -250,7 +252,7 @@ rule fit_structured:
         "../envs/feeder.yaml"
     params:
         settings=resolved_yaml(
-            "structured", STRUCTURED_OVERRIDES, drop=("neighbour", "analytic_scenes", "answer_errors")
+            "structured", STRUCTURED_OVERRIDES, drop=("neighbour", "calibration", "analytic_scenes", "answer_errors")
         ),
         overrides=" ".join(shlex.quote(o) for o in STRUCTURED_OVERRIDES),
     shell:
@@ -285,7 +287,9 @@ rule export_study:
     params:
         settings=resolved_yaml(
             "structured",
-            drop=("seed", "seeds", "candidates", "model", "train", "search", "protocol", "answer_errors"),
+            drop=(
+                "seed", "seeds", "candidates", "calibration", "model", "train", "search", "protocol", "answer_errors"
+            ),
         ),
         evidence=lambda wildcards, input: (
             f"--structured-table {input.structured_table}" if input.structured_table else ""

@@ -29,10 +29,18 @@ from pathlib import Path
 import numpy as np
 
 from feeder.errors import FeederError
+from feeder.learn.structured_calibration import (
+    CALIBRATION_VERSION,
+    cached_mode_pmfs,
+    calibration_settings,
+    compute_mode_pmfs,
+    mode_w1,
+)
 
 log = logging.getLogger(__name__)
 
 CANDIDATES_VERSION = 1  # bump when the candidate arrays change for the same inputs
+CALIBRATION_CACHE = "structured_calibration.npz"  # the calibration modes' PMFs, beside the candidates cache
 RIGHT_ANGLE_DEG = 90.0  # the fence inputs' angle unit
 
 
@@ -44,7 +52,7 @@ def candidates_key(parts, config_ids, frames, scene: dict, variants, cand_cfg: d
     h = hashlib.sha256()
     h.update(json.dumps([list(map(str, parts)), list(map(str, config_ids)), [float(f) for f in frames]]).encode())
     h.update(json.dumps(scene, sort_keys=True).encode())
-    h.update(json.dumps([v.__dict__ for v in variants], sort_keys=True).encode())
+    h.update(json.dumps([v.spec() for v in variants], sort_keys=True).encode())
     h.update(json.dumps(cand_cfg, sort_keys=True).encode())
     h.update(f"{CANDIDATES_VERSION}:{PUSH_FEATURES_VERSION}".encode())
     for part in sorted(set(map(str, parts))):
@@ -291,9 +299,15 @@ def split_arrays(data: dict) -> dict:
     }
 
 
-def structured_arrays(data: dict, cfg, sim_dir, parts_dir, features_dir, cache_path=None, progress=None) -> dict:
+def structured_arrays(
+    data: dict, cfg, sim_dir, parts_dir, features_dir, cache_path=None, progress=None, calibration: bool = False
+) -> dict:
     """The arrays of the module doc for ``data`` (:func:`feeder.labels.dataset.load_dataset`),
-    with the candidate settings ``cfg.candidates`` of ``config/hydra/structured.yaml``."""
+    with the candidate settings ``cfg.candidates`` of ``config/hydra/structured.yaml``.
+    ``calibration``: also every configuration's PMF under each of ``cfg.calibration.modes``
+    (``mode_pmfs``) and the circular W1 of the base model and of each mode on the kept rows
+    (``mode_w1``), for :func:`feeder.learn.structured_calibration.with_calibration`; cached in
+    :data:`CALIBRATION_CACHE` beside ``cache_path``."""
     from feeder.mechanics.candidates import variants_from_config
     from feeder.mechanics.fence import default_scene
 
@@ -332,7 +346,7 @@ def structured_arrays(data: dict, cfg, sim_dir, parts_dir, features_dir, cache_p
     n = len(parts)
     pmf = np.zeros((n, bins))
     pmf[:n_kept] = data["pmf"]
-    return {
+    out = {
         **split_arrays(data),
         "frame_deg": np.array(frames, dtype=np.float64),
         "ok": ok,
@@ -341,6 +355,30 @@ def structured_arrays(data: dict, cfg, sim_dir, parts_dir, features_dir, cache_p
         "cdf": np.cumsum(pmf, axis=1),
         "wide_sigma_bins": float(cfg.model.wide_sigma_bins),
     }
+    modes, _ = calibration_settings(cfg)
+    if not (calibration and modes):
+        return out
+    # calibration.modes: every configuration's PMF under each mode, cached beside the candidates
+    smooth = float(cand_cfg["label_smooth_deg"])
+    mode_key = candidates_key(
+        parts, cids, frames, scene, modes, {"calibration": CALIBRATION_VERSION, "smooth_deg": smooth}, parts_dir
+    )
+    mode_cache = None if cache_path is None else Path(cache_path).with_name(CALIBRATION_CACHE)
+    workers = int(cfg.train.get("workers", 1))
+    out["mode_pmfs"] = cached_mode_pmfs(
+        mode_cache,
+        mode_key,
+        n,
+        lambda: compute_mode_pmfs(parts, cids, frames, scene, modes, smooth, parts_dir, bins, units, workers, progress),
+    )
+    out["mode_w1"] = np.concatenate(
+        [
+            mode_w1(out["cdf"], out["analytic"][:, None], out["kept"]),
+            mode_w1(out["cdf"], out["mode_pmfs"], out["kept"]),
+        ],
+        axis=1,
+    )
+    return out
 
 
 # ----------------------------------------------------------------------------------------------

@@ -51,6 +51,8 @@ GATED = "neighbour_gated"  # the part's nearest labelled angle within a gate, el
 FIT_KINDS = ("groupkfold", "main", "locked")  # the protocol's fits (protocol.fits runs some of them)
 COMPOSED = "composed"  # the part's one-fence maps composed (model.composed; else the analytic PMF)
 DROPS = "drops"  # the label of the configuration's own few start-grid drops (model.drops > 0)
+CALIBRATED = "analytic_calibrated"  # the analytic model calibrated on the part's training labels (calibration)
+GATED_CALIBRATED = "neighbour_gated_calibrated"  # the gated neighbour, else the calibrated analytic PMF
 
 
 # ----------------------------------------------------------------------------------------------
@@ -397,7 +399,7 @@ def baseline_pmfs(arrays: dict, train: np.ndarray, rows, prior_grids) -> dict[st
 
     kept_train = train & arrays["kept"]
     mean_pmf = arrays["pmf"][kept_train].mean(axis=0)
-    analytic = arrays["analytic"]
+    analytic = arrays.get("base_analytic", arrays["analytic"])  # the model's own, not the calibrated one
     kept = arrays["kept"]
     best = fit_blend(arrays["pmf"][kept], analytic[kept], train[kept], prior_grids.sigmas_bins, prior_grids.weights)
     return {
@@ -516,18 +518,28 @@ _SHARED: dict = {}  # what a forked worker of run_protocol reads (arrays are not
 def run_job(job: tuple, arrays: dict, cfg, prior_grids, m3_pmf: dict | None, locked: set) -> tuple[list, dict]:
     """One fit of :func:`protocol_jobs` and its scores: ``(long rows, choice)``. Every seed derives
     from ``cfg.seed`` and the fit's key, so the result does not depend on the process it runs in."""
+    from feeder.learn.structured_calibration import calibration_settings, with_calibration
+
     kind, key, index, train, scored = job
     t0 = time.perf_counter()
+    base_arrays = arrays
+    if kind == "main":  # calibration.modes: the analytic PMF calibrated on each part's training labels
+        arrays = with_calibration(arrays, train, calibration_settings(cfg)[1])
     fitted = fit_protocol(arrays, train, cfg, key, known=kind == "main")
     specialist = None
     if kind == "main" and fences_specialist(cfg):  # answers the rows with no label of their own combination
         specialist = fit_protocol(arrays, train, specialist_cfg(cfg), f"{key}:specialist", known=True)
-    rows = []
+    rows, calibrated = [], 0
     for experiment, mask in scored.items():
         idx = np.flatnonzero(mask)
         extra = {DROPS: arrays["drop_pmf"][idx]} if "drop_pmf" in arrays else {}
         if kind == "main":
-            extra[GATED] = gated_neighbour(arrays, train, idx, list(cfg.neighbour.gates_deg))
+            gates = list(cfg.neighbour.gates_deg)
+            extra[GATED] = gated_neighbour(base_arrays, train, idx, gates)
+            if "calibration_mode" in arrays:
+                extra[CALIBRATED] = arrays["analytic"][idx]
+                extra[GATED_CALIBRATED] = gated_neighbour(arrays, train, idx, gates)
+                calibrated += int((arrays["calibration_mode"][idx] > 0).sum())
             if composed_on(cfg):  # the composition alone (else the analytic PMF)
                 from feeder.learn.structured_data import composed_block
 
@@ -545,6 +557,8 @@ def run_job(job: tuple, arrays: dict, cfg, prior_grids, m3_pmf: dict | None, loc
                 part_extra = {name: pmf[mine] for name, pmf in extra.items()}
                 rows += score_rows(arrays, f, idx[mine], experiment, index, prior_grids, part_extra)
     choice = {**fitted["choice"], "seconds": time.perf_counter() - t0}
+    if "calibration_mode" in arrays:  # how many scored rows a mode other than the base answers
+        choice["calibrated_rows"] = calibrated
     if specialist is not None:
         choice.update({f"specialist_{k}": v for k, v in specialist["choice"].items() if k != "fit"})
     if kind == "locked":
@@ -680,7 +694,8 @@ def _comparisons(long, experiment, name, metric, sign, present, bootstrap, m3_pa
 
     model = unit_scores(long, experiment, name, metric)
     seeds = long[(long.experiment == experiment) & (long.predictor == name)]
-    baselines = [ANALYTIC, PRIOR, MEAN] + [b for b in (GATED, COMPOSED, M3, DROPS) if b in present]
+    optional = (GATED, CALIBRATED, GATED_CALIBRATED, COMPOSED, M3, DROPS)
+    baselines = [ANALYTIC, PRIOR, MEAN] + [b for b in optional if b in present]
     if metric == "ok_abs_err":
         baselines = [ANALYTIC, MEAN]
     series = {b: unit_scores(long, experiment, b, metric) for b in baselines}
@@ -915,6 +930,7 @@ def main(argv: list[str]) -> int:
     from feeder.config import compose_config
     from feeder.labels.dataset import load_dataset
     from feeder.learn.prior import grids
+    from feeder.learn.structured_calibration import calibration_settings
     from feeder.learn.structured_data import drop_arrays, one_fence_maps, structured_arrays
 
     args = _parser().parse_args(argv)
@@ -944,7 +960,7 @@ def main(argv: list[str]) -> int:
     check_workers(cfg.train.workers)  # before the data and the candidates, not after
     # bad settings: a one-line error before any work
     neighbour_options(cfg), drop_count(cfg), drop_count(cfg, "drop_candidates"), composed_on(cfg), fit_kinds(cfg)
-    fit_part_fraction(cfg), cross_only_copies(cfg), refit_on(cfg)
+    fit_part_fraction(cfg), cross_only_copies(cfg), refit_on(cfg), calibration_settings(cfg)
     prior_grids = grids(compose_config("train")["prior"])
     import torch
 
@@ -954,7 +970,7 @@ def main(argv: list[str]) -> int:
         raise FeederError(f"{args.dataset}: no push block (build the dataset with the part files)")
     cache = args.cache or args.dataset.with_name("structured_candidates.npz")
     say = lambda m: print(m, flush=True)  # noqa: E731
-    arrays = structured_arrays(data, cfg, args.sim_dir, args.parts_dir, args.features_dir, cache, say)
+    arrays = structured_arrays(data, cfg, args.sim_dir, args.parts_dir, args.features_dir, cache, say, calibration=True)
     labels = json.loads(str(data["settings"]))["labels"]
     if composed_on(cfg):  # the one-fence configurations' drop maps, read from their simulation files
         arrays["composed_maps"] = one_fence_maps(arrays, args.sim_dir, float(labels["sigma_bins"]))

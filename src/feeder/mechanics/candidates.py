@@ -30,7 +30,16 @@ import numpy as np
 
 from feeder.circular import FULL_TURN_DEG, wrap180, wrapped_gaussian_smooth
 from feeder.errors import FeederError
-from feeder.mechanics.distribution import analytic_distribution
+from feeder.mechanics.distribution import (
+    ARC_RIDE,
+    ARC_RIDE_MODES,
+    GRAZE,
+    GRAZE_MODES,
+    TURN_BUDGET_SCALE,
+    TURN_RATE,
+    TURN_RATE_MODES,
+    analytic_distribution,
+)
 from feeder.mechanics.fence import fence_models, fence_mu
 from feeder.mechanics.hull import as_geometry
 from feeder.mechanics.pmf import bin_masses
@@ -44,29 +53,61 @@ PEAK_TOL = 1e-12
 @dataclass(frozen=True)
 class Variant:
     """One variant of the analytic push model: ``mu`` (None: the scene's part–fence friction),
-    ``exit_turns``, ``jams`` (False: drops in the friction cone slide as if they did not jam) and
-    ``fences`` (``both``, or ``loc1``/``loc2`` alone)."""
+    ``exit_turns``, ``jams`` (False: drops in the friction cone slide as if they did not jam),
+    ``fences`` (``both``, or ``loc1``/``loc2`` alone) and the turn settings of
+    :func:`~feeder.mechanics.distribution.analytic_distribution`: ``turn_rate``,
+    ``turn_budget_scale``, ``arc_ride`` and ``graze`` (their defaults: the model's)."""
 
     name: str
     mu: float | None = None
     exit_turns: bool = True
     jams: bool = True
     fences: str = "both"
+    turn_rate: str | None = TURN_RATE
+    turn_budget_scale: float = TURN_BUDGET_SCALE
+    arc_ride: str | None = ARC_RIDE
+    graze: str = GRAZE
 
     def __post_init__(self) -> None:
         if self.fences not in FENCE_SETS:
             raise FeederError(f"variant {self.name}: fences must be one of {FENCE_SETS}, got {self.fences!r}")
         if self.mu is not None and not (math.isfinite(self.mu) and self.mu >= 0):
             raise FeederError(f"variant {self.name}: mu must be finite and >= 0, got {self.mu!r}")
+        if not (math.isfinite(self.turn_budget_scale) and self.turn_budget_scale > 0):
+            raise FeederError(
+                f"variant {self.name}: turn_budget_scale must be finite and > 0, got {self.turn_budget_scale!r}"
+            )
+        for key, allowed in (("turn_rate", TURN_RATE_MODES), ("arc_ride", ARC_RIDE_MODES), ("graze", GRAZE_MODES)):
+            if getattr(self, key) not in allowed:
+                raise FeederError(f"variant {self.name}: {key} must be one of {allowed}, got {getattr(self, key)!r}")
+
+    def spec(self) -> dict:
+        """The variant as a plain mapping: its name, ``mu``, ``exit_turns``, ``jams`` and ``fences``,
+        and each turn setting only where it is not the model's default (so a cache key of the
+        variants above, written before the turn settings existed, stays the same)."""
+        out = {k: getattr(self, k) for k in ("name", "mu", "exit_turns", "jams", "fences")}
+        out.update({k: getattr(self, k) for k, default in TURN_DEFAULTS.items() if getattr(self, k) != default})
+        return out
+
+
+TURN_DEFAULTS = {"turn_rate": TURN_RATE, "turn_budget_scale": TURN_BUDGET_SCALE, "arc_ride": ARC_RIDE, "graze": GRAZE}
 
 
 def variants_from_config(cfg) -> tuple[Variant, ...]:
     """The variants of a config list of mappings (``name``, optional ``mu``, ``exit_turns``,
-    ``jams``, ``fences``); names must be unique and the first is the base model."""
+    ``jams``, ``fences``, ``turn_rate``, ``turn_budget_scale``, ``arc_ride``, ``graze``; an absent
+    setting is the model's default, ``arc_ride``/``turn_rate`` null is none); names must be unique
+    and the first is the base model. An unknown key is a one-line FeederError."""
+    known = {"name", "mu", "exit_turns", "jams", "fences", *TURN_DEFAULTS}
     out = []
     for item in cfg:
         get = item.get
+        unknown = sorted(set(map(str, item.keys())) - known)
+        if unknown:
+            raise FeederError(f"variant {get('name')!r}: unknown settings {unknown} (known: {sorted(known)})")
         mu = get("mu")
+        rate = get("turn_rate", TURN_RATE)
+        ride = get("arc_ride", ARC_RIDE)
         out.append(
             Variant(
                 name=str(get("name")),
@@ -74,6 +115,10 @@ def variants_from_config(cfg) -> tuple[Variant, ...]:
                 exit_turns=bool(get("exit_turns", True)),
                 jams=bool(get("jams", True)),
                 fences=str(get("fences", "both")),
+                turn_rate=None if rate is None else str(rate),
+                turn_budget_scale=float(get("turn_budget_scale", TURN_BUDGET_SCALE)),
+                arc_ride=None if ride is None else str(ride),
+                graze=str(get("graze", GRAZE)),
             )
         )
     names = [v.name for v in out]
@@ -173,7 +218,16 @@ def variant_pmf(
     fences = fence_models(loc1, loc2, scene)
     if variant.fences != "both":
         fences = [m for m in fences if m.location == variant.fences]
-    kwargs = dict(mu=mu, exit_turns=variant.exit_turns, fences=fences, responses=responses)
+    kwargs = dict(
+        mu=mu,
+        exit_turns=variant.exit_turns,
+        fences=fences,
+        responses=responses,
+        turn_rate=variant.turn_rate,
+        turn_budget_scale=variant.turn_budget_scale,
+        arc_ride=variant.arc_ride,
+        graze=variant.graze,
+    )
     dist = analytic_distribution(geom, None, None, scene, jams=variant.jams, **kwargs)
     ok = float(dist.ok_mass)
     if dist.weights.sum() <= 0.0:
