@@ -153,16 +153,21 @@ def test_mode_pmfs_match_the_variant_pmfs_and_do_not_depend_on_workers(tmp_path)
 
     parts_dir, part = _library_part()
     modes = (Variant("swing", graze="swing"), Variant("mu5", mu=0.5))
-    cids = ["straight30_none", "curved50_straight40"]
-    args = ([part] * len(cids), cids, [10.0] * len(cids), default_scene(), modes, 1.0, parts_dir, 360, "auto")
+    cids = ["straight30_none", "curved50_straight40", "curved80_none"]
+    parts = [part, "crescent-b", part]  # two parts: two forked workers, each part's rows put back in place
+    args = (parts, cids, [10.0, 0.0, 10.0], default_scene(), modes, 1.0, parts_dir, 360, "auto")
     one = compute_mode_pmfs(*args, workers=1)
-    two = compute_mode_pmfs(*[*args[:3], *args[3:]], workers=2)
+    said = []
+    two = compute_mode_pmfs(*args, workers=2, progress=said.append)
     assert one.shape == (len(cids), 2, 360) and np.array_equal(one, two)
+    assert said == ["calibration modes: 2 of 2 parts"]
+    alone = compute_mode_pmfs(["crescent-b"], cids[1:2], [0.0], default_scene(), modes, 1.0, parts_dir, 360, "auto")
+    assert np.array_equal(alone[0], one[1])
     outline, holes, _ = load_profile(parts_dir / f"{part}.stl", "auto")
     geom = push_geometry(outline, holes)
     loc1, loc2 = parse_config_id(cids[-1])
-    want, _ = variant_pmf(geom, loc1, loc2, default_scene(), modes[1], frame_deg=10.0, smooth_deg=1.0)
-    assert one[-1, 1] == pytest.approx(want, abs=1e-15)
+    want, _ = variant_pmf(geom, loc1, loc2, default_scene(), modes[0], frame_deg=10.0, smooth_deg=1.0)
+    assert one[-1, 0] == pytest.approx(want, abs=1e-15)
     # cached: computed once under a key, then read; another key computes again
     calls = []
 
@@ -177,6 +182,7 @@ def test_mode_pmfs_match_the_variant_pmfs_and_do_not_depend_on_workers(tmp_path)
     assert len(calls) == 2
     with pytest.raises(FeederError, match="part file"):
         compute_mode_pmfs(["no-such-part"], cids[:1], [0.0], default_scene(), modes, 1.0, parts_dir, 360, "auto")
+    assert not np.array_equal(one[:, 0], one[:, 1])  # the two modes differ somewhere
 
 
 # ----------------------------------------------------------------------------------------------
@@ -206,6 +212,31 @@ def test_with_calibration_keeps_the_models_own_pmf_beside_the_calibrated_one():
     assert with_calibration(_toy_library(), pool, 0.5).keys() == _toy_library().keys()  # no modes: unchanged
     again = with_calibration(c, pool, 0.5)  # from a calibrated copy: the same, from the model's own PMF
     assert np.array_equal(again["analytic"], c["analytic"])
+
+
+def test_a_scored_rows_mode_is_never_chosen_on_its_own_label():
+    """A mode perfect on the Main fits' scored rows (Test, Fences) and wrong on every training row:
+    chosen on the training rows, it never answers a scored row (a Fences part, whose rows are all
+    scored, has no training row and keeps the base)."""
+    from feeder.config import compose_config
+    from feeder.learn.structured_protocol import protocol_jobs
+
+    a = _toy_with_modes()
+    cfg = compose_config("structured", TOY_PROTOCOL)
+    for kind, _key, _i, train, scored in protocol_jobs(a, cfg)[0]:
+        if kind != "main":
+            continue
+        scored_rows = np.logical_or.reduce(list(scored.values()))
+        trick = np.where(scored_rows[:, None], a["pmf"], np.roll(a["pmf"], 180, axis=1))
+        b = dict(a, mode_pmfs=np.stack([a["mode_pmfs"][:, 1], trick], axis=1))
+        b["mode_w1"] = np.concatenate(
+            [mode_w1(b["cdf"], b["analytic"][:, None], b["kept"]), mode_w1(b["cdf"], b["mode_pmfs"], b["kept"])], axis=1
+        )
+        c = with_calibration(b, train, 0.5)
+        assert (c["calibration_mode"][scored_rows] != 2).all()
+        # had the scored rows been training rows, the trick would win on them
+        leaky = with_calibration(b, train | scored_rows, 0.5)
+        assert (leaky["calibration_mode"][scored_rows & a["kept"]] == 2).any()
 
 
 def test_the_protocol_scores_the_calibrated_model_on_known_parts_only():
@@ -242,3 +273,18 @@ def test_the_protocol_scores_the_calibrated_model_on_known_parts_only():
     ].calibrated_rows.isna().all()
     table = comparison_table(on_long, {"resamples": 50, "level": 0.95, "seed": 0})
     assert set(table[table.baseline == "analytic_calibrated"].experiment) == {"test", "fences"}
+    # calibration.network false (the default): the network is the shipped one, bit for bit
+    for name in ("structured", "structured_ensemble"):
+        pd.testing.assert_frame_equal(
+            on_long[on_long.predictor == name].reset_index(drop=True),
+            off_long[off_long.predictor == name].reset_index(drop=True),
+        )
+    assert not main.calibrated_network.any()
+    net_cfg = compose_config("structured", [*TOY_PROTOCOL, "calibration.network=true", "protocol.fits=[main]"])
+    net_long, net_choices = run_protocol(_toy_with_modes(), net_cfg, prior)
+    assert net_choices.calibrated_network.all()
+    mine = net_long[(net_long.predictor == "structured") & net_long.kept].cw1.to_numpy()
+    theirs = on_long[on_long.experiment.isin(["test", "fences"]) & (on_long.predictor == "structured") & on_long.kept]
+    assert mine.shape == theirs.cw1.shape and not np.allclose(mine, theirs.cw1.to_numpy())
+    with pytest.raises(FeederError, match="calibration.network"):
+        calibration_settings(OmegaConf.create({"calibration": {"network": "yes"}}))

@@ -84,9 +84,20 @@ def calibrated_pmfs(base_pmfs, mode_pmfs, choice) -> np.ndarray:
     return stack[np.arange(stack.shape[0]), np.asarray(choice)]
 
 
+def calibration_network(cfg) -> bool:
+    """``calibration.network`` (false when absent): the network of a Main fit starts from, and reads
+    as its own component, the calibrated PMF (else the model's own, as the shipped predictor; the
+    calibrated PMF is then scored beside it only). A one-line FeederError unless a boolean."""
+    value = (cfg.get("calibration") or {}).get("network", False)
+    if not isinstance(value, bool):
+        raise FeederError(f"calibration.network must be true or false, got {value!r}")
+    return value
+
+
 def calibration_settings(cfg) -> tuple[tuple, float]:
     """(the modes, the margin) of ``cfg.calibration`` (no modes: none, calibration off); a one-line
-    FeederError on a bad mode or margin."""
+    FeederError on a bad mode, margin or ``network`` flag."""
+    calibration_network(cfg)
     from feeder.mechanics.candidates import Variant, variants_from_config
 
     section = cfg.get("calibration") or {}
@@ -190,7 +201,7 @@ def cached_mode_pmfs(cache_path, key: str, n_rows: int, compute) -> np.ndarray:
 
     if cache_path is not None and Path(cache_path).is_file():
         with np.load(cache_path, allow_pickle=False) as z:
-            if str(z["key"]) == key and z["pmfs"].shape[0] == n_rows:
+            if str(z["key"]) == key and z["pmfs"].shape[0] == n_rows:  # the key holds the modes and bins too
                 return z["pmfs"]
         log.info("calibration cache %s holds another key: recomputing", cache_path)
     pmfs = compute()

@@ -355,8 +355,10 @@ def structured_arrays(
         "cdf": np.cumsum(pmf, axis=1),
         "wide_sigma_bins": float(cfg.model.wide_sigma_bins),
     }
+    if not calibration:
+        return out
     modes, _ = calibration_settings(cfg)
-    if not (calibration and modes):
+    if not modes:
         return out
     # calibration.modes: every configuration's PMF under each mode, cached beside the candidates
     smooth = float(cand_cfg["label_smooth_deg"])
@@ -379,6 +381,15 @@ def structured_arrays(
         axis=1,
     )
     return out
+
+
+def model_analytic(arrays: dict) -> np.ndarray:
+    """The analytic model's own PMFs of ``arrays``: ``base_analytic`` where the rows' ``analytic`` was
+    calibrated on the part's labels (:func:`feeder.learn.structured_calibration.with_calibration`),
+    else ``analytic``. What every input built from other rows' labels reads (a neighbour's miss and
+    move, the composition's and the drops' fallback): a training row's calibrated PMF is chosen on
+    its part's other rows, so a neighbour's would carry the row's own label into its inputs."""
+    return arrays.get("base_analytic", arrays["analytic"])
 
 
 # ----------------------------------------------------------------------------------------------
@@ -571,7 +582,7 @@ def neighbour_block(
     n = len(arrays["part"])
     idx, dist = neighbour_rows(arrays, pool, k, cross, hide_same)
     k = idx.shape[1]
-    analytic, pmf = np.asarray(arrays["analytic"], np.float64), np.asarray(arrays["pmf"], np.float64)
+    analytic, pmf = np.asarray(model_analytic(arrays), np.float64), np.asarray(arrays["pmf"], np.float64)
     a_cdf = np.cumsum(analytic, axis=1)
     if miss is None:  # each pool row's label against its analytic PMF
         miss = np.zeros(n)
@@ -669,7 +680,7 @@ def neighbour_candidates(arrays: dict, pmfs, idx, top: int, merge_deg: float, wi
                 taken.append(yaw)
                 slot += 1
     extra = [window_mass(pmfs[:, j], new_pos, window_deg) * (idx[:, j] >= 0)[:, None] for j in range(j_count)]
-    extra += [window_mass(arrays["analytic"], new_pos, window_deg), from_nb]
+    extra += [window_mass(model_analytic(arrays), new_pos, window_deg), from_nb]
     pad = lambda a: np.concatenate([a, np.zeros((n, k_new - k_old, *a.shape[2:]))], axis=1)  # noqa: E731
     cf = np.concatenate([pad(np.asarray(arrays["cf"], dtype=np.float64)), np.stack(extra, axis=2)], axis=2)
     return dict(
@@ -736,7 +747,7 @@ def with_neighbours(
             raise FeederError("neighbour candidates need candidates.merge_deg and candidates.window_deg")
         out = neighbour_candidates(out, pmfs, idx, int(candidates), float(merge_deg), float(window_deg))
     if int(basins) > 0:
-        b_feats, comps, offsets = basin_components(pmfs, arrays["analytic"], idx, int(basins))
+        b_feats, comps, offsets = basin_components(pmfs, model_analytic(arrays), idx, int(basins))
         out.update(x=np.concatenate([out["x"], b_feats], axis=1), neighbour_pmf=comps, neighbour_offset=offsets)
     return out
 
@@ -792,7 +803,7 @@ def drop_arrays(arrays: dict, sim_dir, k: int, bins: int, sigma_bins: float) -> 
     from feeder.sim.record import load_sim
 
     n = len(arrays["part"])
-    pmf, ok, has = np.array(arrays["analytic"], dtype=np.float64), np.zeros(n), np.zeros(n)
+    pmf, ok, has = np.array(model_analytic(arrays), dtype=np.float64), np.zeros(n), np.zeros(n)
     for i, (part, cid) in enumerate(zip(arrays["part"], arrays["config_id"], strict=True)):
         path = Path(sim_dir) / str(part) / f"{cid}.npz"
         rec = load_sim(path, min_ok_drops=0)
@@ -935,7 +946,7 @@ def composed_block(arrays: dict, pool, near_deg: float, rows=None) -> tuple[np.n
     asked = np.zeros(n, dtype=bool)
     asked[np.arange(n) if rows is None else np.asarray(rows, dtype=np.int64)] = True
     up, d_up, down, d_down = one_fence_rows(arrays["part"], arrays["config_id"], pool, np.arange(n))
-    analytic = np.asarray(arrays["analytic"], np.float64)
+    analytic = np.asarray(model_analytic(arrays), np.float64)
     pmfs = analytic[:, None, :].copy()
     ok = np.asarray(arrays["analytic_ok"], np.float64).copy()
     has = np.zeros(n)

@@ -518,28 +518,30 @@ _SHARED: dict = {}  # what a forked worker of run_protocol reads (arrays are not
 def run_job(job: tuple, arrays: dict, cfg, prior_grids, m3_pmf: dict | None, locked: set) -> tuple[list, dict]:
     """One fit of :func:`protocol_jobs` and its scores: ``(long rows, choice)``. Every seed derives
     from ``cfg.seed`` and the fit's key, so the result does not depend on the process it runs in."""
-    from feeder.learn.structured_calibration import calibration_settings, with_calibration
+    from feeder.learn.structured_calibration import calibration_network, calibration_settings, with_calibration
 
     kind, key, index, train, scored = job
     t0 = time.perf_counter()
-    base_arrays = arrays
+    base_arrays = calibrated = arrays
     if kind == "main":  # calibration.modes: the analytic PMF calibrated on each part's training labels
-        arrays = with_calibration(arrays, train, calibration_settings(cfg)[1])
+        calibrated = with_calibration(arrays, train, calibration_settings(cfg)[1])
+        if calibration_network(cfg):  # the network's own component and start too
+            arrays = calibrated
     fitted = fit_protocol(arrays, train, cfg, key, known=kind == "main")
     specialist = None
     if kind == "main" and fences_specialist(cfg):  # answers the rows with no label of their own combination
         specialist = fit_protocol(arrays, train, specialist_cfg(cfg), f"{key}:specialist", known=True)
-    rows, calibrated = [], 0
+    rows, n_calibrated = [], 0
     for experiment, mask in scored.items():
         idx = np.flatnonzero(mask)
         extra = {DROPS: arrays["drop_pmf"][idx]} if "drop_pmf" in arrays else {}
         if kind == "main":
             gates = list(cfg.neighbour.gates_deg)
             extra[GATED] = gated_neighbour(base_arrays, train, idx, gates)
-            if "calibration_mode" in arrays:
-                extra[CALIBRATED] = arrays["analytic"][idx]
-                extra[GATED_CALIBRATED] = gated_neighbour(arrays, train, idx, gates)
-                calibrated += int((arrays["calibration_mode"][idx] > 0).sum())
+            if "calibration_mode" in calibrated:
+                extra[CALIBRATED] = calibrated["analytic"][idx]
+                extra[GATED_CALIBRATED] = gated_neighbour(calibrated, train, idx, gates)
+                n_calibrated += int((calibrated["calibration_mode"][idx] > 0).sum())
             if composed_on(cfg):  # the composition alone (else the analytic PMF)
                 from feeder.learn.structured_data import composed_block
 
@@ -557,8 +559,9 @@ def run_job(job: tuple, arrays: dict, cfg, prior_grids, m3_pmf: dict | None, loc
                 part_extra = {name: pmf[mine] for name, pmf in extra.items()}
                 rows += score_rows(arrays, f, idx[mine], experiment, index, prior_grids, part_extra)
     choice = {**fitted["choice"], "seconds": time.perf_counter() - t0}
-    if "calibration_mode" in arrays:  # how many scored rows a mode other than the base answers
-        choice["calibrated_rows"] = calibrated
+    if "calibration_mode" in calibrated:  # how many scored rows a mode other than the base answers
+        choice["calibrated_rows"] = n_calibrated
+        choice["calibrated_network"] = calibration_network(cfg)
     if specialist is not None:
         choice.update({f"specialist_{k}": v for k, v in specialist["choice"].items() if k != "fit"})
     if kind == "locked":
