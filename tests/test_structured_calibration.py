@@ -93,9 +93,12 @@ def test_calibration_settings_are_checked():
 
 def test_the_study_config_holds_the_ten_modes_and_the_margin_chosen_on_training_rows():
     from feeder.config import compose_config
+    from feeder.learn.structured_calibration import calibration_network
 
-    modes, margin = calibration_settings(compose_config("structured"))
+    cfg = compose_config("structured")
+    modes, margin = calibration_settings(cfg)
     assert margin == 0.5 and len(modes) == 10 and len({m.name for m in modes}) == 10
+    assert calibration_network(cfg)  # won on validation at stop 73
 
 
 # ----------------------------------------------------------------------------------------------
@@ -245,7 +248,7 @@ def test_the_protocol_scores_the_calibrated_model_on_known_parts_only():
     from feeder.learn.prior import grids
     from feeder.learn.structured_protocol import comparison_table, run_protocol
 
-    cfg = compose_config("structured", [*TOY_PROTOCOL, "protocol.bootstrap.resamples=50"])
+    cfg = compose_config("structured", [*TOY_PROTOCOL, "protocol.bootstrap.resamples=50", "calibration.network=false"])
     prior = grids(compose_config("train")["prior"])
     off_long, off_choices = run_protocol(_toy_library(), cfg, prior)
     on_long, on_choices = run_protocol(_toy_with_modes(), cfg, prior)
@@ -273,7 +276,7 @@ def test_the_protocol_scores_the_calibrated_model_on_known_parts_only():
     ].calibrated_rows.isna().all()
     table = comparison_table(on_long, {"resamples": 50, "level": 0.95, "seed": 0})
     assert set(table[table.baseline == "analytic_calibrated"].experiment) == {"test", "fences"}
-    # calibration.network false (the default): the network is the shipped one, bit for bit
+    # calibration.network false: the network is the uncalibrated one, bit for bit
     for name in ("structured", "structured_ensemble"):
         pd.testing.assert_frame_equal(
             on_long[on_long.predictor == name].reset_index(drop=True),

@@ -270,3 +270,61 @@ def test_the_candidates_key_names_a_missing_part_file(tmp_path):
 
     with pytest.raises(FeederError, match="nope.stl is missing"):
         candidates_key(["nope"], ["straight30_none"], [0.0], {}, [], {}, tmp_path)
+
+
+def test_a_calibrated_shipped_answer_is_the_protocols_calibrated_prediction(tmp_path):
+    """calibration.network: the file keeps each part's mode, chosen on all its labels, and an answer
+    computes that mode's PMF of the query as the network's own analytic component: the protocol's
+    prediction of the row with its calibrated arrays. rect-a3's labels are one mode's PMFs (rolled
+    as the others), so that mode wins however its rows are left out; hex-a's keep the base."""
+    pytest.importorskip("torch")
+    from feeder import io
+    from feeder.learn.structured import predict
+    from feeder.learn.structured_calibration import calibration_settings, compute_mode_pmfs, mode_w1
+    from feeder.learn.structured_protocol import fit_protocol
+    from feeder.learn.structured_shipped import ShippedStructured, calibrated_arrays, shipped_arrays
+    from feeder.mechanics.hull import push_geometry
+    from feeder.parts.geometry import load_profile
+
+    modes_cfg = "calibration.modes=[{name: mu0.6, mu: 0.6},{name: no_exit, exit_turns: false}]"
+    cfg, a, scene = _small_study(frame_deg=17.0, overrides=[modes_cfg, "calibration.network=true"])
+    modes, _ = calibration_settings(cfg)
+    smooth = 1.0  # the labels' smoothing (_small_study's sigma of 1 bin)
+    a["mode_pmfs"] = compute_mode_pmfs(
+        a["part"], a["config_id"], a["frame_deg"], scene, modes, smooth, PARTS_DIR, BINS, "auto"
+    )
+    a["pmf"][:5] = np.roll(a["mode_pmfs"][:5, 1], 7, axis=1)
+    a["cdf"] = np.cumsum(a["pmf"], axis=1)
+    a["mode_w1"] = np.concatenate(
+        [mode_w1(a["cdf"], a["analytic"][:, None], a["kept"]), mode_w1(a["cdf"], a["mode_pmfs"], a["kept"])], axis=1
+    )
+    everything = np.ones(10, dtype=bool)
+    c = calibrated_arrays(a, everything, cfg)
+    assert (c["calibration_mode"][:5] == 2).all()  # no_exit for rect-a3, on every leave-one-out
+    fitted = fit_protocol(c, everything, cfg, "shipped", known=True)
+    io.write_npz(tmp_path / "s.npz", **shipped_arrays(fitted, c, cfg, "principal", BINS, 1.0, scene))
+    shipped = ShippedStructured.load(tmp_path / "s.npz")
+    assert shipped.meta["calibration"]["part_modes"]["rect-a3"] == "no_exit"
+    assert shipped.part_mode("rect-a3") == modes[1] and shipped.part_mode("nope") is None
+    geom = push_geometry(*load_profile(PARTS_DIR / "rect-a3.stl", "auto")[:2])
+    for row in (1, 4):
+        pool = [i for i in range(5) if i != row]
+        got = shipped.answer(
+            geom, "rect-a3", [CONFIGS[row]], [CONFIGS[i] for i in pool], a["pmf"][pool], a["ok"][pool], scene
+        )
+        want = np.mean([predict(f, fitted["scaled"], [row], fitted["mean_pmf"])[0] for f in fitted["fits"]], axis=0)
+        assert got == pytest.approx(want, abs=2e-5)
+    # the same fit shipped without the calibration answers otherwise: the comparison is not vacuous
+    plain = ShippedStructured(shipped_arrays(fitted, a, cfg, "principal", BINS, 1.0, scene))
+    assert plain.part_mode("rect-a3") is None
+    pool = [0, 2, 3, 4]
+    other = plain.answer(
+        geom, "rect-a3", [CONFIGS[1]], [CONFIGS[i] for i in pool], a["pmf"][pool], a["ok"][pool], scene
+    )
+    mine = shipped.answer(
+        geom, "rect-a3", [CONFIGS[1]], [CONFIGS[i] for i in pool], a["pmf"][pool], a["ok"][pool], scene
+    )
+    assert np.abs(other - mine).sum() > 1e-2
+    # on without the modes' PMFs: a one-line error
+    with pytest.raises(FeederError, match="modes' PMFs"):
+        calibrated_arrays(_small_study(17.0, overrides=["calibration.network=true"])[1], everything, cfg)

@@ -507,7 +507,7 @@ rule bench_frontier_known:
             "sim.base_seed",
             "models.export_dir",
         ),
-        structured=resolved_yaml("structured", STRUCTURED_OVERRIDES, drop=("calibration", "analytic_scenes")),  # its gates choose the gated neighbour
+        structured=resolved_yaml("structured", STRUCTURED_OVERRIDES, drop=("analytic_scenes",)),  # its gates choose the gated neighbour
         overrides=" ".join(shlex.quote(o) for o in STRUCTURED_OVERRIDES),
         models=" ".join(FRONTIER_KNOWN_MODELS),
     shell:

@@ -234,7 +234,9 @@ rule fit_structured:
     """The shipped structured predictor: the protocol's fit (validation parts, search, seeds) on every
     configuration of the study, as one file that models/study answers a known part at a new angle
     with (feeder fit-structured; feeder.learn.structured_shipped; config/hydra/structured.yaml). The
-    candidates it computes are kept beside the dataset for `feeder structured`."""
+    candidates it computes are kept beside the dataset for `feeder structured`, and so are the
+    calibration modes' PMFs (structured_calibration.npz, a keyed cache, not an output: it survives a
+    rerun, and is recomputed only when its key changes; about 20 minutes on 2 cores)."""
     input:
         code("fit-structured"),
         dataset=DATASET,
@@ -252,7 +254,7 @@ rule fit_structured:
         "../envs/feeder.yaml"
     params:
         settings=resolved_yaml(
-            "structured", STRUCTURED_OVERRIDES, drop=("neighbour", "calibration", "analytic_scenes", "answer_errors")
+            "structured", STRUCTURED_OVERRIDES, drop=("neighbour", "analytic_scenes", "answer_errors")
         ),
         overrides=" ".join(shlex.quote(o) for o in STRUCTURED_OVERRIDES),
     shell:

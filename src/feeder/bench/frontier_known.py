@@ -453,7 +453,18 @@ def main(argv: list[str]) -> int:
     import torch
 
     torch.set_num_threads(int(cfg.train.threads))
-    arrays = structured_arrays(data, cfg, args.sim_dir, args.parts_dir, args.features_dir, args.cache, say)
+    from feeder.learn.structured_calibration import calibration_network
+
+    arrays = structured_arrays(
+        data,
+        cfg,
+        args.sim_dir,
+        args.parts_dir,
+        args.features_dir,
+        args.cache,
+        say,
+        calibration=calibration_network(cfg),
+    )
     parts, cids, kept = arrays["part"], arrays["config_id"], arrays["kept"]
     train = arrays["split"] == "train"
     test = np.flatnonzero((arrays["split"] == "test") & kept)

@@ -68,12 +68,27 @@ def calibrated_modes(w1, parts, pool, margin_deg: float) -> np.ndarray:
         for i in np.flatnonzero(mine):
             own = pool[i]
             count = n - 1 if own else n
-            if count < 1:
-                continue
-            mean = (total - w1[i]) / count if own else total / count
-            best = int(np.argmin(mean))
-            if mean[0] - mean[best] >= margin_deg:
-                out[i] = best
+            if count >= 1:
+                out[i] = _choose((total - w1[i]) / count if own else total / count, margin_deg)
+    return out
+
+
+def _choose(mean, margin_deg: float) -> int:
+    """The column of the least ``mean`` where it beats column 0's by at least ``margin_deg`` (ties:
+    the first), else 0."""
+    best = int(np.argmin(mean))
+    return best if mean[0] - mean[best] >= margin_deg else 0
+
+
+def part_modes(w1, parts, pool, margin_deg: float) -> dict[str, int]:
+    """Per part with a row in ``pool``: the mode (column of ``w1``) chosen on all its pool rows, as
+    :func:`calibrated_modes` chooses for a row outside the pool (a new configuration of the part)."""
+    w1 = np.asarray(w1, dtype=np.float64)
+    parts = np.asarray(parts)
+    pool = np.asarray(pool, dtype=bool) & np.isfinite(w1).all(axis=1)
+    out = {}
+    for part in np.unique(parts[pool]):
+        out[str(part)] = _choose(w1[pool & (parts == part)].mean(axis=0), margin_deg)
     return out
 
 

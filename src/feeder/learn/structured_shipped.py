@@ -78,6 +78,7 @@ def fit_shipped(arrays: dict, cfg, data: dict, train=None) -> dict:
     train = np.ones(len(arrays["part"]), dtype=bool) if train is None else np.asarray(train, dtype=bool)
     settings = json.loads(str(data["settings"]))
     labels = settings["labels"]
+    arrays = calibrated_arrays(arrays, train, cfg)
     fitted = fit_protocol(arrays, train, cfg, SHIPPED_KEY, known=True)
     specialist = None
     if fences_specialist(cfg):  # answers the configurations with no label of their own type combination
@@ -99,6 +100,44 @@ def fit_shipped(arrays: dict, cfg, data: dict, train=None) -> dict:
     return out | {k: out[k][mine] for k in ("miss_part", "miss_config_id", "miss")}
 
 
+def calibrated_arrays(arrays: dict, train, cfg) -> dict:
+    """``arrays`` with each row's analytic PMF calibrated on its part's labelled ``train`` rows
+    (:func:`feeder.learn.structured_calibration.with_calibration`) when ``calibration.network`` is on,
+    as the protocol's Main fits; unchanged otherwise. A one-line FeederError when it is on and
+    ``arrays`` lack the modes' PMFs (:func:`~feeder.learn.structured_data.structured_arrays` with
+    ``calibration``)."""
+    from feeder.learn.structured_calibration import calibration_network, calibration_settings, with_calibration
+
+    if not calibration_network(cfg):
+        return arrays
+    modes, margin = calibration_settings(cfg)
+    if not modes:
+        raise FeederError("calibration.network: true needs calibration.modes")
+    if "mode_pmfs" not in arrays:
+        raise FeederError("calibration.network: true needs the modes' PMFs (structured_arrays with calibration)")
+    return with_calibration(arrays, train, margin)
+
+
+def calibration_meta(fitted: dict, arrays: dict, cfg) -> dict | None:
+    """What an answer needs to calibrate a known part's analytic PMF as the fit did: the modes (their
+    :meth:`~feeder.mechanics.candidates.Variant.spec`) and each trained part's mode chosen on all its
+    labelled training rows (:func:`~feeder.learn.structured_calibration.part_modes`; ``base`` where
+    none beats the model); None when the fit did not calibrate."""
+    from feeder.learn.structured_calibration import calibration_settings, part_modes
+
+    if "calibration_mode" not in arrays:
+        return None
+    modes, margin = calibration_settings(cfg)
+    names = ["base"] + [m.name for m in modes]
+    pool = np.asarray(fitted["train"], dtype=bool) & np.asarray(arrays["kept"], dtype=bool)
+    chosen = part_modes(arrays["mode_w1"], arrays["part"], pool, margin)
+    return {
+        "margin_deg": margin,
+        "modes": [m.spec() for m in modes],
+        "part_modes": {part: names[m] for part, m in sorted(chosen.items())},
+    }
+
+
 def shipped_arrays(
     fitted: dict,
     arrays: dict,
@@ -117,7 +156,7 @@ def shipped_arrays(
     states too, under :data:`SPECIALIST`."""
     from omegaconf import OmegaConf
 
-    from feeder.learn.structured_data import candidate_settings, label_miss
+    from feeder.learn.structured_data import candidate_settings, label_miss, model_analytic
     from feeder.learn.structured_protocol import composed_on, neighbour_count
 
     parts, first = np.unique(arrays["part"], return_index=True)
@@ -141,6 +180,9 @@ def shipped_arrays(
         "units": str(units),  # how the parts' STLs were read (parts.units)
         "choice": fitted["choice"],
     }
+    calibration = calibration_meta(fitted, arrays, cfg)
+    if calibration is not None:  # calibration.network: each known part's mode
+        meta["calibration"] = calibration
     extra = {}
     if specialist is not None:
         meta["specialist"] = {
@@ -165,7 +207,7 @@ def shipped_arrays(
         # answer computes the analytic PMFs of its few neighbours only
         "miss_part": np.asarray(arrays["part"])[kept],
         "miss_config_id": np.asarray(arrays["config_id"])[kept],
-        "miss": label_miss(arrays["pmf"][kept], arrays["analytic"][kept]),
+        "miss": label_miss(arrays["pmf"][kept], model_analytic(arrays)[kept]),
         **state_arrays(fitted["fits"]),
         **extra,
     }
@@ -218,6 +260,17 @@ class ShippedStructured:
                 f"{path} is not a structured predictor's file ({type(err).__name__}): run feeder fit-structured "
                 "and feeder export-study again, or delete it (the study then answers with its nearest labels)"
             ) from None
+
+    def part_mode(self, part: str):
+        """The :class:`~feeder.mechanics.candidates.Variant` calibrated for a trained ``part``
+        (``calibration.network``), or None: the analytic model's own PMF."""
+        from feeder.mechanics.candidates import variants_from_config
+
+        calibration = self.meta.get("calibration")
+        name = None if calibration is None else calibration["part_modes"].get(str(part), "base")
+        if name in (None, "base"):
+            return None
+        return {v.name: v for v in variants_from_config(calibration["modes"])}[name]
 
     @property
     def units(self) -> str:
@@ -338,6 +391,28 @@ class ShippedStructured:
             blocks.append(c_feats[n_pool:])
             npmf = np.concatenate([npmf, c_pmf], axis=1)
         raw = np.concatenate(blocks, axis=1)
+        # calibration.network: the network's own analytic component is the part's calibrated mode's PMF
+        own_analytic = q["analytic"]
+        mode = self.part_mode(part)
+        if mode is not None:
+            from feeder.mechanics.candidates import variant_pmf
+
+            smooth = float(cand_cfg["label_smooth_deg"])
+            own_analytic = np.stack(
+                [
+                    variant_pmf(
+                        geom,
+                        *parse_config_id(c),
+                        scene,
+                        mode,
+                        frame_deg=frame,
+                        bins=bins,
+                        smooth_deg=smooth,
+                        responses=memo,
+                    )[0]
+                    for c in config_ids
+                ]
+            )
         # the specialist (when shipped) answers the queries with no label of their own type combination
         own = (idx[n_pool:, : m["neighbours"]] >= 0).any(axis=1)
         which = np.where(own | ("specialist" not in self.networks), "default", "specialist")
@@ -345,7 +420,7 @@ class ShippedStructured:
         for name in sorted(set(which)):
             net, mine = self.networks[name], np.flatnonzero(which == name)
             x = (raw - net["x_mean"]) / net["x_sd"]
-            diffuse = diffuse_components(q["analytic"], net["mean_pmf"], m["wide_sigma_bins"], npmf[n_pool:])
+            diffuse = diffuse_components(own_analytic, net["mean_pmf"], m["wide_sigma_bins"], npmf[n_pool:])
             b = batch_inputs(dict(q, x=x), mine, diffuse[mine], net["settings"].start)
             for params in net["params"]:
                 pmf = np.clip(forward_numpy(params, net["settings"], m["n_variants"], b), 0.0, None)
@@ -370,6 +445,7 @@ def main(argv: list[str]) -> int:
     from feeder import io
     from feeder.config import compose_config
     from feeder.labels.dataset import load_dataset
+    from feeder.learn.structured_calibration import calibration_network, calibration_settings
     from feeder.learn.structured_data import one_fence_maps, structured_arrays
     from feeder.learn.structured_protocol import check_count, composed_on
 
@@ -379,6 +455,7 @@ def main(argv: list[str]) -> int:
     check_count(cfg.seeds, "seeds")
     check_count(cfg.train.threads, "train.threads")
     composed_on(cfg)  # a bad value: a one-line error before any work
+    calibration_settings(cfg)
     if not cfg.search:
         raise FeederError("search: at least one setting to try (config/hydra/structured.yaml)")
     if not args.dataset.is_file():
@@ -390,7 +467,10 @@ def main(argv: list[str]) -> int:
 
     torch.set_num_threads(int(cfg.train.threads))
     say = lambda msg: print(f"feeder fit-structured: {msg}", file=sys.stderr, flush=True)  # noqa: E731
-    arrays = structured_arrays(data, cfg, args.sim_dir, args.parts_dir, args.features_dir, args.cache, say)
+    calibrate = calibration_network(cfg)  # a bad calibration section: a one-line error before any work
+    arrays = structured_arrays(
+        data, cfg, args.sim_dir, args.parts_dir, args.features_dir, args.cache, say, calibration=calibrate
+    )
     if composed_on(cfg):  # the one-fence configurations' drop maps, read from their simulation files
         sigma = float(json.loads(str(data["settings"]))["labels"]["sigma_bins"])
         arrays["composed_maps"] = one_fence_maps(arrays, args.sim_dir, sigma)
