@@ -622,3 +622,18 @@ def test_the_card_names_the_fences_specialist_when_the_file_carries_one():
     st["specialist"] = dict(choice, kind="candidates", hidden=32, val_cw1=11.5)
     text = "\n".join(_card_new_angle(card))
     assert "Fences specialist: candidates, hidden 32, weight decay 0.01, validation circular W1 11.50 deg" in text
+
+
+def test_the_card_says_how_the_shipped_network_is_calibrated():
+    from feeder.learn.study import _calibration_words, calibration_counts
+
+    assert calibration_counts(None) is None and _calibration_words(None) == ""
+    meta = {
+        "margin_deg": 0.5,
+        "modes": [{"name": "swing"}, {"name": "mu0.5"}, {"name": "never"}],
+        "part_modes": {"a": "base", "b": "swing", "c": "swing", "d": "mu0.5"},
+    }
+    counts = calibration_counts(meta)
+    assert counts == {"margin_deg": 0.5, "modes": 3, "parts": {"base": 1, "swing": 2, "mu0.5": 1}}
+    words = _calibration_words(counts)
+    assert "of 3 variants" in words and "(3 of 4 parts;" in words and "by 0.5 deg" in words

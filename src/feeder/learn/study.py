@@ -415,6 +415,7 @@ def export_study(
             "neighbours": model.meta["neighbours"],
             "cross_neighbours": model.meta["cross_neighbours"],
             "specialist": (model.meta.get("specialist") or {}).get("choice"),
+            "calibration": calibration_counts(model.meta.get("calibration")),
             "evidence": [] if structured_table is None else structured_evidence(pd.read_csv(structured_table)),
             "by_distance": [] if structured_errors is None else structured_error_bins(pd.read_csv(structured_errors)),
         }
@@ -511,6 +512,34 @@ def _refit_words(choice: dict) -> str:
     return f", then trained again on all {n} kept rows for the steps early stopping kept" if n else ""
 
 
+def calibration_counts(calibration: dict | None) -> dict | None:
+    """The shipped file's calibration (``calibration.network``) as the card states it: the margin,
+    the modes' names and how many trained parts each mode answers (``base``: the model's own)."""
+    if not calibration:
+        return None
+    names = ["base"] + [m["name"] for m in calibration["modes"]]
+    chosen = list(calibration["part_modes"].values())
+    return {
+        "margin_deg": calibration["margin_deg"],
+        "modes": len(calibration["modes"]),
+        "parts": {n: chosen.count(n) for n in names if n in chosen},
+    }
+
+
+def _calibration_words(cal: dict | None) -> str:
+    """`` Its analytic component ...`` when the shipped network is calibrated, else ''."""
+    if not cal:
+        return ""
+    kept = cal["parts"].get("base", 0)
+    total = sum(cal["parts"].values())
+    return (
+        " Its own analytic component is the analytic model calibrated on the part's labels: of "
+        f"{cal['modes']} variants, the one with the least mean circular W1 on them "
+        f"where it beats the model's own by {cal['margin_deg']:g} deg ({total - kept} of {total} parts; "
+        "docs/structured.md)."
+    )
+
+
 def _card_new_angle(card: dict) -> list[str]:
     """The card's lines on a simulated part at a configuration the study did not simulate."""
     gated = (
@@ -527,7 +556,8 @@ def _card_new_angle(card: dict) -> list[str]:
         f"type ({st['neighbours']} + {st['cross_neighbours']} neighbours), else {gated}. It was trained on every "
         f"configuration ({c['kind']}, hidden {c['hidden']}, weight decay {c['weight_decay']:g}, {st['seeds']} seeds, "
         f"PMFs averaged), early-stopped and chosen on {c['val_parts']} validation parts "
-        f"(circular W1 {c['val_cw1']:.2f} deg){_refit_words(c)}. Its ok mass is the analytic one.",
+        f"(circular W1 {c['val_cw1']:.2f} deg){_refit_words(c)}. Its ok mass is the analytic one."
+        f"{_calibration_words(st.get('calibration'))}",
     ]
     sp = st.get("specialist")
     if sp:  # model.fences_specialist
