@@ -290,7 +290,15 @@ rule export_study:
         settings=resolved_yaml(
             "structured",
             drop=(
-                "seed", "seeds", "candidates", "calibration", "model", "train", "search", "protocol", "answer_errors"
+                "seed",
+                "seeds",
+                "candidates",
+                "calibration",
+                "model",
+                "train",
+                "search",
+                "protocol",
+                "answer_errors",
             ),
         ),
         evidence=lambda wildcards, input: (
