@@ -12,6 +12,7 @@ from test_structured import TOY_PROTOCOL, _toy_library
 
 from feeder.errors import FeederError
 from feeder.learn.structured_calibration import (
+    base_and_mode_w1,
     cached_mode_pmfs,
     calibrated_modes,
     calibrated_pmfs,
@@ -197,9 +198,7 @@ def _toy_with_modes():
     a = _toy_library()
     a["mode_pmfs"] = np.stack([a["pmf"], np.roll(a["analytic"], 90, axis=1)], axis=1)
     a["mode_pmfs"][~a["kept"], 0] = a["analytic"][~a["kept"]]
-    a["mode_w1"] = np.concatenate(
-        [mode_w1(a["cdf"], a["analytic"][:, None], a["kept"]), mode_w1(a["cdf"], a["mode_pmfs"], a["kept"])], axis=1
-    )
+    a["mode_w1"] = base_and_mode_w1(a["cdf"], a["analytic"], a["mode_pmfs"], a["kept"])
     return a
 
 
@@ -232,9 +231,7 @@ def test_a_scored_rows_mode_is_never_chosen_on_its_own_label():
         scored_rows = np.logical_or.reduce(list(scored.values()))
         trick = np.where(scored_rows[:, None], a["pmf"], np.roll(a["pmf"], 180, axis=1))
         b = dict(a, mode_pmfs=np.stack([a["mode_pmfs"][:, 1], trick], axis=1))
-        b["mode_w1"] = np.concatenate(
-            [mode_w1(b["cdf"], b["analytic"][:, None], b["kept"]), mode_w1(b["cdf"], b["mode_pmfs"], b["kept"])], axis=1
-        )
+        b["mode_w1"] = base_and_mode_w1(b["cdf"], b["analytic"], b["mode_pmfs"], b["kept"])
         c = with_calibration(b, train, 0.5)
         assert (c["calibration_mode"][scored_rows] != 2).all()
         # had the scored rows been training rows, the trick would win on them

@@ -280,7 +280,7 @@ def test_a_calibrated_shipped_answer_is_the_protocols_calibrated_prediction(tmp_
     pytest.importorskip("torch")
     from feeder import io
     from feeder.learn.structured import predict
-    from feeder.learn.structured_calibration import calibration_settings, compute_mode_pmfs, mode_w1
+    from feeder.learn.structured_calibration import base_and_mode_w1, calibration_settings, compute_mode_pmfs
     from feeder.learn.structured_protocol import fit_protocol
     from feeder.learn.structured_shipped import ShippedStructured, calibrated_arrays, shipped_arrays
     from feeder.mechanics.hull import push_geometry
@@ -295,9 +295,7 @@ def test_a_calibrated_shipped_answer_is_the_protocols_calibrated_prediction(tmp_
     )
     a["pmf"][:5] = np.roll(a["mode_pmfs"][:5, 1], 7, axis=1)
     a["cdf"] = np.cumsum(a["pmf"], axis=1)
-    a["mode_w1"] = np.concatenate(
-        [mode_w1(a["cdf"], a["analytic"][:, None], a["kept"]), mode_w1(a["cdf"], a["mode_pmfs"], a["kept"])], axis=1
-    )
+    a["mode_w1"] = base_and_mode_w1(a["cdf"], a["analytic"], a["mode_pmfs"], a["kept"])
     everything = np.ones(10, dtype=bool)
     c = calibrated_arrays(a, everything, cfg)
     assert (c["calibration_mode"][:5] == 2).all()  # no_exit for rect-a3, on every leave-one-out

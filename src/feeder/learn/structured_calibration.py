@@ -48,6 +48,22 @@ def mode_w1(cdf, mode_pmfs, kept) -> np.ndarray:
     return np.where(np.asarray(kept, dtype=bool)[:, None], out, np.nan)
 
 
+def base_and_mode_w1(cdf, base_pmfs, mode_pmfs, kept) -> np.ndarray:
+    """(N, M + 1): :func:`mode_w1` of the base model's PMFs ``base_pmfs`` (N, bins), then of each
+    mode's (``mode_pmfs``, (N, M, bins)): the ``w1`` of :func:`calibrated_modes`."""
+    base = mode_w1(cdf, np.asarray(base_pmfs)[:, None], kept)
+    return np.concatenate([base, mode_w1(cdf, mode_pmfs, kept)], axis=1)
+
+
+def model_analytic(arrays: dict) -> np.ndarray:
+    """The analytic model's own PMFs of ``arrays``: ``base_analytic`` where the rows' ``analytic`` was
+    calibrated on the part's labels (:func:`with_calibration`), else ``analytic``. What every input
+    built from other rows' labels reads (a neighbour's miss and move, the composition's and the
+    drops' fallback), and the baselines: a training row's calibrated PMF is chosen on its part's
+    other rows, so a neighbour's would carry the row's own label into its inputs."""
+    return arrays.get("base_analytic", arrays["analytic"])
+
+
 def calibrated_modes(w1, parts, pool, margin_deg: float) -> np.ndarray:
     """(N,) the mode (column of ``w1``, (N, M); column 0 the base model) every row answers with.
 
@@ -233,7 +249,7 @@ def with_calibration(arrays: dict, pool, margin_deg: float) -> dict:
     ``mode_pmfs``: ``arrays`` unchanged."""
     if "mode_pmfs" not in arrays:
         return arrays
-    base = arrays.get("base_analytic", arrays["analytic"])
+    base = model_analytic(arrays)
     pool = np.asarray(pool, dtype=bool) & np.asarray(arrays["kept"], dtype=bool)
     choice = calibrated_modes(arrays["mode_w1"], arrays["part"], pool, margin_deg)
     return dict(

@@ -29,12 +29,13 @@ from pathlib import Path
 import numpy as np
 
 from feeder.errors import FeederError
-from feeder.learn.structured_calibration import (
+from feeder.learn.structured_calibration import (  # model_analytic: read here, and from here by structured_shipped
     CALIBRATION_VERSION,
+    base_and_mode_w1,
     cached_mode_pmfs,
     calibration_settings,
     compute_mode_pmfs,
-    mode_w1,
+    model_analytic,
 )
 
 log = logging.getLogger(__name__)
@@ -373,23 +374,8 @@ def structured_arrays(
         n,
         lambda: compute_mode_pmfs(parts, cids, frames, scene, modes, smooth, parts_dir, bins, units, workers, progress),
     )
-    out["mode_w1"] = np.concatenate(
-        [
-            mode_w1(out["cdf"], out["analytic"][:, None], out["kept"]),
-            mode_w1(out["cdf"], out["mode_pmfs"], out["kept"]),
-        ],
-        axis=1,
-    )
+    out["mode_w1"] = base_and_mode_w1(out["cdf"], out["analytic"], out["mode_pmfs"], out["kept"])
     return out
-
-
-def model_analytic(arrays: dict) -> np.ndarray:
-    """The analytic model's own PMFs of ``arrays``: ``base_analytic`` where the rows' ``analytic`` was
-    calibrated on the part's labels (:func:`feeder.learn.structured_calibration.with_calibration`),
-    else ``analytic``. What every input built from other rows' labels reads (a neighbour's miss and
-    move, the composition's and the drops' fallback): a training row's calibrated PMF is chosen on
-    its part's other rows, so a neighbour's would carry the row's own label into its inputs."""
-    return arrays.get("base_analytic", arrays["analytic"])
 
 
 # ----------------------------------------------------------------------------------------------

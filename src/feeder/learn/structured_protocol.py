@@ -396,10 +396,11 @@ def baseline_pmfs(arrays: dict, train: np.ndarray, rows, prior_grids) -> dict[st
     """The analytic PMF, the analytic prior (σ, λ fitted on the kept ``train`` rows) and the
     training-mean PMF of ``rows``."""
     from feeder.learn.prior import blend, fit_blend
+    from feeder.learn.structured_calibration import model_analytic
 
     kept_train = train & arrays["kept"]
     mean_pmf = arrays["pmf"][kept_train].mean(axis=0)
-    analytic = arrays.get("base_analytic", arrays["analytic"])  # the model's own, not the calibrated one
+    analytic = model_analytic(arrays)  # the model's own, not the calibrated one
     kept = arrays["kept"]
     best = fit_blend(arrays["pmf"][kept], analytic[kept], train[kept], prior_grids.sigmas_bins, prior_grids.weights)
     return {
