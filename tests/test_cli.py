@@ -146,3 +146,20 @@ def test_train_refuses_a_word_that_is_not_an_override_in_one_line(capsys):
     assert len(err) == 1 and "'model' is not an override of the form key=value" in err[0]
     check_overrides(["model=m3", "--cfg", "job", "-m", "trainer.epochs=2", "+x=1", "~model.hidden"])  # all fine
     check_overrides(["--config-name", "train", "--info", "defaults"])  # option values are not overrides
+
+
+def test_pull_overrides_moves_hydra_words_out_of_a_list_option(tmp_path):
+    """A list option (nargs) takes every word after it: pull_overrides moves the key=value words
+    that name no file to the overrides, keeps the rest in order, and keeps a file whose name holds '='."""
+    from pathlib import Path
+
+    from feeder.config import pull_overrides
+
+    odd = tmp_path / "a=b"
+    odd.mkdir()
+    values = [Path("results/models/m3/seed0"), "protocol.fits=[main]", odd, "seed=3"]
+    kept, overrides = pull_overrides(values, ["train.workers=1"])
+    assert kept == [Path("results/models/m3/seed0"), odd]
+    assert overrides == ["train.workers=1", "protocol.fits=[main]", "seed=3"]
+    assert pull_overrides(None, ["x=1"]) == (None, ["x=1"])
+    assert pull_overrides(["=odd"], []) == (["=odd"], [])

@@ -615,6 +615,12 @@ def test_from_rows_writes_the_tables_of_a_run_s_rows(tmp_path):
             ]
         )
     assert not (tmp_path / "o2").exists()
+    # an override right after the list option is still an override, not a second rows file
+    with pytest.raises(FeederError, match="have no neighbour distance"):
+        main(["--from-rows", str(tmp_path / "rows.csv"), "seed=1", "--dataset", str(tmp_path / "ds.npz")])
+    with pytest.raises(FeederError, match="--from-rows needs a structured_rows.csv"):
+        main(["--from-rows", "seed=1", "--dataset", str(tmp_path / "ds.npz"), "--out-dir", str(tmp_path / "o2")])
+    assert not (tmp_path / "o2").exists()
 
 
 def test_merge_runs_takes_each_kind_of_fit_from_the_last_run_holding_it():

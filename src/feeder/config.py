@@ -218,6 +218,21 @@ def compose_config(name: str, overrides: Sequence[str] = (), config_dir: str | o
         raise FeederError(f"{config_dir / name}.yaml with overrides {overrides}: {first}") from None
 
 
+def pull_overrides(values, overrides: Sequence[str]) -> tuple[list, list[str]]:
+    """``(values, overrides)`` with every Hydra override (a ``key=value`` word that names no
+    existing file) moved from ``values`` to the end of ``overrides``. argparse hands a list option
+    (``nargs``) every word after it, so ``--m3-model a b protocol.fits=[main]`` would otherwise
+    read the override as a path. ``values`` None stays None."""
+    if values is None:
+        return None, list(overrides)
+    kept, moved = [], []
+    for value in values:
+        word = str(value)
+        is_override = "=" in word and not word.startswith("=") and not Path(word).exists()
+        (moved if is_override else kept).append(word if is_override else value)
+    return kept, [*overrides, *moved]
+
+
 def resolved_yaml(
     name: str, overrides: Sequence[str] = (), drop: Sequence[str] = (), config_dir: str | os.PathLike | None = None
 ) -> str:

@@ -408,7 +408,9 @@ def _parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str]) -> int:
     args = _parser().parse_args(argv)
-    from feeder.config import compose_config, parse_settings
+    from feeder.config import compose_config, parse_settings, pull_overrides
+
+    args.models, args.overrides = pull_overrides(args.models, args.overrides)  # --models takes every word
     from feeder.io import write_csv
 
     settings = parse_settings(args.settings, "scene", "sim", "labels", "parts", "models")

@@ -790,8 +790,11 @@ def _generalisation_table(args) -> None:
 def main(argv: list[str]) -> int:
     args = _parser().parse_args(argv)
     if args.cmd == "tables":
-        from feeder.config import compose_config
+        from feeder.config import compose_config, pull_overrides
 
+        args.models, args.overrides = pull_overrides(args.models, args.overrides)  # --models takes every word
+        if not args.models:
+            raise FeederError("--models needs a trained model directory (it got only Hydra overrides)")
         prior_grids = _prior_grids(compose_config("train", args.overrides))
         for path in write_tables(args.dataset, args.models, args.out_dir, _bootstrap_settings(args), prior_grids):
             print(path)

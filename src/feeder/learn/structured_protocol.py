@@ -931,13 +931,17 @@ def write_tables(out_dir: Path, table: pd.DataFrame, by_distance: pd.DataFrame) 
 
 def main(argv: list[str]) -> int:
     from feeder import io
-    from feeder.config import compose_config
+    from feeder.config import compose_config, pull_overrides
     from feeder.labels.dataset import load_dataset
     from feeder.learn.prior import grids
     from feeder.learn.structured_calibration import calibration_settings
     from feeder.learn.structured_data import drop_arrays, one_fence_maps, structured_arrays
 
     args = _parser().parse_args(argv)
+    args.m3_model, args.overrides = pull_overrides(args.m3_model, args.overrides)  # list options take every word
+    args.from_rows, args.overrides = pull_overrides(args.from_rows, args.overrides)
+    if args.from_rows == []:
+        raise FeederError("--from-rows needs a structured_rows.csv (it got only Hydra overrides)")
     cfg = compose_config("structured", args.overrides)
     edges = check_edges(cfg.answer_errors.edges_deg)
     if args.from_rows is not None:  # the tables of a run's rows: its splits from the dataset, no fit
