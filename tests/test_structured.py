@@ -888,7 +888,7 @@ def test_the_fences_specialist_answers_the_rows_without_their_own_combination_an
 
     a = _toy_library(n_parts=12)
     a["config_id"] = np.where(a["config_id"] == "curved20_straight30", "straight20_curved30", a["config_id"])
-    base = [*TOY_PROTOCOL, "protocol.fits=[main]"]
+    base = [*TOY_PROTOCOL, "protocol.fits=[main]", "blend.weights=[1.0]"]  # the networks alone
     off_cfg = compose_config("structured", [*base, "model.fences_specialist=false"])
     on_cfg = compose_config("structured", [*base, "model.fences_specialist=true"])
     assert fences_specialist(compose_config("structured", base))  # the default since stop 60
@@ -1003,7 +1003,7 @@ def test_a_refit_trains_each_seed_on_the_validation_parts_too_and_keeps_the_base
     from feeder.learn.structured_protocol import fit_protocol, protocol_jobs, refit_on, run_protocol
 
     prior = grids(compose_config("train")["prior"])
-    base = [*TOY_PROTOCOL, "protocol.fits=[main]"]
+    base = [*TOY_PROTOCOL, "protocol.fits=[main]", "blend.weights=[1.0]"]  # the networks alone
     off_cfg, on_cfg = compose_config("structured", base), compose_config("structured", [*base, "train.refit=true"])
     off, on = run_protocol(_toy_library(), off_cfg, prior), run_protocol(_toy_library(), on_cfg, prior)
     a, b = off[1].set_index("fit"), on[1].set_index("fit")
@@ -1051,8 +1051,9 @@ def test_a_learning_curve_trains_on_fewer_parts_and_keeps_validation_and_baselin
     from feeder.learn.structured_protocol import fit_part_fraction, run_protocol, unused_parts
 
     prior = grids(compose_config("train")["prior"])
-    whole = run_protocol(_toy_library(), compose_config("structured", [*TOY_PROTOCOL, "protocol.fits=[main]"]), prior)
-    half_cfg = compose_config("structured", [*TOY_PROTOCOL, "protocol.fits=[main]", "protocol.fit_part_fraction=0.5"])
+    base = [*TOY_PROTOCOL, "protocol.fits=[main]", "blend.weights=[1.0]"]  # the networks alone
+    whole = run_protocol(_toy_library(), compose_config("structured", base), prior)
+    half_cfg = compose_config("structured", [*base, "protocol.fit_part_fraction=0.5"])
     half = run_protocol(_toy_library(), half_cfg, prior)
     a, b = whole[1].set_index("fit"), half[1].set_index("fit")
     assert (a.unused_parts == 0).all() and (b.unused_parts > 0).all()

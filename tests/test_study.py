@@ -637,3 +637,17 @@ def test_the_card_says_how_the_shipped_network_is_calibrated():
     assert counts == {"margin_deg": 0.5, "modes": 3, "parts": {"base": 1, "swing": 2, "mu0.5": 1}}
     words = _calibration_words(counts)
     assert "of 3 variants" in words and "(3 of 4 parts;" in words and "by 0.5 deg" in words
+
+
+def test_the_card_says_how_the_answer_is_blended():
+    from feeder.learn.study import NEAREST_WORDS, _blend_words
+
+    assert _blend_words(None, "x") == "" and _blend_words({"weight": 1.0, "gate_deg": 5.0}, "x") == ""
+    blend = {"weight": 0.6, "gate_deg": 7.5, "val_cw1": {"0.6": 7.1, "1.0": 7.9}}
+    words = _blend_words(blend, NEAREST_WORDS)
+    assert "0.6 times the network's plus 0.4 times the label of the nearest" in words
+    assert "fence types within 7.5 degrees, else the analytic PMF" in words
+    assert "(validation circular W1 7.10 against 7.90 deg alone)" in words
+    words = _blend_words({"weight": 0.3, "gate_deg": None, "val_cw1": {}}, "the analytic PMF")
+    assert "0.3 times the network's plus 0.7 times the analytic PMF, the weight chosen" in words
+    assert "validation circular" not in words

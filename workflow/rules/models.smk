@@ -216,7 +216,8 @@ rule neighbour:
         "../envs/feeder.yaml"
     params:
         settings=resolved_yaml(
-            "structured", drop=("candidates", "calibration", "model", "train", "search", "analytic_scenes")
+            "structured",
+            drop=("candidates", "calibration", "blend", "model", "train", "search", "analytic_scenes"),
         ),
     shell:
         "feeder neighbour --dataset {input.dataset} --out-csv {output.csv} --out-rows {output.rows} > {log} 2>&1"
@@ -253,9 +254,8 @@ rule fit_structured:
     conda:
         "../envs/feeder.yaml"
     params:
-        settings=resolved_yaml(
-            "structured", STRUCTURED_OVERRIDES, drop=("neighbour", "analytic_scenes", "answer_errors")
-        ),
+        settings=resolved_yaml("structured", STRUCTURED_OVERRIDES, drop=("analytic_scenes", "answer_errors")),
+        # neighbour.gates_deg: the blend's gate
         overrides=" ".join(shlex.quote(o) for o in STRUCTURED_OVERRIDES),
     shell:
         "feeder fit-structured --dataset {input.dataset} --sim-dir $(dirname $(dirname {input.sims[0]}))"
@@ -294,6 +294,7 @@ rule export_study:
                 "seeds",
                 "candidates",
                 "calibration",
+                "blend",
                 "model",
                 "train",
                 "search",

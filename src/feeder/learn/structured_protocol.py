@@ -53,6 +53,7 @@ COMPOSED = "composed"  # the part's one-fence maps composed (model.composed; els
 DROPS = "drops"  # the label of the configuration's own few start-grid drops (model.drops > 0)
 CALIBRATED = "analytic_calibrated"  # the analytic model calibrated on the part's training labels (calibration)
 GATED_CALIBRATED = "neighbour_gated_calibrated"  # the gated neighbour, else the calibrated analytic PMF
+UNBLENDED = "structured_unblended"  # the seeds' PMFs averaged before the blend (structured_blend; Main fits)
 
 
 # ----------------------------------------------------------------------------------------------
@@ -222,6 +223,9 @@ def fit_protocol(arrays: dict, train: np.ndarray, cfg, key: str, known: bool = T
         "x_sd": sd,
         "settings": net(hp),
         "early": early,  # the early-stopped seeds and their scaling and mean PMF (the same as above without a refit)
+        "val_rows": val_rows,  # the validation rows (kept) and the early seeds' inputs of them
+        "val_inputs": scaled_val,
+        "val_pool": train & is_val if known else train & ~is_val,  # the labels a validation row sees
     }
 
 
@@ -410,11 +414,16 @@ def baseline_pmfs(arrays: dict, train: np.ndarray, rows, prior_grids) -> dict[st
     }
 
 
-def score_rows(arrays: dict, fitted: dict, rows, experiment: str, repeat: int, prior_grids, extra=None) -> list[dict]:
+def score_rows(
+    arrays: dict, fitted: dict, rows, experiment: str, repeat: int, prior_grids, extra=None, blend=None
+) -> list[dict]:
     """Long rows (one per configuration, predictor and seed) of the structured predictor's seeds
-    and the baselines on ``rows`` (kept and excluded; PMF metrics on kept rows only)."""
+    and the baselines on ``rows`` (kept and excluded; PMF metrics on kept rows only). ``blend``:
+    ``(weight, fallback PMFs of rows)`` (:mod:`feeder.learn.structured_blend`): each seed answers
+    blended, and the seeds' mean unblended is scored too."""
     from feeder.labels.metrics import circular_w1, r2_cdf
     from feeder.learn.structured import predict
+    from feeder.learn.structured_blend import blended
 
     rows = np.asarray(rows)
     kept = arrays["kept"][rows]
@@ -423,6 +432,10 @@ def score_rows(arrays: dict, fitted: dict, rows, experiment: str, repeat: int, p
     for s, f in enumerate(fitted["fits"]):
         pmf, ok = predict(f, fitted["scaled"], rows, fitted["mean_pmf"])
         preds.append((STRUCTURED, s, pmf, ok))
+    if blend is not None and float(blend[0]) != 1.0:
+        unblended = np.mean([p[2] for p in preds], axis=0)
+        preds = [(n, s, blended(pmf, blend[1], blend[0]), ok) for n, s, pmf, ok in preds]
+        extra = {**(extra or {}), UNBLENDED: unblended}
     if len(preds) > 1:  # the shipped answer (feeder.learn.structured_shipped) averages its seeds' PMFs
         preds.append((ENSEMBLE, -1, np.mean([p[2] for p in preds], axis=0), np.mean([p[3] for p in preds], axis=0)))
     train = fitted["train"]
@@ -519,6 +532,7 @@ _SHARED: dict = {}  # what a forked worker of run_protocol reads (arrays are not
 def run_job(job: tuple, arrays: dict, cfg, prior_grids, m3_pmf: dict | None, locked: set) -> tuple[list, dict]:
     """One fit of :func:`protocol_jobs` and its scores: ``(long rows, choice)``. Every seed derives
     from ``cfg.seed`` and the fit's key, so the result does not depend on the process it runs in."""
+    from feeder.learn.structured_blend import blend_choice, fallback_pmfs, fit_blend
     from feeder.learn.structured_calibration import calibration_network, calibration_settings, with_calibration
 
     kind, key, index, train, scored = job
@@ -532,6 +546,16 @@ def run_job(job: tuple, arrays: dict, cfg, prior_grids, m3_pmf: dict | None, loc
     specialist = None
     if kind == "main" and fences_specialist(cfg):  # answers the rows with no label of their own combination
         specialist = fit_protocol(arrays, train, specialist_cfg(cfg), f"{key}:specialist", known=True)
+    blends = {}  # blend.weights: each network's answer blended with its fallback (known parts)
+    if kind == "main":
+        blends[id(fitted)] = fit_blend(fitted, arrays, cfg, train, own_labels=not cross_only(cfg))
+        if specialist is not None:
+            blends[id(specialist)] = fit_blend(specialist, arrays, specialist_cfg(cfg), train, own_labels=False)
+
+    def blend_of(f, idx):
+        b = blends.get(id(f))
+        return None if b is None else (b["weight"], fallback_pmfs(arrays, train, idx, b["gate_deg"]))
+
     rows, n_calibrated = [], 0
     for experiment, mask in scored.items():
         idx = np.flatnonzero(mask)
@@ -552,19 +576,23 @@ def run_job(job: tuple, arrays: dict, cfg, prior_grids, m3_pmf: dict | None, loc
                 keys = zip(arrays["part"][idx], arrays["config_id"][idx], strict=True)
                 extra[M3] = np.stack([m3_pmf.get((str(p), str(c)), nan_row) for p, c in keys])
         if specialist is None:
-            rows += score_rows(arrays, fitted, idx, experiment, index, prior_grids, extra)
+            rows += score_rows(arrays, fitted, idx, experiment, index, prior_grids, extra, blend_of(fitted, idx))
             continue
         theirs = without_own_label(arrays, train, idx)
         for mine, f in ((~theirs, fitted), (theirs, specialist)):
             if mine.any():
                 part_extra = {name: pmf[mine] for name, pmf in extra.items()}
-                rows += score_rows(arrays, f, idx[mine], experiment, index, prior_grids, part_extra)
+                blend = blend_of(f, idx[mine])
+                rows += score_rows(arrays, f, idx[mine], experiment, index, prior_grids, part_extra, blend)
     choice = {**fitted["choice"], "seconds": time.perf_counter() - t0}
+    if id(fitted) in blends:
+        choice.update(blend_choice(blends[id(fitted)]))
     if "calibration_mode" in calibrated:  # how many scored rows a mode other than the base answers
         choice["calibrated_rows"] = n_calibrated
         choice["calibrated_network"] = calibration_network(cfg)
     if specialist is not None:
         choice.update({f"specialist_{k}": v for k, v in specialist["choice"].items() if k != "fit"})
+        choice.update({f"specialist_{k}": v for k, v in blend_choice(blends[id(specialist)]).items()})
     if kind == "locked":
         choice["locked_parts"] = " ".join(sorted(locked))
     return rows, choice
@@ -613,18 +641,9 @@ def gated_neighbour(arrays: dict, train, rows, gates) -> np.ndarray:
     """The gated neighbour of ``rows`` (:mod:`feeder.learn.neighbour`): the label of the nearest kept
     ``train`` row of the same part and fence types within the gate, else the analytic PMF; the gate
     of ``gates`` chosen on the training rows alone."""
-    from feeder.learn.neighbour import angle_distance, choose_gate, neighbour_index
+    from feeder.learn.structured_blend import fit_gate, gated_pmfs
 
-    pool = np.asarray(train, dtype=bool) & arrays["kept"]
-    pmf, analytic, parts, cids = arrays["pmf"], arrays["analytic"], arrays["part"], arrays["config_id"]
-    gate = choose_gate(pmf, analytic, parts, cids, pool, [float(g) for g in gates])
-    rows = np.asarray(rows)
-    idx = neighbour_index(parts, cids, pool, rows)
-    out = analytic[rows].copy()
-    for n, (i, j) in enumerate(zip(rows, idx, strict=True)):
-        if j >= 0 and angle_distance(cids[i], cids[j]) <= gate:
-            out[n] = pmf[j]
-    return out
+    return gated_pmfs(arrays, train, rows, fit_gate(arrays, train, gates))
 
 
 UNITS = {"unseen_groupkfold": "part", "unseen_locked": "part", "test": "configuration", "fences": "configuration"}
@@ -934,6 +953,7 @@ def main(argv: list[str]) -> int:
     from feeder.config import compose_config, pull_overrides
     from feeder.labels.dataset import load_dataset
     from feeder.learn.prior import grids
+    from feeder.learn.structured_blend import blend_weights
     from feeder.learn.structured_calibration import calibration_settings
     from feeder.learn.structured_data import drop_arrays, one_fence_maps, structured_arrays
 
@@ -968,7 +988,7 @@ def main(argv: list[str]) -> int:
     check_workers(cfg.train.workers)  # before the data and the candidates, not after
     # bad settings: a one-line error before any work
     neighbour_options(cfg), drop_count(cfg), drop_count(cfg, "drop_candidates"), composed_on(cfg), fit_kinds(cfg)
-    fit_part_fraction(cfg), cross_only_copies(cfg), refit_on(cfg), calibration_settings(cfg)
+    fit_part_fraction(cfg), cross_only_copies(cfg), refit_on(cfg), calibration_settings(cfg), blend_weights(cfg)
     prior_grids = grids(compose_config("train")["prior"])
     import torch
 

@@ -62,6 +62,7 @@ def fit_shipped(arrays: dict, cfg, data: dict, train=None) -> dict:
     of the dataset ``data``, whose settings give the label frame, bins, scene and units), in
     :func:`shipped_arrays`, keeping the neighbour inputs (each label's analytic miss) of ``train``
     rows only: no other row's label is in the file."""
+    from feeder.learn.structured_blend import fit_blend
     from feeder.learn.structured_protocol import cross_only, drop_count, fences_specialist, fit_protocol, specialist_cfg
     from feeder.mechanics.fence import default_scene
 
@@ -80,9 +81,11 @@ def fit_shipped(arrays: dict, cfg, data: dict, train=None) -> dict:
     labels = settings["labels"]
     arrays = calibrated_arrays(arrays, train, cfg)
     fitted = fit_protocol(arrays, train, cfg, SHIPPED_KEY, known=True)
+    fitted["blend"] = fit_blend(fitted, arrays, cfg, train, own_labels=True)  # blend.weights, as a Main fit
     specialist = None
     if fences_specialist(cfg):  # answers the configurations with no label of their own type combination
         specialist = fit_protocol(arrays, train, specialist_cfg(cfg), f"{SHIPPED_KEY}:specialist", known=True)
+        specialist["blend"] = fit_blend(specialist, arrays, specialist_cfg(cfg), train, own_labels=False)
     out = shipped_arrays(
         fitted,
         arrays,
@@ -183,6 +186,8 @@ def shipped_arrays(
     calibration = calibration_meta(fitted, arrays, cfg)
     if calibration is not None:  # calibration.network: each known part's mode
         meta["calibration"] = calibration
+    if "blend" in fitted:  # blend.weights (fit_shipped): the answer blended with its fallback
+        meta["blend"] = blend_meta(fitted["blend"])
     extra = {}
     if specialist is not None:
         meta["specialist"] = {
@@ -190,6 +195,8 @@ def shipped_arrays(
             "seeds": len(specialist["fits"]),
             "choice": specialist["choice"],
         }
+        if "blend" in specialist:
+            meta["specialist"]["blend"] = blend_meta(specialist["blend"])
         extra = {
             f"{SPECIALIST}x_mean": specialist["x_mean"],
             f"{SPECIALIST}x_sd": specialist["x_sd"],
@@ -210,6 +217,16 @@ def shipped_arrays(
         "miss": label_miss(arrays["pmf"][kept], model_analytic(arrays)[kept]),
         **state_arrays(fitted["fits"]),
         **extra,
+    }
+
+
+def blend_meta(blend: dict) -> dict:
+    """What an answer needs of a :func:`feeder.learn.structured_blend.fit_blend`: the weight, the
+    gate (None: the fallback is the analytic PMF) and the validation scores it was chosen on."""
+    return {
+        "weight": float(blend["weight"]),
+        "gate_deg": None if blend["gate_deg"] is None else float(blend["gate_deg"]),
+        "val_cw1": {str(w): float(v) for w, v in blend["scores"].items()},
     }
 
 
@@ -240,6 +257,7 @@ class ShippedStructured:
 
         seeds = [f"{prefix}seed{i}/" for i in range(int(meta["seeds"]))]
         return {
+            "blend": meta.get("blend"),  # None: the network alone
             "settings": NetSettings(**meta["net"]),
             "x_mean": arrays[f"{prefix}x_mean"],
             "x_sd": arrays[f"{prefix}x_sd"],
@@ -329,6 +347,7 @@ class ShippedStructured:
         pool's one-fence configurations by their index in ``pool_ids``."""
         from feeder.lane.fences import parse_config_id
         from feeder.learn.structured import batch_inputs, diffuse_components, forward_numpy
+        from feeder.learn.structured_blend import blended
         from feeder.learn.structured_data import (
             composed_block,
             configuration_inputs,
@@ -426,7 +445,23 @@ class ShippedStructured:
                 pmf = np.clip(forward_numpy(params, net["settings"], m["n_variants"], b), 0.0, None)
                 out[mine] += pmf / pmf.sum(axis=1, keepdims=True)
             out[mine] /= len(net["params"])
+            if net["blend"] is not None and net["blend"]["weight"] != 1.0:  # blend.weights, as the protocol
+                fallback = self._fallback(rows, n_pool + mine, own_analytic[mine], net["blend"]["gate_deg"])
+                out[mine] = blended(out[mine], fallback, net["blend"]["weight"])
         return out
+
+    @staticmethod
+    def _fallback(rows: dict, queries, analytic, gate_deg) -> np.ndarray:
+        """The blend's fallback of the query rows ``queries`` of ``rows`` (pool rows kept):
+        :func:`feeder.learn.structured_blend.gated_pmfs` from the pool with the part's
+        (calibrated) ``analytic`` PMFs, or those alone when ``gate_deg`` is None."""
+        from feeder.learn.structured_blend import fallback_pmfs
+
+        if gate_deg is None:
+            return np.asarray(analytic, np.float64).copy()
+        own = np.array(rows["analytic"], dtype=np.float64)
+        own[queries] = analytic
+        return fallback_pmfs(dict(rows, analytic=own), rows["kept"], queries, gate_deg)
 
 
 # ----------------------------------------------------------------------------------------------

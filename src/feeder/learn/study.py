@@ -416,6 +416,8 @@ def export_study(
             "cross_neighbours": model.meta["cross_neighbours"],
             "specialist": (model.meta.get("specialist") or {}).get("choice"),
             "calibration": calibration_counts(model.meta.get("calibration")),
+            "blend": model.meta.get("blend"),
+            "specialist_blend": (model.meta.get("specialist") or {}).get("blend"),
             "evidence": [] if structured_table is None else structured_evidence(pd.read_csv(structured_table)),
             "by_distance": [] if structured_errors is None else structured_error_bins(pd.read_csv(structured_errors)),
         }
@@ -540,6 +542,28 @@ def _calibration_words(cal: dict | None) -> str:
     )
 
 
+NEAREST_WORDS = "the label of the nearest simulated angle of the same fence types{gate}, else the analytic PMF"
+
+
+def _blend_words(blend: dict | None, fallback: str) -> str:
+    """`` It answers ... blended ...`` when the shipped network's answer is blended with its fallback
+    (blend.weights), else ''."""
+    if not blend or float(blend["weight"]) == 1.0:
+        return ""
+    scores = blend.get("val_cw1") or {}
+    alone, chosen = scores.get("1.0"), scores.get(str(float(blend["weight"])))
+    on_val = (
+        ""
+        if alone is None or chosen is None
+        else f" (validation circular W1 {chosen:.2f} against {alone:.2f} deg alone)"
+    )
+    gate = "" if blend.get("gate_deg") is None else f" within {float(blend['gate_deg']):g} degrees"
+    return (
+        f" Its answer is {float(blend['weight']):g} times the network's plus {1 - float(blend['weight']):g} times "
+        f"{fallback.format(gate=gate)}, the weight chosen on the validation parts{on_val}."
+    )
+
+
 def _card_new_angle(card: dict) -> list[str]:
     """The card's lines on a simulated part at a configuration the study did not simulate."""
     gated = (
@@ -557,7 +581,8 @@ def _card_new_angle(card: dict) -> list[str]:
         f"configuration ({c['kind']}, hidden {c['hidden']}, weight decay {c['weight_decay']:g}, {st['seeds']} seeds, "
         f"PMFs averaged), early-stopped and chosen on {c['val_parts']} validation parts "
         f"(circular W1 {c['val_cw1']:.2f} deg){_refit_words(c)}. Its ok mass is the analytic one."
-        f"{_calibration_words(st.get('calibration'))}",
+        f"{_calibration_words(st.get('calibration'))}"
+        f"{_blend_words(st.get('blend'), NEAREST_WORDS)}",
     ]
     sp = st.get("specialist")
     if sp:  # model.fences_specialist
@@ -566,6 +591,7 @@ def _card_new_angle(card: dict) -> list[str]:
             "answers, trained and chosen reading only the part's labels of other type combinations, as such a "
             f"query must (the Fences specialist: {sp['kind']}, hidden {sp['hidden']}, weight decay "
             f"{sp['weight_decay']:g}, validation circular W1 {sp['val_cw1']:.2f} deg; docs/structured.md)."
+            f"{_blend_words(st.get('specialist_blend'), 'the analytic PMF')}"
         )
     if st["evidence"]:
         lines += [

@@ -1,0 +1,132 @@
+"""The structured predictor's answer blended with its fallback (issue #39, stop 74).
+
+A fit scored on known parts answers ``λ · network + (1 − λ) · fallback``, with ``λ`` of
+``blend.weights`` (``config/hydra/structured.yaml``) chosen on the fit's validation rows by the
+least mean circular W1 of the seeds' mean PMF (ties: the larger weight, the network). The fallback
+reads no network:
+
+* for a network that reads the part's labels of the query's own fence-type combination, the
+  **gated neighbour**: the label of the part's nearest labelled configuration of those fence types
+  when it lies within the gate (``neighbour.gates_deg``, the gate chosen on the training rows, each
+  from its nearest other one), else the analytic PMF;
+* for the Fences specialist (no label of the query's combination), the analytic PMF.
+
+The analytic PMF is each part's calibrated one where the fit calibrates
+(:mod:`feeder.learn.structured_calibration`). Circular W1 is convex in the prediction, so a blend
+scores at most the blend of the two scores; ``blend.weights: [1.0]`` is the network alone.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from feeder.errors import FeederError
+
+
+def blend_weights(cfg) -> list[float]:
+    """``blend.weights`` (``[1.0]``, the network alone, when absent) checked: a one-line FeederError
+    unless it is a non-empty list of numbers in [0, 1]."""
+    section = cfg.get("blend") or {}
+    weights = list(section.get("weights", [1.0]))
+    ok = bool(weights) and all(
+        isinstance(w, (int, float)) and not isinstance(w, bool) and 0.0 <= float(w) <= 1.0 for w in weights
+    )
+    if not ok:
+        raise FeederError(f"blend.weights must be a non-empty list of numbers in [0, 1], got {weights!r}")
+    return [float(w) for w in weights]
+
+
+def blended(network_pmf, fallback_pmf, weight: float) -> np.ndarray:
+    """``weight · network_pmf + (1 − weight) · fallback_pmf`` (rows of PMFs)."""
+    return float(weight) * np.asarray(network_pmf, np.float64) + (1.0 - float(weight)) * np.asarray(
+        fallback_pmf, np.float64
+    )
+
+
+def choose_weight(cdf, network_pmf, fallback_pmf, weights) -> tuple[float, dict[float, float]]:
+    """The weight of ``weights`` whose blend scores the least mean circular W1 against the label
+    CDFs ``cdf`` (ties: the larger weight), and every weight's score. One weight: that one (no rows
+    needed); several and no rows: a one-line FeederError."""
+    from feeder.labels.metrics import circular_w1
+
+    weights = [float(w) for w in weights]
+    if len(weights) == 1:
+        return weights[0], {}
+    cdf = np.asarray(cdf, np.float64)
+    if cdf.shape[0] == 0:
+        raise FeederError("the blend's weight is chosen on validation rows, and the fit has none")
+    scores = {
+        w: float(circular_w1(cdf, np.cumsum(blended(network_pmf, fallback_pmf, w), axis=1)).mean()) for w in weights
+    }
+    best = min(scores, key=lambda w: (scores[w], -w))
+    return best, scores
+
+
+def fit_gate(arrays: dict, train, gates) -> float:
+    """The gate of ``gates`` (degrees) chosen on the kept ``train`` rows of ``arrays``
+    (:func:`feeder.learn.neighbour.choose_gate`, each row from its nearest other one)."""
+    from feeder.learn.neighbour import choose_gate
+
+    pool = np.asarray(train, dtype=bool) & np.asarray(arrays["kept"], dtype=bool)
+    return float(
+        choose_gate(
+            arrays["pmf"], arrays["analytic"], arrays["part"], arrays["config_id"], pool, [float(g) for g in gates]
+        )
+    )
+
+
+def gated_pmfs(arrays: dict, pool, rows, gate_deg: float) -> np.ndarray:
+    """(len(rows), bins): for each of ``rows`` the label of the nearest kept ``pool`` row of the
+    same part and fence types (never itself) within ``gate_deg`` (``|Δθ1| + |Δθ2|``), else its
+    ``analytic`` PMF."""
+    from feeder.learn.neighbour import angle_distance, neighbour_index
+
+    pool = np.asarray(pool, dtype=bool) & np.asarray(arrays["kept"], dtype=bool)
+    rows = np.asarray(rows, dtype=np.int64)
+    cids = arrays["config_id"]
+    idx = neighbour_index(arrays["part"], cids, pool, rows)
+    out = np.asarray(arrays["analytic"])[rows].copy()
+    for n, (i, j) in enumerate(zip(rows, idx, strict=True)):
+        if j >= 0 and angle_distance(cids[i], cids[j]) <= gate_deg:
+            out[n] = arrays["pmf"][j]
+    return out
+
+
+def fallback_pmfs(arrays: dict, pool, rows, gate_deg: float | None) -> np.ndarray:
+    """The blend's fallback of ``rows`` (module doc): :func:`gated_pmfs` from ``pool`` with
+    ``gate_deg``, or the ``analytic`` PMF when ``gate_deg`` is None (the specialist's)."""
+    if gate_deg is None:
+        return np.asarray(arrays["analytic"])[np.asarray(rows, dtype=np.int64)].copy()
+    return gated_pmfs(arrays, pool, rows, gate_deg)
+
+
+def fit_blend(fitted: dict, arrays: dict, cfg, train, own_labels: bool) -> dict:
+    """The blend of a fit of :func:`feeder.learn.structured_protocol.fit_protocol` on ``arrays``
+    (training rows ``train``): ``{"weight", "gate_deg", "scores"}``, the weight chosen on the fit's
+    validation rows from the early-stopped seeds (their validation inputs; each validation row's
+    fallback from its own part's other validation rows, as its network inputs). ``own_labels``:
+    the network reads labels of the query's own type combination (the gated neighbour is its
+    fallback), else the analytic PMF is (the specialist's)."""
+    from feeder.learn.structured import predict
+
+    weights = blend_weights(cfg)
+    gate = fit_gate(arrays, train, cfg.neighbour.gates_deg) if own_labels else None
+    if len(weights) == 1:
+        return {"weight": weights[0], "gate_deg": gate, "scores": {}}
+    early, rows = fitted["early"], fitted["val_rows"]
+    net = np.mean([predict(f, fitted["val_inputs"], rows, early["mean_pmf"])[0] for f in early["fits"]], axis=0)
+    fallback = fallback_pmfs(arrays, fitted["val_pool"], rows, gate)
+    weight, scores = choose_weight(arrays["cdf"][rows], net, fallback, weights)
+    return {"weight": weight, "gate_deg": gate, "scores": scores}
+
+
+def blend_choice(blend: dict) -> dict:
+    """The choice table's entries of a :func:`fit_blend`: the weight, the gate (NaN: none) and the
+    network's and the chosen blend's validation circular W1 (NaN with one weight)."""
+    scores = blend["scores"]
+    return {
+        "blend_weight": float(blend["weight"]),
+        "blend_gate_deg": float("nan") if blend["gate_deg"] is None else float(blend["gate_deg"]),
+        "blend_val_cw1": scores.get(blend["weight"], float("nan")),
+        "blend_network_val_cw1": scores.get(1.0, float("nan")),
+    }
