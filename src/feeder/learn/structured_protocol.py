@@ -717,7 +717,7 @@ def _comparisons(long, experiment, name, metric, sign, present, bootstrap, m3_pa
 
     model = unit_scores(long, experiment, name, metric)
     seeds = long[(long.experiment == experiment) & (long.predictor == name)]
-    optional = (GATED, CALIBRATED, GATED_CALIBRATED, COMPOSED, M3, DROPS)
+    optional = (UNBLENDED, GATED, CALIBRATED, GATED_CALIBRATED, COMPOSED, M3, DROPS)
     baselines = [ANALYTIC, PRIOR, MEAN] + [b for b in optional if b in present]
     if metric == "ok_abs_err":
         baselines = [ANALYTIC, MEAN]
