@@ -109,6 +109,10 @@ def test_the_protocol_blends_on_validation_and_scores_the_network_alone_beside_i
     assert (main.blend_val_cw1 <= main.blend_network_val_cw1 + 1e-12).all()  # the network is one of the weights
     assert main.specialist_blend_gate_deg.isna().all() and main.blend_gate_deg.notna().all()
     assert on[1][~on[1].fit.str.startswith("main")].blend_weight.isna().all()
+    assert not (rows_off.predictor == UNBLENDED).any()  # off: nothing to compare
+    assert (rows_on.predictor == UNBLENDED).sum() == (rows_on.predictor == ENSEMBLE).sum() - (
+        rows_on.experiment.str.startswith("unseen") & (rows_on.predictor == ENSEMBLE)
+    ).sum()  # every Main row, whatever its fit's weight
     key = ["experiment", "repeat", "part", "config_id"]
     net = rows_on[rows_on.predictor == UNBLENDED].sort_values(key).reset_index(drop=True)
     alone = rows_off[(rows_off.predictor == ENSEMBLE) & rows_off.experiment.isin(net.experiment.unique())]

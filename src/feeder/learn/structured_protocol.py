@@ -420,7 +420,7 @@ def score_rows(
     """Long rows (one per configuration, predictor and seed) of the structured predictor's seeds
     and the baselines on ``rows`` (kept and excluded; PMF metrics on kept rows only). ``blend``:
     ``(weight, fallback PMFs of rows)`` (:mod:`feeder.learn.structured_blend`): each seed answers
-    blended, and the seeds' mean unblended is scored too."""
+    blended, and the seeds' mean unblended is scored too (the same as the ensemble at weight 1)."""
     from feeder.labels.metrics import circular_w1, r2_cdf
     from feeder.learn.structured import predict
     from feeder.learn.structured_blend import blended
@@ -432,10 +432,10 @@ def score_rows(
     for s, f in enumerate(fitted["fits"]):
         pmf, ok = predict(f, fitted["scaled"], rows, fitted["mean_pmf"])
         preds.append((STRUCTURED, s, pmf, ok))
-    if blend is not None and float(blend[0]) != 1.0:
-        unblended = np.mean([p[2] for p in preds], axis=0)
-        preds = [(n, s, blended(pmf, blend[1], blend[0]), ok) for n, s, pmf, ok in preds]
-        extra = {**(extra or {}), UNBLENDED: unblended}
+    if blend is not None:  # the seeds' mean alone is scored beside, whatever the weight
+        extra = {**(extra or {}), UNBLENDED: np.mean([p[2] for p in preds], axis=0)}
+        if float(blend[0]) != 1.0:
+            preds = [(n, s, blended(pmf, blend[1], blend[0]), ok) for n, s, pmf, ok in preds]
     if len(preds) > 1:  # the shipped answer (feeder.learn.structured_shipped) averages its seeds' PMFs
         preds.append((ENSEMBLE, -1, np.mean([p[2] for p in preds], axis=0), np.mean([p[3] for p in preds], axis=0)))
     train = fitted["train"]
@@ -532,7 +532,7 @@ _SHARED: dict = {}  # what a forked worker of run_protocol reads (arrays are not
 def run_job(job: tuple, arrays: dict, cfg, prior_grids, m3_pmf: dict | None, locked: set) -> tuple[list, dict]:
     """One fit of :func:`protocol_jobs` and its scores: ``(long rows, choice)``. Every seed derives
     from ``cfg.seed`` and the fit's key, so the result does not depend on the process it runs in."""
-    from feeder.learn.structured_blend import blend_choice, fallback_pmfs, fit_blend
+    from feeder.learn.structured_blend import blend_choice, blend_weights, fallback_pmfs, fit_blend
     from feeder.learn.structured_calibration import calibration_network, calibration_settings, with_calibration
 
     kind, key, index, train, scored = job
@@ -546,8 +546,8 @@ def run_job(job: tuple, arrays: dict, cfg, prior_grids, m3_pmf: dict | None, loc
     specialist = None
     if kind == "main" and fences_specialist(cfg):  # answers the rows with no label of their own combination
         specialist = fit_protocol(arrays, train, specialist_cfg(cfg), f"{key}:specialist", known=True)
-    blends = {}  # blend.weights: each network's answer blended with its fallback (known parts)
-    if kind == "main":
+    blends = {}  # blend.weights: each network's answer blended with its fallback (known parts; [1.0]: off)
+    if kind == "main" and blend_weights(cfg) != [1.0]:
         blends[id(fitted)] = fit_blend(fitted, arrays, cfg, train, own_labels=not cross_only(cfg))
         if specialist is not None:
             blends[id(specialist)] = fit_blend(specialist, arrays, specialist_cfg(cfg), train, own_labels=False)
@@ -592,7 +592,8 @@ def run_job(job: tuple, arrays: dict, cfg, prior_grids, m3_pmf: dict | None, loc
         choice["calibrated_network"] = calibration_network(cfg)
     if specialist is not None:
         choice.update({f"specialist_{k}": v for k, v in specialist["choice"].items() if k != "fit"})
-        choice.update({f"specialist_{k}": v for k, v in blend_choice(blends[id(specialist)]).items()})
+        if id(specialist) in blends:
+            choice.update({f"specialist_{k}": v for k, v in blend_choice(blends[id(specialist)]).items()})
     if kind == "locked":
         choice["locked_parts"] = " ".join(sorted(locked))
     return rows, choice
