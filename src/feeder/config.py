@@ -225,11 +225,12 @@ def pull_overrides(values, overrides: Sequence[str]) -> tuple[list, list[str]]:
     read the override as a path. ``values`` None stays None."""
     if values is None:
         return None, list(overrides)
-    kept, moved = [], []
-    for value in values:
-        word = str(value)
-        is_override = "=" in word and not word.startswith("=") and not Path(word).exists()
-        (moved if is_override else kept).append(word if is_override else value)
+
+    def is_override(word: str) -> bool:
+        return "=" in word and not word.startswith("=") and not Path(word).exists()
+
+    kept = [v for v in values if not is_override(str(v))]
+    moved = [str(v) for v in values if is_override(str(v))]
     return kept, [*overrides, *moved]
 
 
