@@ -326,3 +326,50 @@ def test_a_calibrated_shipped_answer_is_the_protocols_calibrated_prediction(tmp_
     # on without the modes' PMFs: a one-line error
     with pytest.raises(FeederError, match="modes' PMFs"):
         calibrated_arrays(_small_study(17.0, overrides=["calibration.network=true"])[1], everything, cfg)
+
+
+def test_a_mirror_shipped_answer_is_the_protocols_prediction_and_reads_the_other_location(tmp_path):
+    """model.mirror_labels: the file keeps each part's mirror constant, and the answer for a
+    Location 2 query (none_straight35) whose part has labels only at Location 1 (straight30,
+    straight40) is the protocol's prediction of the row, which reads those labels reflected; the
+    study's description names the label read at the other location."""
+    pytest.importorskip("torch")
+    from feeder import io
+    from feeder.learn.structured import predict
+    from feeder.learn.structured_data import row_mirror_degs
+    from feeder.learn.structured_protocol import fit_protocol
+    from feeder.learn.structured_shipped import ShippedStructured, shipped_arrays
+    from feeder.mechanics.hull import push_geometry
+    from feeder.parts.geometry import load_profile
+
+    configs = ["straight30_none", "straight40_none", "none_straight35", "curved30_none", "straight30_straight45"]
+    cfg, a, scene = _small_study(frame_deg=17.0, configs=configs, overrides=["model.mirror_labels=true"])
+    data = {"part": a["part"], "frame_deg": a["frame_deg"], "label_frame": "principal", "settings": "{}"}
+    a["mirror_deg"] = row_mirror_degs(data, a["part"], PARTS_DIR, tmp_path)
+    assert np.isfinite(a["mirror_deg"]).all()  # a rectangle and a hexagon
+    fitted = fit_protocol(a, np.ones(10, dtype=bool), cfg, "shipped", known=True)
+    io.write_npz(tmp_path / "s.npz", **shipped_arrays(fitted, a, cfg, "principal", BINS, 1.0, scene))
+    shipped = ShippedStructured.load(tmp_path / "s.npz")
+    assert shipped.mirror_deg("rect-a3") == pytest.approx(a["mirror_deg"][0])
+    assert shipped.mirrored_ids("rect-a3", configs[:2]) == [("none_straight30", 0), ("none_straight40", 1)]
+    geom = push_geometry(*load_profile(PARTS_DIR / "rect-a3.stl", "auto")[:2])
+    row, pool = 2, [0, 1, 3, 4]
+    got = shipped.answer(
+        geom, "rect-a3", [configs[row]], [configs[i] for i in pool], a["pmf"][pool], a["ok"][pool], scene
+    )
+    want = np.mean([predict(f, fitted["scaled"], [row], fitted["mean_pmf"])[0] for f in fitted["fits"]], axis=0)
+    assert got == pytest.approx(want, abs=2e-5)
+    # the inputs read the mirrored labels: without the constants the same network answers otherwise
+    plain = ShippedStructured(
+        {**shipped_arrays(fitted, a, cfg, "principal", BINS, 1.0, scene), "meta": _without_mirror(shipped.meta)}
+    )
+    other = plain.answer(
+        geom, "rect-a3", [configs[row]], [configs[i] for i in pool], a["pmf"][pool], a["ok"][pool], scene
+    )
+    assert np.abs(other - got).max() > 1e-4
+
+
+def _without_mirror(meta: dict):
+    import json
+
+    return np.array(json.dumps({k: v for k, v in meta.items() if k != "mirror_labels"}, sort_keys=True))

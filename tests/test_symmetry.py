@@ -143,3 +143,36 @@ def test_holes_take_part_in_the_symmetry():
     # a 32-gon with a centred 16-gon hole: 8-fold, the largest order up to 12 that both have
     assert S.rotational_order(_ring(1.0, 32), holes=[_ring(0.4, 16)]) == 8
     assert S.rotational_order(_ring(1.0, 32), holes=[_ring(0.2, 16, (0.5, 0.0))]) == 1
+
+
+# ------------------------------------------------------------------------------------------
+# mirror axes (feeder.learn.structured_mirror reads a one-fence label at the other location)
+# ------------------------------------------------------------------------------------------
+def _turn(points, deg):
+    a = np.radians(deg)
+    return np.asarray(points, float) @ np.array([[np.cos(a), np.sin(a)], [-np.sin(a), np.cos(a)]])
+
+
+def test_a_mirror_axis_is_found_through_the_centroid():
+    rect = np.array([(0, 0), (2, 0), (2, 1), (0, 1)], float)
+    assert S.mirror_axis(rect) in (0.0, 90.0)
+    ell = np.array([(0, 0), (2, 0), (2, 1), (1, 1), (1, 2), (0, 2)], float)  # equal legs: the diagonal
+    assert S.mirror_axis(ell) == pytest.approx(45.0)
+    kite = np.array([(0, 0), (3, 1), (0, 2), (-1, 1)], float)  # symmetric about y = 1 only, far from the origin
+    assert S.mirror_axis(kite + 5.0) == pytest.approx(0.0, abs=1e-9)
+    for deg in (17.0, 100.0):  # turned by deg, the axis turns with it (mod 180)
+        assert S.mirror_axis(_turn(kite, deg)) == pytest.approx((0.0 + deg) % 180.0)
+    assert S.mirror_error(kite, 0.0) == pytest.approx(0.0, abs=1e-12)
+    assert S.mirror_error(kite, 90.0) > 0.1
+
+
+def test_a_part_without_a_mirror_axis_has_none():
+    assert S.mirror_axis(np.array([(0, 0), (2, 0), (3, 1), (1, 1)], float)) is None  # a parallelogram
+    assert S.mirror_axis(np.array([(0, 0), (3, 0), (3, 1), (1, 1), (1, 2), (0, 2)], float)) is None  # unequal legs
+    assert S.mirror_axis(np.array([(0, 0), (1, 0), (0.3, 0.8)], float)) is None  # a scalene triangle
+    square = np.array([(0, 0), (4, 0), (4, 4), (0, 4)], float)
+    hole = np.array([(0.5, 0.5), (1.5, 0.5), (1.5, 1.0), (0.5, 1.0)])  # breaks every axis of the square
+    assert S.mirror_axis(square, holes=[hole + (0.3, 2.1)]) is None
+    assert S.mirror_axis(square, holes=[hole + (1.0, 0.0)]) == pytest.approx(90.0)  # centred in x: x = 2 stays
+    with pytest.raises(FeederError, match="tolerance"):
+        S.mirror_axis(square, tolerance=0.0)

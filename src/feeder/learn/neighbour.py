@@ -117,12 +117,13 @@ def angle_distance(config_a: str, config_b: str) -> float:
     return float(np.abs(np.subtract(fence_key(config_a)[1], fence_key(config_b)[1])).sum())
 
 
-def choose_gate(pmf, analytic, parts, config_ids, train, gates) -> float:
+def choose_gate(pmf, analytic, parts, config_ids, train, gates, rows=None) -> float:
     """The gate of ``gates`` (degrees) whose gated neighbour scores the least mean circular W1 on the
-    training rows, each predicted from its nearest *other* training row; ties to the smaller gate."""
+    training rows, each predicted from its nearest *other* training row; ties to the smaller gate.
+    ``rows``: the rows scored (default: every training row), when ``train`` holds more neighbours."""
     from feeder.labels.metrics import circular_w1
 
-    rows = np.flatnonzero(np.asarray(train, dtype=bool))
+    rows = np.flatnonzero(np.asarray(train, dtype=bool)) if rows is None else np.asarray(rows, dtype=np.int64)
     if not len(gates):
         raise FeederError("neighbour.gates_deg must hold at least one gate")
     idx = neighbour_index(parts, config_ids, train, rows)

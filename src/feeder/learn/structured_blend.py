@@ -66,29 +66,33 @@ def fit_gate(arrays: dict, train, gates) -> float:
     """The gate of ``gates`` (degrees) chosen on the kept ``train`` rows of ``arrays``
     (:func:`feeder.learn.neighbour.choose_gate`, each row from its nearest other one)."""
     from feeder.learn.neighbour import choose_gate
+    from feeder.learn.structured_data import neighbour_source
 
     pool = np.asarray(train, dtype=bool) & np.asarray(arrays["kept"], dtype=bool)
+    source, source_pool = neighbour_source(arrays, pool)  # with the mirrored labels (model.mirror_labels)
+    gates = [float(g) for g in gates]
+    scored = np.flatnonzero(pool)  # the training rows, each from its nearest other (mirrored or not)
     return float(
-        choose_gate(
-            arrays["pmf"], arrays["analytic"], arrays["part"], arrays["config_id"], pool, [float(g) for g in gates]
-        )
+        choose_gate(source["pmf"], source["analytic"], source["part"], source["config_id"], source_pool, gates, scored)
     )
 
 
 def gated_pmfs(arrays: dict, pool, rows, gate_deg: float) -> np.ndarray:
     """(len(rows), bins): for each of ``rows`` the label of the nearest kept ``pool`` row of the
     same part and fence types (never itself) within ``gate_deg`` (``|Δθ1| + |Δθ2|``), else its
-    ``analytic`` PMF."""
+    ``analytic`` PMF. The pool holds the mirrored labels too
+    (:func:`feeder.learn.structured_data.neighbour_source`)."""
     from feeder.learn.neighbour import angle_distance, neighbour_index
+    from feeder.learn.structured_data import neighbour_source
 
-    pool = np.asarray(pool, dtype=bool) & np.asarray(arrays["kept"], dtype=bool)
+    source, pool = neighbour_source(arrays, pool)
     rows = np.asarray(rows, dtype=np.int64)
-    cids = arrays["config_id"]
-    idx = neighbour_index(arrays["part"], cids, pool, rows)
+    cids = source["config_id"]
+    idx = neighbour_index(source["part"], cids, pool, rows)
     out = np.asarray(arrays["analytic"])[rows].copy()
     for n, (i, j) in enumerate(zip(rows, idx, strict=True)):
         if j >= 0 and angle_distance(cids[i], cids[j]) <= gate_deg:
-            out[n] = arrays["pmf"][j]
+            out[n] = source["pmf"][j]
     return out
 
 

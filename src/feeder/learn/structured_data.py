@@ -37,6 +37,7 @@ from feeder.learn.structured_calibration import (  # model_analytic: read here, 
     compute_mode_pmfs,
     model_analytic,
 )
+from feeder.learn.structured_mirror import mirror_labels, part_mirror_degs
 
 log = logging.getLogger(__name__)
 
@@ -84,6 +85,15 @@ def _frames(data: dict, parts, features_dir) -> dict[str, float]:
         if part not in frames:
             frames[part] = load_frame_deg(Path(features_dir) / f"{part}.json") if principal else 0.0
     return frames
+
+
+def row_mirror_degs(data: dict, parts, parts_dir, features_dir) -> np.ndarray:
+    """Per row of ``parts``: :func:`feeder.learn.structured_mirror.label_mirror_deg` of its part
+    in the label frame of ``data`` (:func:`feeder.labels.dataset.load_dataset`), its STL read in
+    the dataset's ``parts.units`` (``model.mirror_labels``)."""
+    units = str((json.loads(str(data["settings"])).get("parts") or {}).get("units", "auto"))
+    frames = _frames(data, sorted(set(map(str, parts))), features_dir)
+    return part_mirror_degs([str(p) for p in parts], [frames[str(p)] for p in parts], parts_dir, units)
 
 
 def configuration_inputs(
@@ -356,6 +366,8 @@ def structured_arrays(
         "cdf": np.cumsum(pmf, axis=1),
         "wide_sigma_bins": float(cfg.model.wide_sigma_bins),
     }
+    if mirror_labels(cfg):  # a one-fence label read at the other location too (structured_mirror)
+        out["mirror_deg"] = row_mirror_degs(data, parts, parts_dir, features_dir)
     if not calibration:
         return out
     modes, _ = calibration_settings(cfg)
@@ -462,22 +474,35 @@ def nearest_cross_rows(parts, config_ids, pool, rows, k: int) -> tuple[np.ndarra
     return idx, dist
 
 
+def neighbour_source(arrays: dict, pool) -> tuple[dict, np.ndarray]:
+    """The rows a neighbour is read from: ``arrays``' kept rows of ``pool``, with each one-fence
+    label of a part with a mirror axis read at the other location appended
+    (:func:`feeder.learn.structured_mirror.with_mirrors`; only where ``arrays`` holds
+    ``mirror_deg``, ``model.mirror_labels``). Returns (their fields, the pool over them); row ``i``
+    of ``arrays`` is row ``i`` of the source."""
+    from feeder.learn.structured_mirror import with_mirrors
+
+    source, pool, _ = with_mirrors(arrays, np.asarray(pool, dtype=bool) & np.asarray(arrays["kept"], dtype=bool))
+    return source, pool
+
+
 def neighbour_rows(
     arrays: dict, pool, k: int, cross: int = 0, hide_same: bool = False
 ) -> tuple[np.ndarray, np.ndarray]:
     """Every row's ``k`` nearest kept rows of ``pool`` of its part and fence types
     (:func:`nearest_rows`), then its ``cross`` nearest under the same downstream fence
     (:func:`nearest_cross_rows`): (indices (N, k + cross), −1 where missing; distances).
+    The indices are rows of :func:`neighbour_source` (``arrays``' own, then the mirrored labels).
     ``hide_same``: the first ``k`` missing for every row, as for a configuration of a type
     combination the part has no label of (the Fences rows)."""
-    pool = np.asarray(pool, dtype=bool) & np.asarray(arrays["kept"], dtype=bool)
+    source, pool = neighbour_source(arrays, pool)
     rows = np.arange(len(arrays["part"]))
     if hide_same:
         idx, dist = np.full((rows.size, int(k)), -1, dtype=np.int64), np.full((rows.size, int(k)), np.inf)
     else:
-        idx, dist = nearest_rows(arrays["part"], arrays["config_id"], pool, rows, k)
+        idx, dist = nearest_rows(source["part"], source["config_id"], pool, rows, k)
     if int(cross) > 0:  # then the nearest of other type combinations under the same downstream fence
-        c_idx, c_dist = nearest_cross_rows(arrays["part"], arrays["config_id"], pool, rows, cross)
+        c_idx, c_dist = nearest_cross_rows(source["part"], source["config_id"], pool, rows, cross)
         idx, dist = np.concatenate([idx, c_idx], axis=1), np.concatenate([dist, c_dist], axis=1)
     return idx, dist
 
@@ -563,31 +588,36 @@ def neighbour_block(
     ``miss``: each pool row's :func:`label_miss`, when known (then only the neighbours' analytic
     PMFs are read: the others may be anything). ``hide_same``: :func:`neighbour_rows`'."""
     from feeder.labels.metrics import circular_w1
+    from feeder.learn.structured_mirror import with_mirrors
 
     pool = np.asarray(pool, dtype=bool) & np.asarray(arrays["kept"], dtype=bool)
     n = len(arrays["part"])
     idx, dist = neighbour_rows(arrays, pool, k, cross, hide_same)
+    source, _, mirrored = with_mirrors(arrays, pool)  # neighbour_source: the rows idx indexes
     k = idx.shape[1]
     analytic, pmf = np.asarray(model_analytic(arrays), np.float64), np.asarray(arrays["pmf"], np.float64)
-    a_cdf = np.cumsum(analytic, axis=1)
+    s_analytic, s_pmf = np.asarray(model_analytic(source), np.float64), np.asarray(source["pmf"], np.float64)
+    a_cdf, s_cdf = np.cumsum(analytic, axis=1), np.cumsum(s_analytic, axis=1)
     if miss is None:  # each pool row's label against its analytic PMF
         miss = np.zeros(n)
         miss[pool] = label_miss(pmf[pool], analytic[pool])
     miss = np.where(pool, np.asarray(miss, dtype=np.float64), 0.0)
+    s_miss = np.concatenate([miss, miss[mirrored]])  # a reflection moves label and analytic PMF alike
+    s_ok = np.asarray(source["ok"])
     feats, pmfs = [], np.repeat(analytic[:, None, :], int(k), axis=1)
     for j in range(int(k)):
         has = idx[:, j] >= 0
         nb = np.where(has, idx[:, j], 0)
-        move = np.where(has, circular_w1(a_cdf, a_cdf[nb]) / RIGHT_ANGLE_DEG, 0.0)
+        move = np.where(has, circular_w1(a_cdf, s_cdf[nb]) / RIGHT_ANGLE_DEG, 0.0)
         feats += [
             has.astype(float),
             np.where(has, dist[:, j], FAR_DEG) / RIGHT_ANGLE_DEG,
             np.where(has, np.exp(-dist[:, j] / near_deg), 0.0),
             move,
-            np.where(has, miss[nb], 0.0),
-            np.where(has, np.asarray(arrays["ok"])[nb], np.asarray(arrays["analytic_ok"])),
+            np.where(has, s_miss[nb], 0.0),
+            np.where(has, s_ok[nb], np.asarray(arrays["analytic_ok"])),
         ]
-        pmfs[has, j] = pmf[nb[has]]
+        pmfs[has, j] = s_pmf[nb[has]]
     parts = np.asarray(arrays["part"]).astype(str)
     part_miss, has_part = np.zeros(n), np.zeros(n)
     for p in np.unique(parts):
@@ -732,8 +762,9 @@ def with_neighbours(
         if merge_deg is None or window_deg is None:
             raise FeederError("neighbour candidates need candidates.merge_deg and candidates.window_deg")
         out = neighbour_candidates(out, pmfs, idx, int(candidates), float(merge_deg), float(window_deg))
-    if int(basins) > 0:
-        b_feats, comps, offsets = basin_components(pmfs, model_analytic(arrays), idx, int(basins))
+    if int(basins) > 0:  # a neighbour's analytic masses: read from the rows idx indexes
+        source, _ = neighbour_source(arrays, pool)
+        b_feats, comps, offsets = basin_components(pmfs, model_analytic(source), idx, int(basins))
         out.update(x=np.concatenate([out["x"], b_feats], axis=1), neighbour_pmf=comps, neighbour_offset=offsets)
     return out
 

@@ -329,10 +329,10 @@ def specialist_cfg(cfg):
 def without_own_label(arrays: dict, pool, rows) -> np.ndarray:
     """Of ``rows``: whether the kept rows of ``pool`` hold no label of the row's part and fence-type
     combination (a Fences row's situation; the rows the specialist answers)."""
-    from feeder.learn.structured_data import nearest_rows
+    from feeder.learn.structured_data import nearest_rows, neighbour_source
 
-    pool = np.asarray(pool, dtype=bool) & np.asarray(arrays["kept"], dtype=bool)
-    _, dist = nearest_rows(arrays["part"], arrays["config_id"], pool, rows, 1)
+    source, pool = neighbour_source(arrays, pool)  # with the mirrored labels (model.mirror_labels)
+    _, dist = nearest_rows(source["part"], source["config_id"], pool, rows, 1)
     return ~np.isfinite(dist[:, 0])
 
 
@@ -764,17 +764,17 @@ def neighbour_distances(arrays: dict, cfg) -> pd.DataFrame:
     none. ``cross``: whether the part has a training label of the row's downstream (Location 1) fence
     type in another combination (:func:`~feeder.learn.structured_data.nearest_cross_rows`), the other
     neighbour the shipped answer needs (else it answers otherwise)."""
-    from feeder.learn.structured_data import nearest_cross_rows, nearest_rows
+    from feeder.learn.structured_data import nearest_cross_rows, nearest_rows, neighbour_source
 
     out = []
     for kind, _key, index, train, scored in protocol_jobs(arrays, cfg)[0]:
         if kind != "main":
             continue
-        pool = train & arrays["kept"]
+        source, pool = neighbour_source(arrays, train)  # with the mirrored labels (model.mirror_labels)
         for experiment, mask in scored.items():
             rows = np.flatnonzero(mask)
-            _, dist = nearest_rows(arrays["part"], arrays["config_id"], pool, rows, 1)
-            cross, _ = nearest_cross_rows(arrays["part"], arrays["config_id"], pool, rows, 1)
+            _, dist = nearest_rows(source["part"], source["config_id"], pool, rows, 1)
+            cross, _ = nearest_cross_rows(source["part"], source["config_id"], pool, rows, 1)
             out.append(
                 pd.DataFrame(
                     {
@@ -957,6 +957,7 @@ def main(argv: list[str]) -> int:
     from feeder.learn.structured_blend import blend_weights
     from feeder.learn.structured_calibration import calibration_settings
     from feeder.learn.structured_data import drop_arrays, one_fence_maps, structured_arrays
+    from feeder.learn.structured_mirror import mirror_labels
 
     args = _parser().parse_args(argv)
     args.m3_model, args.overrides = pull_overrides(args.m3_model, args.overrides)  # list options take every word
@@ -966,7 +967,7 @@ def main(argv: list[str]) -> int:
     cfg = compose_config("structured", args.overrides)
     edges = check_edges(cfg.answer_errors.edges_deg)
     if args.from_rows is not None:  # the tables of a run's rows: its splits from the dataset, no fit
-        from feeder.learn.structured_data import split_arrays
+        from feeder.learn.structured_data import row_mirror_degs, split_arrays
 
         runs = [read_run(path) for path in args.from_rows]
         long = runs[0][0]
@@ -979,7 +980,11 @@ def main(argv: list[str]) -> int:
                 print(f"{kind}: from {args.from_rows[n]}", flush=True)
         m3_parts = m3_part_scores(args.m3_groupkfold) if args.m3_groupkfold else None
         table = comparison_table(long, dict(cfg.protocol.bootstrap), m3_parts)
-        by_distance = error_by_distance(long, neighbour_distances(split_arrays(load_dataset(args.dataset)), cfg), edges)
+        data = load_dataset(args.dataset)
+        split = split_arrays(data)
+        if mirror_labels(cfg):  # the distances to the mirrored labels too, as the run's own
+            split["mirror_deg"] = row_mirror_degs(data, split["part"], args.parts_dir, args.features_dir)
+        by_distance = error_by_distance(long, neighbour_distances(split, cfg), edges)
         if len(runs) > 1:
             io.write_csv(args.out_dir / "structured_rows.csv", long)
             io.write_csv(args.out_dir / "structured_choices.csv", choices)
@@ -990,6 +995,7 @@ def main(argv: list[str]) -> int:
     # bad settings: a one-line error before any work
     neighbour_options(cfg), drop_count(cfg), drop_count(cfg, "drop_candidates"), composed_on(cfg), fit_kinds(cfg)
     fit_part_fraction(cfg), cross_only_copies(cfg), refit_on(cfg), calibration_settings(cfg), blend_weights(cfg)
+    mirror_labels(cfg)
     prior_grids = grids(compose_config("train")["prior"])
     import torch
 

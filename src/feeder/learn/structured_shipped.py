@@ -24,6 +24,7 @@ from __future__ import annotations
 import argparse
 import hashlib
 import json
+import math
 import sys
 from dataclasses import asdict
 from pathlib import Path
@@ -189,6 +190,9 @@ def shipped_arrays(
     if "blend" in fitted:  # blend.weights (fit_shipped): the answer blended with its fallback
         meta["blend"] = blend_meta(fitted["blend"])
     extra = {}
+    if "mirror_deg" in arrays:  # model.mirror_labels: each part's mirror constant (NaN: no mirror axis)
+        meta["mirror_labels"] = True
+        extra["mirror_deg"] = np.asarray(arrays["mirror_deg"], dtype=np.float64)[first]
     if specialist is not None:
         meta["specialist"] = {
             "net": asdict(specialist["settings"]),
@@ -197,7 +201,7 @@ def shipped_arrays(
         }
         if "blend" in specialist:
             meta["specialist"]["blend"] = blend_meta(specialist["blend"])
-        extra = {
+        extra |= {
             f"{SPECIALIST}x_mean": specialist["x_mean"],
             f"{SPECIALIST}x_sd": specialist["x_sd"],
             f"{SPECIALIST}mean_pmf": specialist["mean_pmf"],
@@ -245,6 +249,12 @@ class ShippedStructured:
         if "specialist" in self.meta:  # model.fences_specialist: for a query with no label of its own combination
             self.networks["specialist"] = self._network(arrays, SPECIALIST, self.meta["specialist"])
         self.frames = {str(p): float(f) for p, f in zip(arrays["part_ids"], arrays["frame_deg"], strict=True)}
+        # model.mirror_labels: each known part's mirror constant (structured_mirror; NaN: no mirror axis)
+        self.mirrors = (
+            {str(p): float(c) for p, c in zip(arrays["part_ids"], arrays["mirror_deg"], strict=True)}
+            if self.meta.get("mirror_labels")
+            else {}
+        )
         self.miss = {
             (str(p), str(c)): float(m)
             for p, c, m in zip(arrays["miss_part"], arrays["miss_config_id"], arrays["miss"], strict=True)
@@ -319,6 +329,22 @@ class ShippedStructured:
             raise FeederError(f"the structured predictor was not trained with part {part}")
         return self.frames[part] if self.meta["label_frame"] == "principal" else 0.0
 
+    def mirror_deg(self, part: str) -> float:
+        """The known ``part``'s mirror constant (:func:`feeder.learn.structured_mirror.label_mirror_deg`),
+        NaN when it has no mirror axis or the file was trained without ``model.mirror_labels``."""
+        return self.mirrors.get(str(part), math.nan)
+
+    def mirrored_ids(self, part: str, pool_ids) -> list[tuple[str, int]]:
+        """(configuration, position in ``pool_ids``) of every one-fence label of ``pool_ids`` read at
+        the other location (:func:`feeder.learn.structured_mirror.mirror_config_id`); none when
+        :meth:`mirror_deg` is NaN."""
+        from feeder.learn.structured_mirror import mirror_config_id
+
+        if not math.isfinite(self.mirror_deg(part)):
+            return []
+        pairs = [(mirror_config_id(c), n) for n, c in enumerate(pool_ids)]
+        return [(c, n) for c, n in pairs if c is not None]
+
     def has_neighbour(self, config_id: str, pool_ids) -> bool:
         """Whether ``config_id`` has a neighbour among the part's labelled ``pool_ids`` (same fence
         types, the same downstream fence type when cross neighbours are used, or each of its two fences
@@ -356,6 +382,7 @@ class ShippedStructured:
             neighbour_rows,
             row_inputs,
         )
+        from feeder.learn.structured_mirror import with_mirrors
         from feeder.mechanics.candidates import variants_from_config
         from feeder.mechanics.features import push_block
 
@@ -382,10 +409,16 @@ class ShippedStructured:
             "ok": np.concatenate([np.asarray(pool_ok, np.float64), q["analytic_ok"]]),
             "analytic_ok": np.concatenate([np.zeros(n_pool), q["analytic_ok"]]),
         }
-        # the analytic PMFs of the pool rows that are some query's neighbour, or whose miss is not kept
+        if m.get("mirror_labels"):  # its one-fence labels read at the other location too, as in training
+            rows["mirror_deg"] = np.full(n_pool + n_q, self.mirror_deg(part))
+        # the analytic PMFs of the pool rows that are some query's neighbour (a mirrored label's: its
+        # source's), or whose miss is not kept
         idx, _ = neighbour_rows(rows, rows["kept"], m["neighbours"], m["cross_neighbours"])
+        _, _, mirrored = with_mirrors(rows, rows["kept"])
+        source_of = np.concatenate([np.arange(n_pool + n_q), mirrored])
+        near = source_of[idx[n_pool:][idx[n_pool:] >= 0]]
         miss = np.array([self.miss.get((part, c), np.nan) for c in pool_ids] + [0.0] * n_q)
-        for i in sorted(set(idx[n_pool:][idx[n_pool:] >= 0].tolist()) | set(np.flatnonzero(np.isnan(miss)).tolist())):
+        for i in sorted(set(near.tolist()) | set(np.flatnonzero(np.isnan(miss)).tolist())):
             rows["analytic"][i] = push_block(
                 geom,
                 *parse_config_id(pool_ids[i]),
@@ -482,6 +515,7 @@ def main(argv: list[str]) -> int:
     from feeder.labels.dataset import load_dataset
     from feeder.learn.structured_calibration import calibration_network, calibration_settings
     from feeder.learn.structured_data import one_fence_maps, structured_arrays
+    from feeder.learn.structured_mirror import mirror_labels
     from feeder.learn.structured_protocol import check_count, composed_on
 
     if args.out.suffix != ".npz":
@@ -491,6 +525,7 @@ def main(argv: list[str]) -> int:
     check_count(cfg.train.threads, "train.threads")
     composed_on(cfg)  # a bad value: a one-line error before any work
     calibration_settings(cfg)
+    mirror_labels(cfg)
     if not cfg.search:
         raise FeederError("search: at least one setting to try (config/hydra/structured.yaml)")
     if not args.dataset.is_file():

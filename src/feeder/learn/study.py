@@ -37,7 +37,7 @@ import pandas as pd
 
 from feeder.errors import FeederError
 from feeder.learn.analytic import AnalyticModel, AnalyticSpec
-from feeder.learn.structured_data import nearest_configuration
+from feeder.learn.structured_data import fence_key, nearest_configuration
 from feeder.learn.structured_shipped import SHIPPED_FILE, scene_digest
 
 STUDY_MODEL = "study"  # the --model value that names this predictor (the default)
@@ -710,18 +710,20 @@ class StudyModel(AnalyticModel):
         by_id = {str(lib.config_id[i]): int(i) for i in rows}
         pool = [int(i) for i in rows if lib.kept[i]]
         pool_ids = [str(lib.config_id[i]) for i in pool]
+        structured = self.structured is not None and self.structured.knows(known)
+        # the structured predictor also reads each one-fence label at the other location (model.mirror_labels)
+        mirrored = self.structured.mirrored_ids(known, pool_ids) if structured else []
+        read_ids, read_rows = pool_ids + [c for c, _ in mirrored], pool + [pool[n] for _, n in mirrored]
         for cid in config_ids:
             if cid in by_id:
                 self.answers.append((SIMULATED, by_id[cid], 0.0))
                 continue
+            if structured and self.structured.has_neighbour(cid, read_ids):
+                k, dist = nearest_configuration(cid, read_ids)
+                self.answers.append((STRUCTURED, read_rows[k] if k >= 0 else -1, dist))
+                continue
             k, dist = nearest_configuration(cid, pool_ids)
-            if (
-                self.structured is not None
-                and self.structured.knows(known)
-                and self.structured.has_neighbour(cid, pool_ids)
-            ):
-                self.answers.append((STRUCTURED, pool[k] if k >= 0 else -1, dist))
-            elif k >= 0 and dist <= self.gate_deg:
+            if k >= 0 and dist <= self.gate_deg:
                 self.answers.append((NEIGHBOUR, pool[k], dist))
             else:
                 self.answers.append((ANALYTIC, -1, dist))
@@ -733,8 +735,11 @@ class StudyModel(AnalyticModel):
         if source == SIMULATED:
             return f"the study's simulated label of {self.library.config_id[i]}{self._label_error(i)}"
         if source == STRUCTURED:
+            label = str(self.library.config_id[i]) if i >= 0 else ""
+            if i >= 0 and fence_key(label)[0] != fence_key(self.config_ids[row])[0]:  # model.mirror_labels
+                label = f"{label} read at the other location (the part's mirror image)"
             near = (
-                f"; nearest simulated angle of its fence types {self.library.config_id[i]}, {dist:g} deg away"
+                f"; nearest simulated angle of its fence types {label}, {dist:g} deg away"
                 if i >= 0
                 else "; none of its fence types, only of its downstream fence"
                 + ("; its Fences specialist answers" if "specialist" in self.structured.networks else "")

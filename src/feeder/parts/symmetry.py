@@ -132,3 +132,53 @@ def check_order(outline, n: int, tolerance: float = DEFAULT_SYMMETRY_TOLERANCE, 
             f"part has no {int(n)}-fold symmetry: turning it by {FULL_TURN_DEG / n:g}° about its "
             f"centroid moves its outline by {err:.3g} of its radius (tolerance {tol:g})"
         )
+
+
+def _reflected(poly: Polygon, axis_deg: float) -> tuple[list[np.ndarray], list[np.ndarray], float]:
+    """(the boundary's rings, the same reflected across the line through the area centroid at
+    ``axis_deg``, the size), as :func:`_turned` for a turn."""
+    rings = [np.asarray(poly.exterior.coords), *(np.asarray(h.coords) for h in poly.interiors)]
+    c = np.asarray(poly.centroid.coords[0])
+    size = float(np.linalg.norm(rings[0] - c, axis=1).max())
+    a = 2.0 * math.radians(axis_deg)
+    ref = np.array([[math.cos(a), math.sin(a)], [math.sin(a), -math.cos(a)]])
+    return rings, [(ring - c) @ ref.T + c for ring in rings], size
+
+
+def mirror_error(outline, axis_deg: float, holes=()) -> float:
+    """Relative symmetry error (as :func:`symmetry_error`) of the reflection across the line through
+    the area centroid at ``axis_deg`` (degrees from the frame's x axis)."""
+    if not math.isfinite(float(axis_deg)):
+        raise FeederError(f"mirror axis must be finite, got {axis_deg!r}")
+    rings, reflected, size = _reflected(_polygon(outline, holes), float(axis_deg))
+    return float(shapely.hausdorff_distance(_boundary(rings), _boundary(reflected), densify=_DENSIFY)) / size
+
+
+def mirror_axis(outline, tolerance: float = DEFAULT_SYMMETRY_TOLERANCE, holes=()) -> float | None:
+    """A mirror axis of the outline (and holes) through its area centroid, degrees in [0, 180) from
+    the frame's x axis, or None when no reflection maps it onto itself within ``tolerance``.
+
+    A polygon's mirror axis crosses its outline at points the reflection fixes: a vertex, or the
+    midpoint of an edge the axis meets at a right angle. So the axes tried are the lines from the
+    centroid through every outline vertex and edge midpoint; the one with the least error is
+    returned. A rectangle in its own frame → 0 (or 90), an L-shape → the diagonal of its corner
+    where its legs are equal, a parallelogram that is not a rhombus → None.
+    """
+    tol = _check_tolerance(tolerance)
+    poly = _polygon(outline, holes)
+    ring = np.asarray(poly.exterior.coords)[:-1]
+    c = np.asarray(poly.centroid.coords[0])
+    points = np.concatenate([ring, 0.5 * (ring + np.roll(ring, -1, axis=0))])
+    offsets = points - c
+    keep = np.hypot(offsets[:, 0], offsets[:, 1]) > 1e-12 * float(np.abs(ring).max() + 1.0)
+    axes = np.unique(np.round(np.mod(np.degrees(np.arctan2(offsets[keep, 1], offsets[keep, 0])), 180.0), 9))
+    best, best_err = None, math.inf
+    for axis in axes:
+        rings, reflected, size = _reflected(poly, float(axis))
+        bound = float(shapely.distance(_boundary(rings), shapely.points(np.concatenate(reflected))).max()) / size
+        if bound > tol + _BOUND_SLACK or bound >= best_err:
+            continue
+        err = float(shapely.hausdorff_distance(_boundary(rings), _boundary(reflected), densify=_DENSIFY)) / size
+        if err <= tol and err < best_err:
+            best, best_err = float(axis) % 180.0, err
+    return best
