@@ -164,6 +164,10 @@ class _Shipped:
     def has_neighbour(self, config_id, pool_ids):
         return self.rule.has_neighbour(config_id, pool_ids)
 
+    def mirrored_ids(self, part, pool_ids):
+        self.rule.mirrors = getattr(self, "mirrors", {})
+        return self.rule.mirrored_ids(part, pool_ids)
+
     def frame_of(self, part):
         return self.frame
 
@@ -211,6 +215,26 @@ def test_a_known_part_at_a_new_angle_gets_the_structured_predictor_where_it_has_
     model = S.StudyModel(360, 1.0, SCENE, lib)
     model.bind(stl, ids)
     assert model.sources() == ["simulated", "neighbour", "analytic", "analytic", "analytic"]
+
+
+def test_a_mirror_predictor_answers_a_query_at_the_other_location_and_says_whose_label_it_read(tmp_path):
+    """model.mirror_labels: a Location 2 query of a part with labels only at Location 1 has a
+    neighbour (straight30_none read at Location 2, 5 deg away) and the structured predictor answers;
+    without the part's mirror constant it has none, and the analytic PMF answers."""
+    stl = tmp_path / "p.stl"
+    stl.write_bytes((Path(__file__).resolve().parents[1] / "parts" / "rect-a3.stl").read_bytes())
+    lib = _library(stl)
+    lib.structured = _Shipped()
+    lib.structured.rule.meta["cross_neighbours"] = 0
+    model = S.StudyModel(360, 1.0, SCENE, lib)
+    model.bind(stl, ["none_straight35"])
+    assert model.sources() == ["analytic"]
+    lib.structured.mirrors = {"p": 90.0}
+    model.bind(stl, ["none_straight35"])
+    assert model.sources() == ["structured"]
+    assert "straight30_none read at the other location (the part's mirror image), 5 deg away" in model.describe(0)
+    model.predict(np.zeros((1, 45)), np.zeros((1, 8)), _push(0.5, 1), np.full((1, 360), 1.0 / 360))
+    assert lib.structured.calls[0][2] == ["straight30_none", "straight60_none"]  # the labels as they are
 
 
 def test_a_composing_predictor_gets_the_parts_one_fence_drop_maps(tmp_path):
