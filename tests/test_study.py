@@ -675,3 +675,12 @@ def test_the_card_says_how_the_answer_is_blended():
     words = _blend_words({"weight": 0.3, "gate_deg": None, "val_cw1": {}}, "the analytic PMF")
     assert "0.3 times the network's plus 0.7 times the analytic PMF, the weight chosen" in words
     assert "validation circular" not in words
+
+
+def test_the_card_says_the_mirrored_labels_are_read():
+    from feeder.learn.study import _mirror_words, mirror_count
+
+    assert _mirror_words(None) == ""
+    assert mirror_count({"a": 180.0, "b": float("nan"), "c": 0.0}) == 2
+    words = _mirror_words(2)
+    assert "(2 of its parts) is also read at the other location, reflected" in words

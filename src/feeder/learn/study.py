@@ -28,6 +28,7 @@ from __future__ import annotations
 import argparse
 import hashlib
 import json
+import math
 import sys
 from dataclasses import dataclass
 from pathlib import Path
@@ -418,6 +419,7 @@ def export_study(
             "calibration": calibration_counts(model.meta.get("calibration")),
             "blend": model.meta.get("blend"),
             "specialist_blend": (model.meta.get("specialist") or {}).get("blend"),
+            "mirror_parts": mirror_count(model.mirrors) if model.meta.get("mirror_labels") else None,
             "evidence": [] if structured_table is None else structured_evidence(pd.read_csv(structured_table)),
             "by_distance": [] if structured_errors is None else structured_error_bins(pd.read_csv(structured_errors)),
         }
@@ -564,6 +566,21 @@ def _blend_words(blend: dict | None, fallback: str) -> str:
     )
 
 
+def mirror_count(mirrors: dict[str, float]) -> int:
+    """How many of the shipped predictor's parts have a mirror axis (a finite mirror constant)."""
+    return int(sum(math.isfinite(c) for c in mirrors.values()))
+
+
+def _mirror_words(parts: int | None) -> str:
+    """`` A one-fence label ...`` when the shipped predictor reads mirrored labels (model.mirror_labels)."""
+    if parts is None:
+        return ""
+    return (
+        f" A one-fence label of a part with a mirror axis ({parts} of its parts) is also read at the other "
+        "location, reflected: the two locations are mirror images of one scene (docs/structured.md)."
+    )
+
+
 def _card_new_angle(card: dict) -> list[str]:
     """The card's lines on a simulated part at a configuration the study did not simulate."""
     gated = (
@@ -582,7 +599,8 @@ def _card_new_angle(card: dict) -> list[str]:
         f"PMFs averaged), early-stopped and chosen on {c['val_parts']} validation parts "
         f"(circular W1 {c['val_cw1']:.2f} deg){_refit_words(c)}. Its ok mass is the analytic one."
         f"{_calibration_words(st.get('calibration'))}"
-        f"{_blend_words(st.get('blend'), NEAREST_WORDS)}",
+        f"{_blend_words(st.get('blend'), NEAREST_WORDS)}"
+        f"{_mirror_words(st.get('mirror_parts'))}",
     ]
     sp = st.get("specialist")
     if sp:  # model.fences_specialist
