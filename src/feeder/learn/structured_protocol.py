@@ -982,7 +982,7 @@ def main(argv: list[str]) -> int:
         table = comparison_table(long, dict(cfg.protocol.bootstrap), m3_parts)
         data = load_dataset(args.dataset)
         split = split_arrays(data)
-        if mirror_labels(cfg):  # the distances to the mirrored labels too, as the run's own
+        if mirror_labels(cfg) and "push_raw" in data:  # the mirrored labels too, as the run's (outlines known)
             split["mirror_deg"] = row_mirror_degs(data, split["part"], args.parts_dir, args.features_dir)
         by_distance = error_by_distance(long, neighbour_distances(split, cfg), edges)
         if len(runs) > 1:
