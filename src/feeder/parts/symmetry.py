@@ -150,7 +150,11 @@ def mirror_error(outline, axis_deg: float, holes=()) -> float:
     the area centroid at ``axis_deg`` (degrees from the frame's x axis)."""
     if not math.isfinite(float(axis_deg)):
         raise FeederError(f"mirror axis must be finite, got {axis_deg!r}")
-    rings, reflected, size = _reflected(_polygon(outline, holes), float(axis_deg))
+    return _mirror_error(_polygon(outline, holes), float(axis_deg))
+
+
+def _mirror_error(poly: Polygon, axis_deg: float) -> float:
+    rings, reflected, size = _reflected(poly, axis_deg)
     return float(shapely.hausdorff_distance(_boundary(rings), _boundary(reflected), densify=_DENSIFY)) / size
 
 
@@ -178,7 +182,7 @@ def mirror_axis(outline, tolerance: float = DEFAULT_SYMMETRY_TOLERANCE, holes=()
         bound = float(shapely.distance(_boundary(rings), shapely.points(np.concatenate(reflected))).max()) / size
         if bound > tol + _BOUND_SLACK or bound >= best_err:
             continue
-        err = float(shapely.hausdorff_distance(_boundary(rings), _boundary(reflected), densify=_DENSIFY)) / size
+        err = _mirror_error(poly, float(axis))
         if err <= tol and err < best_err:
             best, best_err = float(axis) % 180.0, err
     return best
