@@ -22,6 +22,30 @@ def test_blended_mixes_the_two_answers_by_the_weight():
     a, b = _pmf(4, (0, 1.0)), _pmf(4, (2, 1.0))
     np.testing.assert_allclose(blended(a[None], b[None], 0.25), [[0.25, 0, 0.75, 0]])
     np.testing.assert_allclose(blended(a[None], b[None], 1.0), a[None])
+    # one weight per row (blend.by_fallback)
+    two = blended(np.stack([a, a]), np.stack([b, b]), np.array([0.25, 1.0]))
+    np.testing.assert_allclose(two, [[0.25, 0, 0.75, 0], [1, 0, 0, 0]])
+
+
+def test_row_weights_take_each_rows_fallback_kind():
+    from feeder.learn.structured_blend import blends_anything, row_weights
+
+    split = {"weight": 0.3, "analytic_weight": 0.8}
+    np.testing.assert_allclose(row_weights(split, [True, False, True]), [0.3, 0.8, 0.3])
+    np.testing.assert_allclose(row_weights({"weight": 0.4}, [True, False]), [0.4, 0.4])  # a file of before
+    assert not blends_anything(None) and not blends_anything({"weight": 1.0})
+    assert blends_anything({"weight": 1.0, "analytic_weight": 0.9}) and blends_anything({"weight": 0.5})
+
+
+@pytest.mark.parametrize("bad", ["1", "yes", "0.5"])
+def test_a_bad_by_fallback_is_a_one_line_error(bad):
+    from feeder.config import compose_config
+    from feeder.learn.structured_blend import by_fallback
+
+    assert by_fallback(compose_config("structured", [])) in (True, False)
+    assert by_fallback(compose_config("structured", ["blend.by_fallback=true"])) is True
+    with pytest.raises(FeederError, match="blend.by_fallback must be true or false"):
+        by_fallback(compose_config("structured", [f"blend.by_fallback={bad}"]))
 
 
 def test_choose_weight_picks_the_least_circular_w1_and_ties_to_the_network():
@@ -67,7 +91,7 @@ def test_the_gated_fallback_takes_the_nearest_label_of_the_same_fence_types_with
     """Row 0 (straight30) has row 1 (straight35, 5° away) and row 2 (straight45) of its part: within
     a 5° gate its fallback is row 1's label, within 2.5° its analytic PMF. Row 3 (another part) and
     row 4 (other fence types) never lend their label; the specialist's fallback is the analytic PMF."""
-    from feeder.learn.structured_blend import fallback_pmfs, gated_pmfs
+    from feeder.learn.structured_blend import fallback_choice, fallback_pmfs, gated_choice, gated_pmfs
 
     bins = 8
     eye = np.eye(bins)
@@ -86,6 +110,12 @@ def test_the_gated_fallback_takes_the_nearest_label_of_the_same_fence_types_with
     only_others = np.array([False, False, False, True, True])
     np.testing.assert_array_equal(gated_pmfs(a, only_others, [0], 180.0), eye[[7]])
     np.testing.assert_array_equal(fallback_pmfs(a, pool, [0], None), eye[[7]])
+    # which kind each row's fallback is (blend.by_fallback): rows 0 and 4 within 5°, rows 0 and 2 within 2.5°
+    _, from_label = gated_choice(a, pool, [0, 2], 5.0)  # row 2 (straight45) has no straight row within 5°
+    np.testing.assert_array_equal(from_label, [True, False])
+    _, from_label = gated_choice(a, pool, [0, 2], 2.5)
+    np.testing.assert_array_equal(from_label, [False, False])
+    np.testing.assert_array_equal(fallback_choice(a, pool, [0, 1], None)[1], [False, False])
     a["kept"][1] = False  # a jammed neighbour has no label to lend
     np.testing.assert_array_equal(gated_pmfs(a, pool, [0], 15.0), eye[[3]])
 
@@ -126,6 +156,38 @@ def test_the_protocol_blends_on_validation_and_scores_the_network_alone_beside_i
     pd.testing.assert_frame_equal(unseen(rows_off), unseen(rows_on))
 
 
+def test_by_fallback_chooses_one_weight_per_fallback_kind_on_the_same_fits():
+    """The same fits (blending never touches training) with blend.by_fallback: each Main fit's two
+    weights come from the grid, its validation W1 is no worse than the one weight's (each kind's
+    choice is at most the one weight's on its rows), the network alone scores the same, and a
+    specialist (fallback: the analytic PMF only) has one weight."""
+    pytest.importorskip("torch")
+    from feeder.config import compose_config
+    from feeder.learn.prior import grids
+    from feeder.learn.structured_protocol import UNBLENDED, run_protocol
+
+    prior = grids(compose_config("train")["prior"])
+    a = _toy_library(n_parts=12)
+    grid = "blend.weights=[0.0, 0.5, 1.0]"
+    wide = "neighbour.gates_deg=[400.0]"  # every same-type label within the gate: both kinds among the rows
+    one = run_protocol(a, compose_config("structured", [*TOY_PROTOCOL, grid, wide]), prior)
+    two = run_protocol(a, compose_config("structured", [*TOY_PROTOCOL, grid, wide, "blend.by_fallback=true"]), prior)
+    main_one, main_two = (c[c.fit.str.startswith("main")].reset_index(drop=True) for c in (one[1], two[1]))
+    assert (main_one.blend_analytic_weight == main_one.blend_weight).all() and "blend_label_rows" not in main_one
+    # every validation row is of one kind; the toy's validation parts have rows of both
+    assert (main_two.blend_label_rows + main_two.blend_analytic_rows == main_two.val_rows).all()
+    assert (main_two.blend_label_rows > 0).all() and (main_two.blend_analytic_rows > 0).all()
+    assert set(main_two.blend_weight) | set(main_two.blend_analytic_weight) <= {0.0, 0.5, 1.0}
+    assert (main_two.blend_val_cw1 <= main_one.blend_val_cw1 + 1e-9).all()
+    np.testing.assert_allclose(main_two.blend_network_val_cw1, main_one.blend_network_val_cw1)
+    sp = main_two.specialist_blend_weight.notna()
+    assert (main_two.specialist_blend_weight[sp] == main_two.specialist_blend_analytic_weight[sp]).all()
+    r1, r2 = (pd.DataFrame(r[0]) for r in (one, two))
+    key = ["experiment", "repeat", "part", "config_id"]
+    u1, u2 = (r[r.predictor == UNBLENDED].sort_values(key).reset_index(drop=True) for r in (r1, r2))
+    np.testing.assert_allclose(u1.cw1, u2.cw1)
+
+
 @pytest.mark.parametrize("gate", [15.0, None])
 def test_a_blended_shipped_answer_is_the_protocols_blended_prediction(tmp_path, gate):
     """A shipped fit with a blend answers its weight times the seeds' mean plus the rest times the
@@ -150,7 +212,8 @@ def test_a_blended_shipped_answer_is_the_protocols_blended_prediction(tmp_path, 
     fitted["blend"] = {"weight": 0.3, "gate_deg": gate, "scores": {0.3: 1.0, 1.0: 2.0}}
     io.write_npz(tmp_path / "s.npz", **shipped_arrays(fitted, a, cfg, "principal", BINS, 1.0, scene))
     shipped = ShippedStructured.load(tmp_path / "s.npz")
-    assert shipped.meta["blend"] == {"weight": 0.3, "gate_deg": gate, "val_cw1": {"0.3": 1.0, "1.0": 2.0}}
+    want_meta = {"weight": 0.3, "analytic_weight": 0.3, "gate_deg": gate, "val_cw1": {"0.3": 1.0, "1.0": 2.0}}
+    assert shipped.meta["blend"] == want_meta
     geom = push_geometry(*load_profile(PARTS_DIR / "rect-a3.stl", "auto")[:2])
     row, pool = 1, [0, 2, 3, 4]
     args = (geom, "rect-a3", [CONFIGS[row]], [CONFIGS[i] for i in pool], a["pmf"][pool], a["ok"][pool], scene)
@@ -162,3 +225,11 @@ def test_a_blended_shipped_answer_is_the_protocols_blended_prediction(tmp_path, 
     want_fallback = a["pmf"][0] if gate is not None else a["analytic"][row]  # straight30 before straight50
     np.testing.assert_allclose(fallback[0], want_fallback)
     assert np.abs(got - alone).sum() > 1e-3  # the blend moved the answer: the comparison is not vacuous
+    # blend.by_fallback: the row answers with its own fallback kind's weight (a label within 15°, else
+    # the analytic PMF's)
+    fitted["blend"] = {"weight": 0.3, "analytic_weight": 0.6, "gate_deg": gate, "scores": {0.3: 1.0, 1.0: 2.0}}
+    io.write_npz(tmp_path / "split.npz", **shipped_arrays(fitted, a, cfg, "principal", BINS, 1.0, scene))
+    split = ShippedStructured.load(tmp_path / "split.npz")
+    assert split.meta["blend"]["analytic_weight"] == 0.6
+    w = 0.3 if gate is not None else 0.6
+    assert split.answer(*args) == pytest.approx(w * net + (1 - w) * fallback, abs=2e-5)

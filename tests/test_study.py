@@ -675,6 +675,13 @@ def test_the_card_says_how_the_answer_is_blended():
     words = _blend_words({"weight": 0.3, "gate_deg": None, "val_cw1": {}}, "the analytic PMF")
     assert "0.3 times the network's plus 0.7 times the analytic PMF, the weight chosen" in words
     assert "validation circular" not in words
+    # blend.by_fallback: one weight where the fallback is a label, one where it is the analytic PMF
+    split = {"weight": 0.4, "analytic_weight": 1.0, "gate_deg": 10.0, "val_cw1": {"1.0": 7.9}, "split_val_cw1": 6.5}
+    words = _blend_words(split, NEAREST_WORDS)
+    assert "0.4 times the network's plus 0.6 times the label of the nearest simulated angle" in words
+    assert "within 10 degrees where there is one, else 1 times the network's plus 0 times the analytic PMF" in words
+    assert "(validation circular W1 6.50 against 7.90 deg alone)" in words
+    assert _blend_words({**split, "weight": 1.0, "analytic_weight": 0.5}, NEAREST_WORDS) != ""  # analytic rows alone
 
 
 def test_the_card_says_the_mirrored_labels_are_read():

@@ -14,6 +14,11 @@ reads no network:
 The analytic PMF is each part's calibrated one where the fit calibrates
 (:mod:`feeder.learn.structured_calibration`). Circular W1 is convex in the prediction, so a blend
 scores at most the blend of the two scores; ``blend.weights: [1.0]`` is the network alone.
+
+With ``blend.by_fallback`` (stop 76) the weight is chosen twice on the same validation rows: once
+on the rows whose fallback is a neighbour's label (``weight``) and once on those whose fallback is
+the analytic PMF (``analytic_weight``). A row answers with the weight of its own fallback kind. A
+kind without validation rows takes the weight chosen on all of them.
 """
 
 from __future__ import annotations
@@ -36,11 +41,38 @@ def blend_weights(cfg) -> list[float]:
     return [float(w) for w in weights]
 
 
-def blended(network_pmf, fallback_pmf, weight: float) -> np.ndarray:
-    """``weight · network_pmf + (1 − weight) · fallback_pmf`` (rows of PMFs)."""
-    return float(weight) * np.asarray(network_pmf, np.float64) + (1.0 - float(weight)) * np.asarray(
-        fallback_pmf, np.float64
-    )
+def by_fallback(cfg) -> bool:
+    """``blend.by_fallback`` (false when absent) checked: a one-line FeederError unless a bool."""
+    value = (cfg.get("blend") or {}).get("by_fallback", False)
+    if not isinstance(value, bool):
+        raise FeederError(f"blend.by_fallback must be true or false, got {value!r}")
+    return value
+
+
+def blended(network_pmf, fallback_pmf, weight) -> np.ndarray:
+    """``weight · network_pmf + (1 − weight) · fallback_pmf`` (rows of PMFs; ``weight`` one number
+    or one per row)."""
+    w = np.asarray(weight, np.float64)
+    if w.ndim == 1:
+        w = w[:, None]
+    return w * np.asarray(network_pmf, np.float64) + (1.0 - w) * np.asarray(fallback_pmf, np.float64)
+
+
+def row_weights(blend: dict, from_label) -> np.ndarray:
+    """Each row's weight of a :func:`fit_blend` (or its shipped meta): ``weight`` where the row's
+    fallback is a neighbour's label (``from_label``), else ``analytic_weight`` (``weight`` when the
+    blend has none, as a file written before ``blend.by_fallback``)."""
+    from_label = np.asarray(from_label, dtype=bool)
+    w = float(blend["weight"])
+    wa = float(blend.get("analytic_weight", w))
+    return np.where(from_label, w, wa)
+
+
+def blends_anything(blend: dict | None) -> bool:
+    """Whether a blend moves any answer off the network's (some weight below 1)."""
+    if blend is None:
+        return False
+    return float(blend["weight"]) != 1.0 or float(blend.get("analytic_weight", blend["weight"])) != 1.0
 
 
 def choose_weight(cdf, network_pmf, fallback_pmf, weights) -> tuple[float, dict[float, float]]:
@@ -82,6 +114,12 @@ def gated_pmfs(arrays: dict, pool, rows, gate_deg: float) -> np.ndarray:
     same part and fence types (never itself) within ``gate_deg`` (``|Δθ1| + |Δθ2|``), else its
     ``analytic`` PMF. The pool holds the mirrored labels too
     (:func:`feeder.learn.structured_data.neighbour_source`)."""
+    return gated_choice(arrays, pool, rows, gate_deg)[0]
+
+
+def gated_choice(arrays: dict, pool, rows, gate_deg: float) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`gated_pmfs` and, per row, whether its answer is a neighbour's label (else the
+    analytic PMF)."""
     from feeder.learn.neighbour import angle_distance, neighbour_index
     from feeder.learn.structured_data import neighbour_source
 
@@ -90,47 +128,74 @@ def gated_pmfs(arrays: dict, pool, rows, gate_deg: float) -> np.ndarray:
     cids = source["config_id"]
     idx = neighbour_index(source["part"], cids, pool, rows)
     out = np.asarray(arrays["analytic"])[rows].copy()
+    from_label = np.zeros(rows.size, dtype=bool)
     for n, (i, j) in enumerate(zip(rows, idx, strict=True)):
         if j >= 0 and angle_distance(cids[i], cids[j]) <= gate_deg:
-            out[n] = source["pmf"][j]
-    return out
+            out[n], from_label[n] = source["pmf"][j], True
+    return out, from_label
 
 
 def fallback_pmfs(arrays: dict, pool, rows, gate_deg: float | None) -> np.ndarray:
     """The blend's fallback of ``rows`` (module doc): :func:`gated_pmfs` from ``pool`` with
     ``gate_deg``, or the ``analytic`` PMF when ``gate_deg`` is None (the specialist's)."""
+    return fallback_choice(arrays, pool, rows, gate_deg)[0]
+
+
+def fallback_choice(arrays: dict, pool, rows, gate_deg: float | None) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`fallback_pmfs` and, per row, whether its fallback is a neighbour's label."""
+    rows = np.asarray(rows, dtype=np.int64)
     if gate_deg is None:
-        return np.asarray(arrays["analytic"])[np.asarray(rows, dtype=np.int64)].copy()
-    return gated_pmfs(arrays, pool, rows, gate_deg)
+        return np.asarray(arrays["analytic"])[rows].copy(), np.zeros(rows.size, dtype=bool)
+    return gated_choice(arrays, pool, rows, gate_deg)
 
 
 def fit_blend(fitted: dict, arrays: dict, cfg, train, own_labels: bool) -> dict:
     """The blend of a fit of :func:`feeder.learn.structured_protocol.fit_protocol` on ``arrays``
-    (training rows ``train``): ``{"weight", "gate_deg", "scores"}``, the weight chosen on the fit's
-    validation rows from the early-stopped seeds (their validation inputs; each validation row's
-    fallback from its own part's other validation rows, as its network inputs). ``own_labels``:
-    the network reads labels of the query's own type combination (the gated neighbour is its
-    fallback), else the analytic PMF is (the specialist's)."""
+    (training rows ``train``): ``{"weight", "analytic_weight", "gate_deg", "scores"}`` (with
+    ``blend.by_fallback`` also each kind's ``*_rows`` and ``*_scores`` and the split blend's
+    ``split_cw1``), the weights chosen on the fit's validation rows from the early-stopped seeds
+    (their validation inputs; each validation row's fallback from its own part's other validation
+    rows, as its network inputs). ``own_labels``: the network reads labels of the
+    query's own type combination (the gated neighbour is its fallback), else the analytic PMF is
+    (the specialist's). Without ``blend.by_fallback`` both weights are the one chosen on all rows;
+    with it, each is chosen on the rows of its fallback kind (module doc)."""
     from feeder.learn.structured import predict
 
     weights = blend_weights(cfg)
     gate = fit_gate(arrays, train, cfg.neighbour.gates_deg) if own_labels else None
     if len(weights) == 1:
-        return {"weight": weights[0], "gate_deg": gate, "scores": {}}
+        return {"weight": weights[0], "analytic_weight": weights[0], "gate_deg": gate, "scores": {}}
     early, rows = fitted["early"], fitted["val_rows"]
     net = np.mean([predict(f, fitted["val_inputs"], rows, early["mean_pmf"])[0] for f in early["fits"]], axis=0)
-    fallback = fallback_pmfs(arrays, fitted["val_pool"], rows, gate)
-    weight, scores = choose_weight(arrays["cdf"][rows], net, fallback, weights)
-    return {"weight": weight, "gate_deg": gate, "scores": scores}
+    fallback, from_label = fallback_choice(arrays, fitted["val_pool"], rows, gate)
+    cdf = arrays["cdf"][rows]
+    weight, scores = choose_weight(cdf, net, fallback, weights)
+    out = {"weight": weight, "analytic_weight": weight, "gate_deg": gate, "scores": scores}
+    if not by_fallback(cfg):
+        return out
+    from feeder.labels.metrics import circular_w1
+
+    for kind, mine in (("label", from_label), ("analytic", ~from_label)):
+        out[f"{kind}_rows"] = int(mine.sum())
+        if mine.any():
+            w, s = choose_weight(cdf[mine], net[mine], fallback[mine], weights)
+            out["weight" if kind == "label" else "analytic_weight"], out[f"{kind}_scores"] = w, s
+    split = blended(net, fallback, row_weights(out, from_label))
+    out["split_cw1"] = float(circular_w1(cdf, np.cumsum(split, axis=1)).mean())
+    return out
 
 
 def blend_choice(blend: dict) -> dict:
-    """The choice table's entries of a :func:`fit_blend`: the weight, the gate (NaN: none) and the
-    network's and the chosen blend's validation circular W1 (NaN with one weight)."""
+    """The choice table's entries of a :func:`fit_blend`: the weights, the gate (NaN: none) and the
+    network's and the chosen blend's validation circular W1 (NaN with one weight; with
+    ``blend.by_fallback`` the blend's is that of each row at its own kind's weight)."""
     scores = blend["scores"]
+    kinds = {f"blend_{k}_rows": int(blend[f"{k}_rows"]) for k in ("label", "analytic") if f"{k}_rows" in blend}
     return {
+        **kinds,
         "blend_weight": float(blend["weight"]),
+        "blend_analytic_weight": float(blend.get("analytic_weight", blend["weight"])),
         "blend_gate_deg": float("nan") if blend["gate_deg"] is None else float(blend["gate_deg"]),
-        "blend_val_cw1": scores.get(blend["weight"], float("nan")),
+        "blend_val_cw1": blend.get("split_cw1", scores.get(blend["weight"], float("nan"))),
         "blend_network_val_cw1": scores.get(1.0, float("nan")),
     }

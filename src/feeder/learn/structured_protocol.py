@@ -419,7 +419,8 @@ def score_rows(
 ) -> list[dict]:
     """Long rows (one per configuration, predictor and seed) of the structured predictor's seeds
     and the baselines on ``rows`` (kept and excluded; PMF metrics on kept rows only). ``blend``:
-    ``(weight, fallback PMFs of rows)`` (:mod:`feeder.learn.structured_blend`): each seed answers
+    ``(weight or one weight per row, fallback PMFs of rows)``
+    (:mod:`feeder.learn.structured_blend`): each seed answers
     blended, and the seeds' mean unblended is scored too (the same as the ensemble at weight 1)."""
     from feeder.labels.metrics import circular_w1, r2_cdf
     from feeder.learn.structured import predict
@@ -434,7 +435,7 @@ def score_rows(
         preds.append((STRUCTURED, s, pmf, ok))
     if blend is not None:  # the seeds' mean alone is scored beside, whatever the weight
         extra = {**(extra or {}), UNBLENDED: np.mean([p[2] for p in preds], axis=0)}
-        if float(blend[0]) != 1.0:
+        if np.any(np.asarray(blend[0], np.float64) != 1.0):
             preds = [(n, s, blended(pmf, blend[1], blend[0]), ok) for n, s, pmf, ok in preds]
     if len(preds) > 1:  # the shipped answer (feeder.learn.structured_shipped) averages its seeds' PMFs
         preds.append((ENSEMBLE, -1, np.mean([p[2] for p in preds], axis=0), np.mean([p[3] for p in preds], axis=0)))
@@ -532,7 +533,7 @@ _SHARED: dict = {}  # what a forked worker of run_protocol reads (arrays are not
 def run_job(job: tuple, arrays: dict, cfg, prior_grids, m3_pmf: dict | None, locked: set) -> tuple[list, dict]:
     """One fit of :func:`protocol_jobs` and its scores: ``(long rows, choice)``. Every seed derives
     from ``cfg.seed`` and the fit's key, so the result does not depend on the process it runs in."""
-    from feeder.learn.structured_blend import blend_choice, blend_weights, fallback_pmfs, fit_blend
+    from feeder.learn.structured_blend import blend_choice, blend_weights, fallback_choice, fit_blend, row_weights
     from feeder.learn.structured_calibration import calibration_network, calibration_settings, with_calibration
 
     kind, key, index, train, scored = job
@@ -554,7 +555,10 @@ def run_job(job: tuple, arrays: dict, cfg, prior_grids, m3_pmf: dict | None, loc
 
     def blend_of(f, idx):
         b = blends.get(id(f))
-        return None if b is None else (b["weight"], fallback_pmfs(arrays, train, idx, b["gate_deg"]))
+        if b is None:
+            return None
+        fallback, from_label = fallback_choice(arrays, train, idx, b["gate_deg"])
+        return row_weights(b, from_label), fallback
 
     rows, n_calibrated = [], 0
     for experiment, mask in scored.items():

@@ -227,11 +227,19 @@ def shipped_arrays(
 def blend_meta(blend: dict) -> dict:
     """What an answer needs of a :func:`feeder.learn.structured_blend.fit_blend`: the weight, the
     gate (None: the fallback is the analytic PMF) and the validation scores it was chosen on."""
-    return {
+    out = {
         "weight": float(blend["weight"]),
+        "analytic_weight": float(blend.get("analytic_weight", blend["weight"])),
         "gate_deg": None if blend["gate_deg"] is None else float(blend["gate_deg"]),
         "val_cw1": {str(w): float(v) for w, v in blend["scores"].items()},
     }
+    for kind in ("label", "analytic"):  # blend.by_fallback: each fallback kind's own choice
+        if f"{kind}_scores" in blend:
+            out[f"{kind}_val_cw1"] = {str(w): float(v) for w, v in blend[f"{kind}_scores"].items()}
+            out[f"{kind}_rows"] = int(blend[f"{kind}_rows"])
+    if "split_cw1" in blend:
+        out["split_val_cw1"] = float(blend["split_cw1"])
+    return out
 
 
 class ShippedStructured:
@@ -373,7 +381,7 @@ class ShippedStructured:
         pool's one-fence configurations by their index in ``pool_ids``."""
         from feeder.lane.fences import parse_config_id
         from feeder.learn.structured import batch_inputs, diffuse_components, forward_numpy
-        from feeder.learn.structured_blend import blended
+        from feeder.learn.structured_blend import blended, blends_anything, row_weights
         from feeder.learn.structured_data import (
             composed_block,
             configuration_inputs,
@@ -478,23 +486,24 @@ class ShippedStructured:
                 pmf = np.clip(forward_numpy(params, net["settings"], m["n_variants"], b), 0.0, None)
                 out[mine] += pmf / pmf.sum(axis=1, keepdims=True)
             out[mine] /= len(net["params"])
-            if net["blend"] is not None and net["blend"]["weight"] != 1.0:  # blend.weights, as the protocol
-                fallback = self._fallback(rows, n_pool + mine, own_analytic[mine], net["blend"]["gate_deg"])
-                out[mine] = blended(out[mine], fallback, net["blend"]["weight"])
+            if blends_anything(net["blend"]):  # blend.weights (and blend.by_fallback), as the protocol
+                fallback, from_label = self._fallback(rows, n_pool + mine, own_analytic[mine], net["blend"]["gate_deg"])
+                out[mine] = blended(out[mine], fallback, row_weights(net["blend"], from_label))
         return out
 
     @staticmethod
-    def _fallback(rows: dict, queries, analytic, gate_deg) -> np.ndarray:
+    def _fallback(rows: dict, queries, analytic, gate_deg) -> tuple[np.ndarray, np.ndarray]:
         """The blend's fallback of the query rows ``queries`` of ``rows`` (pool rows kept):
         :func:`feeder.learn.structured_blend.gated_pmfs` from the pool with the part's
-        (calibrated) ``analytic`` PMFs, or those alone when ``gate_deg`` is None."""
-        from feeder.learn.structured_blend import fallback_pmfs
+        (calibrated) ``analytic`` PMFs, or those alone when ``gate_deg`` is None; and per query
+        whether its fallback is a neighbour's label."""
+        from feeder.learn.structured_blend import fallback_choice
 
         if gate_deg is None:
-            return np.asarray(analytic, np.float64).copy()
+            return np.asarray(analytic, np.float64).copy(), np.zeros(len(analytic), dtype=bool)
         own = np.array(rows["analytic"], dtype=np.float64)
         own[queries] = analytic
-        return fallback_pmfs(dict(rows, analytic=own), rows["kept"], queries, gate_deg)
+        return fallback_choice(dict(rows, analytic=own), rows["kept"], queries, gate_deg)
 
 
 # ----------------------------------------------------------------------------------------------

@@ -549,19 +549,35 @@ NEAREST_WORDS = "the label of the nearest simulated angle of the same fence type
 
 def _blend_words(blend: dict | None, fallback: str) -> str:
     """`` It answers ... blended ...`` when the shipped network's answer is blended with its fallback
-    (blend.weights), else ''."""
-    if not blend or float(blend["weight"]) == 1.0:
+    (blend.weights; with blend.by_fallback one weight where the fallback is a neighbour's label and
+    one where it is the analytic PMF), else ''."""
+    from feeder.learn.structured_blend import blends_anything
+
+    if not blends_anything(blend):
         return ""
+    w, wa = float(blend["weight"]), float(blend.get("analytic_weight", blend["weight"]))
+    gate = "" if blend.get("gate_deg") is None else f" within {float(blend['gate_deg']):g} degrees"
+    if "split_val_cw1" in blend and blend.get("gate_deg") is not None:
+        alone = (blend.get("val_cw1") or {}).get("1.0")
+        on_val = (
+            ""
+            if alone is None
+            else f" (validation circular W1 {blend['split_val_cw1']:.2f} against {alone:.2f} deg alone)"
+        )
+        return (
+            f" Its answer is {w:g} times the network's plus {1 - w:g} times the label of the nearest simulated "
+            f"angle of the same fence types{gate} where there is one, else {wa:g} times the network's plus "
+            f"{1 - wa:g} times the analytic PMF, each weight chosen on the validation parts' rows of its kind{on_val}."
+        )
     scores = blend.get("val_cw1") or {}
-    alone, chosen = scores.get("1.0"), scores.get(str(float(blend["weight"])))
+    alone, chosen = scores.get("1.0"), scores.get(str(w))
     on_val = (
         ""
         if alone is None or chosen is None
         else f" (validation circular W1 {chosen:.2f} against {alone:.2f} deg alone)"
     )
-    gate = "" if blend.get("gate_deg") is None else f" within {float(blend['gate_deg']):g} degrees"
     return (
-        f" Its answer is {float(blend['weight']):g} times the network's plus {1 - float(blend['weight']):g} times "
+        f" Its answer is {w:g} times the network's plus {1 - w:g} times "
         f"{fallback.format(gate=gate)}, the weight chosen on the validation parts{on_val}."
     )
 
