@@ -11,7 +11,8 @@ for every initial yaw. The calibration modes (``calibration.modes``) already hol
 2. **calibrated**: the protocol's per-part choice (the mode with the least mean W1 on the part's
    Main rows outside each repeat's Test rows, where it beats the base by ``calibration.margin_deg``),
    scored on each repeat's Test rows, with and without the two new modes; and the per-part oracle
-   (each part's best mode on all its rows) over the friction grid alone.
+   (each part's best mode on all its rows) over the friction grid alone;
+3. **mixture**: the untrained model averaged over μ = 0.35, 0.4 and 0.45, an answer for any part.
 
 The new modes' PMFs are computed once (about 10 CPU-minutes, one process) into ``PMFS`` and read
 from there on a rerun. The ten cached modes come from ``results/datasets/structured_calibration.npz``
@@ -118,6 +119,23 @@ def main(out_csv: str) -> None:
         {
             "what": "part oracle over the mu grid",
             "value": float(by_part.min(axis=1).mean()),
+            "low": np.nan,
+            "high": np.nan,
+        },
+    ]
+    # an untrained answer for any part: the model averaged over mu 0.35 / 0.4 / 0.45
+    mixture = (new[:, 0] + d["pmf_analytic"] + new[:, 1]) / 3.0
+    r_mix = pd.Series(circular_w1(cdf, np.cumsum(mixture, axis=1)), index=r.index)
+    summary += [
+        {
+            "what": "row mean, mixture of mu 0.35 / 0.4 / 0.45",
+            "value": float(r_mix.mean()),
+            "low": np.nan,
+            "high": np.nan,
+        },
+        {
+            "what": "part mean, mixture of mu 0.35 / 0.4 / 0.45",
+            "value": float(r_mix.groupby(r.part).mean().mean()),
             "low": np.nan,
             "high": np.nan,
         },
