@@ -91,7 +91,7 @@ def test_the_gated_fallback_takes_the_nearest_label_of_the_same_fence_types_with
     """Row 0 (straight30) has row 1 (straight35, 5° away) and row 2 (straight45) of its part: within
     a 5° gate its fallback is row 1's label, within 2.5° its analytic PMF. Row 3 (another part) and
     row 4 (other fence types) never lend their label; the specialist's fallback is the analytic PMF."""
-    from feeder.learn.structured_blend import fallback_choice, fallback_pmfs, gated_choice, gated_pmfs
+    from feeder.learn.structured_blend import fallback_choice, gated_choice, gated_pmfs
 
     bins = 8
     eye = np.eye(bins)
@@ -109,7 +109,7 @@ def test_the_gated_fallback_takes_the_nearest_label_of_the_same_fence_types_with
     np.testing.assert_array_equal(gated_pmfs(a, pool, [0], 2.5), eye[[7]])
     only_others = np.array([False, False, False, True, True])
     np.testing.assert_array_equal(gated_pmfs(a, only_others, [0], 180.0), eye[[7]])
-    np.testing.assert_array_equal(fallback_pmfs(a, pool, [0], None), eye[[7]])
+    np.testing.assert_array_equal(fallback_choice(a, pool, [0], None)[0], eye[[7]])
     # which kind each row's fallback is (blend.by_fallback): rows 0 and 4 within 5°, rows 0 and 2 within 2.5°
     _, from_label = gated_choice(a, pool, [0, 2], 5.0)  # row 2 (straight45) has no straight row within 5°
     np.testing.assert_array_equal(from_label, [True, False])
@@ -193,13 +193,13 @@ def test_a_blended_shipped_answer_is_the_protocols_blended_prediction(tmp_path, 
     """A shipped fit with a blend answers its weight times the seeds' mean plus the rest times the
     fallback: the part's nearest label of the query's fence types within the gate (row 1,
     straight40, has straight30 and straight50 10° away), else the analytic PMF, as the protocol's
-    fallback_pmfs of the row; a file without a blend answers the network alone."""
+    fallback_choice of the row; a file without a blend answers the network alone."""
     pytest.importorskip("torch")
     from test_structured_shipped import BINS, CONFIGS, PARTS_DIR, _small_study
 
     from feeder import io
     from feeder.learn.structured import predict
-    from feeder.learn.structured_blend import fallback_pmfs
+    from feeder.learn.structured_blend import fallback_choice
     from feeder.learn.structured_protocol import fit_protocol
     from feeder.learn.structured_shipped import ShippedStructured, shipped_arrays
     from feeder.mechanics.hull import push_geometry
@@ -220,7 +220,7 @@ def test_a_blended_shipped_answer_is_the_protocols_blended_prediction(tmp_path, 
     got, alone = shipped.answer(*args), plain.answer(*args)
     net = np.mean([predict(f, fitted["scaled"], [row], fitted["mean_pmf"])[0] for f in fitted["fits"]], axis=0)
     assert alone == pytest.approx(net, abs=2e-5)
-    fallback = fallback_pmfs(a, everything, [row], gate)
+    fallback = fallback_choice(a, everything, [row], gate)[0]
     assert got == pytest.approx(0.3 * net + 0.7 * fallback, abs=2e-5)
     want_fallback = a["pmf"][0] if gate is not None else a["analytic"][row]  # straight30 before straight50
     np.testing.assert_allclose(fallback[0], want_fallback)

@@ -58,21 +58,21 @@ def blended(network_pmf, fallback_pmf, weight) -> np.ndarray:
     return w * np.asarray(network_pmf, np.float64) + (1.0 - w) * np.asarray(fallback_pmf, np.float64)
 
 
+def analytic_weight(blend: dict) -> float:
+    """The weight of a :func:`fit_blend` (or its shipped meta) for the rows whose fallback is the
+    analytic PMF: ``analytic_weight``, or ``weight`` in a file written before ``blend.by_fallback``."""
+    return float(blend.get("analytic_weight", blend["weight"]))
+
+
 def row_weights(blend: dict, from_label) -> np.ndarray:
     """Each row's weight of a :func:`fit_blend` (or its shipped meta): ``weight`` where the row's
-    fallback is a neighbour's label (``from_label``), else ``analytic_weight`` (``weight`` when the
-    blend has none, as a file written before ``blend.by_fallback``)."""
-    from_label = np.asarray(from_label, dtype=bool)
-    w = float(blend["weight"])
-    wa = float(blend.get("analytic_weight", w))
-    return np.where(from_label, w, wa)
+    fallback is a neighbour's label (``from_label``), else :func:`analytic_weight`."""
+    return np.where(np.asarray(from_label, dtype=bool), float(blend["weight"]), analytic_weight(blend))
 
 
 def blends_anything(blend: dict | None) -> bool:
     """Whether a blend moves any answer off the network's (some weight below 1)."""
-    if blend is None:
-        return False
-    return float(blend["weight"]) != 1.0 or float(blend.get("analytic_weight", blend["weight"])) != 1.0
+    return blend is not None and (float(blend["weight"]) != 1.0 or analytic_weight(blend) != 1.0)
 
 
 def choose_weight(cdf, network_pmf, fallback_pmf, weights) -> tuple[float, dict[float, float]]:
@@ -135,14 +135,10 @@ def gated_choice(arrays: dict, pool, rows, gate_deg: float) -> tuple[np.ndarray,
     return out, from_label
 
 
-def fallback_pmfs(arrays: dict, pool, rows, gate_deg: float | None) -> np.ndarray:
-    """The blend's fallback of ``rows`` (module doc): :func:`gated_pmfs` from ``pool`` with
-    ``gate_deg``, or the ``analytic`` PMF when ``gate_deg`` is None (the specialist's)."""
-    return fallback_choice(arrays, pool, rows, gate_deg)[0]
-
-
 def fallback_choice(arrays: dict, pool, rows, gate_deg: float | None) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`fallback_pmfs` and, per row, whether its fallback is a neighbour's label."""
+    """The blend's fallback of ``rows`` (module doc): :func:`gated_pmfs` from ``pool`` with
+    ``gate_deg``, or the ``analytic`` PMF when ``gate_deg`` is None (the specialist's); and per row
+    whether its fallback is a neighbour's label."""
     rows = np.asarray(rows, dtype=np.int64)
     if gate_deg is None:
         return np.asarray(arrays["analytic"])[rows].copy(), np.zeros(rows.size, dtype=bool)
@@ -194,7 +190,7 @@ def blend_choice(blend: dict) -> dict:
     return {
         **kinds,
         "blend_weight": float(blend["weight"]),
-        "blend_analytic_weight": float(blend.get("analytic_weight", blend["weight"])),
+        "blend_analytic_weight": analytic_weight(blend),
         "blend_gate_deg": float("nan") if blend["gate_deg"] is None else float(blend["gate_deg"]),
         "blend_val_cw1": blend.get("split_cw1", scores.get(blend["weight"], float("nan"))),
         "blend_network_val_cw1": scores.get(1.0, float("nan")),

@@ -227,9 +227,11 @@ def shipped_arrays(
 def blend_meta(blend: dict) -> dict:
     """What an answer needs of a :func:`feeder.learn.structured_blend.fit_blend`: the weight, the
     gate (None: the fallback is the analytic PMF) and the validation scores it was chosen on."""
+    from feeder.learn.structured_blend import analytic_weight
+
     out = {
         "weight": float(blend["weight"]),
-        "analytic_weight": float(blend.get("analytic_weight", blend["weight"])),
+        "analytic_weight": analytic_weight(blend),
         "gate_deg": None if blend["gate_deg"] is None else float(blend["gate_deg"]),
         "val_cw1": {str(w): float(v) for w, v in blend["scores"].items()},
     }

@@ -551,11 +551,11 @@ def _blend_words(blend: dict | None, fallback: str) -> str:
     """`` It answers ... blended ...`` when the shipped network's answer is blended with its fallback
     (blend.weights; with blend.by_fallback one weight where the fallback is a neighbour's label and
     one where it is the analytic PMF), else ''."""
-    from feeder.learn.structured_blend import blends_anything
+    from feeder.learn.structured_blend import analytic_weight, blends_anything
 
     if not blends_anything(blend):
         return ""
-    w, wa = float(blend["weight"]), float(blend.get("analytic_weight", blend["weight"]))
+    w, wa = float(blend["weight"]), analytic_weight(blend)
     gate = "" if blend.get("gate_deg") is None else f" within {float(blend['gate_deg']):g} degrees"
     if "split_val_cw1" in blend and blend.get("gate_deg") is not None:
         alone = (blend.get("val_cw1") or {}).get("1.0")
