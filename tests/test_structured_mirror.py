@@ -145,6 +145,15 @@ def test_a_query_at_the_other_location_reads_the_mirrored_label_as_its_neighbour
     pool = np.array([True, True, True, True, False])
     idx, dist = neighbour_rows(a, pool, k=1)
     assert idx[4, 0] >= 5 and dist[4, 0] == 5.0  # a mirrored row, 5° away
+    # the caller's own neighbour_source is read as it is, and gives the same neighbours
+    from feeder.learn.structured_data import neighbour_source
+
+    given = neighbour_rows(a, pool, k=1, source=neighbour_source(a, pool))
+    np.testing.assert_array_equal(given[0], idx)
+    np.testing.assert_array_equal(given[1], dist)
+    src, src_pool = neighbour_source(a, pool)
+    none_found = neighbour_rows(a, pool, k=1, source=(src, np.zeros_like(src_pool)))[0]
+    assert (none_found == -1).all()  # it is that pool that is searched, not one built again
     feats, pmfs = neighbour_block(a, pool, 1, 10.0)
     want = reflect_pmf(a["pmf"][0], 90.0)
     np.testing.assert_allclose(pmfs[4, 0], want)

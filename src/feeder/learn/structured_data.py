@@ -487,15 +487,16 @@ def neighbour_source(arrays: dict, pool) -> tuple[dict, np.ndarray]:
 
 
 def neighbour_rows(
-    arrays: dict, pool, k: int, cross: int = 0, hide_same: bool = False
+    arrays: dict, pool, k: int, cross: int = 0, hide_same: bool = False, source: tuple | None = None
 ) -> tuple[np.ndarray, np.ndarray]:
     """Every row's ``k`` nearest kept rows of ``pool`` of its part and fence types
     (:func:`nearest_rows`), then its ``cross`` nearest under the same downstream fence
     (:func:`nearest_cross_rows`): (indices (N, k + cross), −1 where missing; distances).
     The indices are rows of :func:`neighbour_source` (``arrays``' own, then the mirrored labels).
     ``hide_same``: the first ``k`` missing for every row, as for a configuration of a type
-    combination the part has no label of (the Fences rows)."""
-    source, pool = neighbour_source(arrays, pool)
+    combination the part has no label of (the Fences rows). ``source``: that function's answer
+    for ``arrays`` and ``pool`` when the caller has it already (it is not built again)."""
+    source, pool = neighbour_source(arrays, pool) if source is None else source
     rows = np.arange(len(arrays["part"]))
     if hide_same:
         idx, dist = np.full((rows.size, int(k)), -1, dtype=np.int64), np.full((rows.size, int(k)), np.inf)
@@ -592,8 +593,8 @@ def neighbour_block(
 
     pool = np.asarray(pool, dtype=bool) & np.asarray(arrays["kept"], dtype=bool)
     n = len(arrays["part"])
-    idx, dist = neighbour_rows(arrays, pool, k, cross, hide_same)
-    source, _, mirrored = with_mirrors(arrays, pool)  # neighbour_source: the rows idx indexes
+    source, source_pool, mirrored = with_mirrors(arrays, pool)  # neighbour_source: the rows idx indexes
+    idx, dist = neighbour_rows(arrays, pool, k, cross, hide_same, source=(source, source_pool))
     k = idx.shape[1]
     analytic, pmf = np.asarray(model_analytic(arrays), np.float64), np.asarray(arrays["pmf"], np.float64)
     s_analytic, s_pmf = np.asarray(model_analytic(source), np.float64), np.asarray(source["pmf"], np.float64)

@@ -423,8 +423,10 @@ class ShippedStructured:
             rows["mirror_deg"] = np.full(n_pool + n_q, self.mirror_deg(part))
         # the analytic PMFs of the pool rows that are some query's neighbour (a mirrored label's: its
         # source's), or whose miss is not kept
-        idx, _ = neighbour_rows(rows, rows["kept"], m["neighbours"], m["cross_neighbours"])
-        _, _, mirrored = with_mirrors(rows, rows["kept"])
+        source, source_pool, mirrored = with_mirrors(rows, rows["kept"])
+        idx, _ = neighbour_rows(
+            rows, rows["kept"], m["neighbours"], m["cross_neighbours"], source=(source, source_pool)
+        )
         source_of = np.concatenate([np.arange(n_pool + n_q), mirrored])
         near = source_of[idx[n_pool:][idx[n_pool:] >= 0]]
         miss = np.array([self.miss.get((part, c), np.nan) for c in pool_ids] + [0.0] * n_q)
