@@ -1737,3 +1737,46 @@ def test_the_protocol_reads_the_composed_maps_and_compares_with_them():
     table = comparison_table(long, {"resamples": 50, "level": 0.95, "seed": 0})
     assert set(table[table.baseline == COMPOSED].experiment) == {"test", "fences"}
     assert choices.composed.all()
+
+
+def test_signed_steps_say_on_which_side_each_neighbour_lies():
+    """model.neighbour_signed: per neighbour (θ1 step, θ2 step) over 90°, by hand; a cross neighbour
+    (other fence types) has only its Location 1 step, a missing one none; the network's inputs gain
+    exactly these columns, and the distances alone cannot tell the two sides apart."""
+    from feeder.config import compose_config
+    from feeder.learn.structured_data import neighbour_block, signed_steps
+    from feeder.learn.structured_protocol import neighbour_options
+
+    rows = ["straight30_curved40", "straight40_curved40", "straight20_curved40", "straight30_straight45"]
+    idx = np.array([[1, 2, 3], [0, -1, 3], [-1, -1, -1], [0, 1, 2]])
+    got = signed_steps(rows, rows, idx)
+    want = np.array(
+        [
+            [10 / 90, 0.0, -10 / 90, 0.0, 0.0, 0.0],  # one above, one below (a bracket); the cross: θ1 alike
+            [-10 / 90, 0.0, 0.0, 0.0, -10 / 90, 0.0],
+            [0.0] * 6,
+            [0.0, 0.0, 10 / 90, 0.0, -10 / 90, 0.0],  # other types: no θ2 step
+        ]
+    )
+    np.testing.assert_allclose(got, want, atol=0.0)
+    a = {
+        "part": np.array(["p"] * 4),
+        "config_id": np.array(rows[:3] + ["straight25_curved50"]),
+        "kept": np.array([True, True, True, False]),
+        "pmf": np.full((4, 8), 1 / 8),
+        "cdf": np.cumsum(np.full((4, 8), 1 / 8), axis=1),
+        "analytic": np.full((4, 8), 1 / 8),
+        "ok": np.ones(4),
+        "analytic_ok": np.ones(4),
+    }
+    pool = np.array([True, True, True, False])
+    plain, _ = neighbour_block(a, pool, 2, 10.0)
+    both, _ = neighbour_block(a, pool, 2, 10.0, signed=True)
+    assert both.shape[1] == plain.shape[1] + 4
+    # row 0's neighbours (40 then 20, 10° each way) and the query's (straight25_curved50: 30 and 20)
+    np.testing.assert_allclose(both[0, -6:-2], [10 / 90, 0.0, -10 / 90, 0.0])
+    np.testing.assert_allclose(both[3, -6:-2], [5 / 90, -10 / 90, -5 / 90, -10 / 90])
+    assert plain[0, 1] == plain[0, 7]  # the same distance either side: only the signed steps tell
+    assert neighbour_options(compose_config("structured", []))["signed"] is False
+    with pytest.raises(FeederError, match="neighbour_signed must be true or false"):
+        neighbour_options(compose_config("structured", ["model.neighbour_signed=3"]))

@@ -373,3 +373,36 @@ def _without_mirror(meta: dict):
     import json
 
     return np.array(json.dumps({k: v for k, v in meta.items() if k != "mirror_labels"}, sort_keys=True))
+
+
+def test_a_signed_shipped_answer_is_the_protocols_prediction(tmp_path):
+    """model.neighbour_signed: the file says so, and its answer is the protocol's prediction of
+    the row, which reads the neighbours' signed angle steps; a file without the key answers as a
+    network without those inputs would not."""
+    pytest.importorskip("torch")
+    import json
+
+    from feeder import io
+    from feeder.learn.structured import predict
+    from feeder.learn.structured_protocol import fit_protocol
+    from feeder.learn.structured_shipped import ShippedStructured, shipped_arrays
+    from feeder.mechanics.hull import push_geometry
+    from feeder.parts.geometry import load_profile
+
+    cfg, a, scene = _small_study(frame_deg=17.0, overrides=["model.neighbour_signed=true"])
+    fitted = fit_protocol(a, np.ones(10, dtype=bool), cfg, "shipped", known=True)
+    io.write_npz(tmp_path / "s.npz", **shipped_arrays(fitted, a, cfg, "principal", BINS, 1.0, scene))
+    shipped = ShippedStructured.load(tmp_path / "s.npz")
+    assert shipped.meta["neighbour_signed"] is True
+    geom = push_geometry(*load_profile(PARTS_DIR / "rect-a3.stl", "auto")[:2])
+    ids = [str(c) for c in a["config_id"][:5]]
+    row, pool = 1, [0, 2, 3, 4]
+    got = shipped.answer(geom, "rect-a3", [ids[row]], [ids[i] for i in pool], a["pmf"][pool], a["ok"][pool], scene)
+    want = np.mean([predict(f, fitted["scaled"], [row], fitted["mean_pmf"])[0] for f in fitted["fits"]], axis=0)
+    assert got == pytest.approx(want, abs=2e-5)
+    meta = {k: v for k, v in shipped.meta.items() if k != "neighbour_signed"}
+    plain = ShippedStructured(
+        {**shipped_arrays(fitted, a, cfg, "principal", BINS, 1.0, scene), "meta": np.array(json.dumps(meta))}
+    )
+    with pytest.raises(FeederError, match="takes 66 inputs and its file's settings build 60"):
+        plain.answer(geom, "rect-a3", [ids[row]], [ids[i] for i in pool], a["pmf"][pool], a["ok"][pool], scene)

@@ -571,13 +571,39 @@ def label_miss(pmf, analytic) -> np.ndarray:
     )
 
 
+def signed_steps(config_ids, source_ids, idx) -> np.ndarray:
+    """Each neighbour's signed angle steps from its row, over 90°: (N, 2 J) of ``(θ1 − θ1 of the
+    row, θ2 − θ2 of the row)`` per neighbour ``idx`` (N, J; rows of ``source_ids``, −1: none, then
+    both 0). The Location 2 step is 0 where the neighbour's fence types differ from the row's (a
+    cross neighbour: only its Location 1 fence is the row's type). The distances alone do not say
+    on which side of the row a neighbour lies, nor whether two neighbours bracket it."""
+    keys = [fence_key(c) for c in np.asarray(config_ids).astype(str)]
+    source_ids = np.asarray(source_ids).astype(str)
+    idx = np.asarray(idx, dtype=np.int64)
+    out = np.zeros((idx.shape[0], 2 * idx.shape[1]))
+    for i, j in zip(*np.nonzero(idx >= 0), strict=True):
+        (types, angles), (nb_types, nb_angles) = keys[i], fence_key(source_ids[idx[i, j]])
+        out[i, 2 * j] = (nb_angles[0] - angles[0]) / RIGHT_ANGLE_DEG
+        if nb_types == types:
+            out[i, 2 * j + 1] = (nb_angles[1] - angles[1]) / RIGHT_ANGLE_DEG
+    return out
+
+
 def neighbour_block(
-    arrays: dict, pool, k: int, near_deg: float, cross: int = 0, miss=None, hide_same: bool = False
+    arrays: dict,
+    pool,
+    k: int,
+    near_deg: float,
+    cross: int = 0,
+    miss=None,
+    hide_same: bool = False,
+    signed: bool = False,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Every row's ``k`` nearest labelled rows of ``pool`` (kept rows of the same part and fence
     types, :func:`nearest_rows`), then its ``cross`` nearest under the same downstream fence in
     other type combinations (:func:`nearest_cross_rows`, distance ``|Δθ1|``), as inputs of the
-    structured predictor: (features (N, 6(k + cross) + 2), PMFs (N, k + cross, bins)).
+    structured predictor: (features (N, 6(k + cross) + 2, + 2(k + cross) with ``signed``), PMFs
+    (N, k + cross, bins)).
 
     Per neighbour (:data:`NEIGHBOUR_FEATURES`): present (0/1); its angle distance over 90°
     (:data:`FAR_DEG` when missing); its closeness ``exp(−distance / near_deg)`` (0 when missing);
@@ -587,7 +613,8 @@ def neighbour_block(
     (over 90°) and whether there are any. A missing neighbour's PMF is the
     row's analytic PMF, so its component changes nothing. No label of the row itself is read.
     ``miss``: each pool row's :func:`label_miss`, when known (then only the neighbours' analytic
-    PMFs are read: the others may be anything). ``hide_same``: :func:`neighbour_rows`'."""
+    PMFs are read: the others may be anything). ``hide_same``: :func:`neighbour_rows`'.
+    ``signed`` (``model.neighbour_signed``): then, per neighbour, :func:`signed_steps`."""
     from feeder.labels.metrics import circular_w1
     from feeder.learn.structured_mirror import with_mirrors
 
@@ -619,6 +646,8 @@ def neighbour_block(
             np.where(has, s_ok[nb], np.asarray(arrays["analytic_ok"])),
         ]
         pmfs[has, j] = s_pmf[nb[has]]
+    if signed:
+        feats += list(signed_steps(arrays["config_id"], source["config_id"], idx).T)
     parts = np.asarray(arrays["part"]).astype(str)
     part_miss, has_part = np.zeros(n), np.zeros(n)
     for p in np.unique(parts):
@@ -740,6 +769,7 @@ def with_neighbours(
     merge_deg: float | None = None,
     window_deg: float | None = None,
     hide_same: bool = False,
+    signed: bool = False,
 ) -> dict:
     """``arrays`` with the neighbour inputs of :func:`neighbour_block` appended to ``x`` and their
     PMFs as ``neighbour_pmf`` (unchanged when ``k`` and ``cross`` are 0). With ``basins`` > 0 each
@@ -748,14 +778,15 @@ def with_neighbours(
     With ``candidates`` > 0 the modes of each neighbour's largest basins join the row's candidates
     (:func:`neighbour_candidates`, with ``merge_deg`` and ``window_deg``: the settings of
     ``candidates`` in ``config/hydra/structured.yaml``, needed then). ``hide_same``: every row as if
-    its part had no label of its type combination (:func:`neighbour_rows`)."""
+    its part had no label of its type combination (:func:`neighbour_rows`). ``signed``: the
+    neighbours' signed angle steps too (:func:`signed_steps`)."""
     if int(k) + int(cross) <= 0:
         return arrays
     if not near_deg > 0:
         raise FeederError(f"model.neighbour_near_deg must be > 0, got {near_deg}")
     if isinstance(basins, bool) or int(basins) != basins or basins < 0:
         raise FeederError(f"model.neighbour_basins must be an integer >= 0, got {basins!r}")
-    feats, pmfs = neighbour_block(arrays, pool, int(k), float(near_deg), int(cross), hide_same=hide_same)
+    feats, pmfs = neighbour_block(arrays, pool, int(k), float(near_deg), int(cross), hide_same=hide_same, signed=signed)
     out = dict(arrays, x=np.concatenate([arrays["x"], feats], axis=1), neighbour_pmf=pmfs)
     if int(basins) > 0 or int(candidates) > 0:
         idx, _ = neighbour_rows(arrays, pool, int(k), int(cross), hide_same)

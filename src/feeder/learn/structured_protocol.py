@@ -387,13 +387,24 @@ def composed_on(cfg) -> bool:
 def neighbour_options(cfg) -> dict:
     """The keyword arguments of :func:`feeder.learn.structured_data.with_neighbours` beyond the
     neighbour counts: ``model.neighbour_basins``, ``model.neighbour_candidates`` (each 0 when
-    absent) and the candidates' ``merge_deg`` and ``window_deg``."""
+    absent) and the candidates' ``merge_deg`` and ``window_deg``, and ``model.neighbour_signed``
+    (absent: false; :func:`neighbour_signed`)."""
     return {
         "basins": drop_count(cfg, "neighbour_basins"),
         "candidates": drop_count(cfg, "neighbour_candidates"),
         "merge_deg": float(cfg.candidates.merge_deg),
         "window_deg": float(cfg.candidates.window_deg),
+        "signed": neighbour_signed(cfg),
     }
+
+
+def neighbour_signed(cfg) -> bool:
+    """``model.neighbour_signed`` (absent: false), checked: whether each neighbour's signed angle
+    steps are inputs (:func:`feeder.learn.structured_data.signed_steps`)."""
+    value = cfg.model.get("neighbour_signed", False)
+    if not isinstance(value, bool):
+        raise FeederError(f"model.neighbour_signed must be true or false, got {value!r}")
+    return value
 
 
 def baseline_pmfs(arrays: dict, train: np.ndarray, rows, prior_grids) -> dict[str, np.ndarray]:

@@ -161,7 +161,7 @@ def shipped_arrays(
     from omegaconf import OmegaConf
 
     from feeder.learn.structured_data import candidate_settings, label_miss, model_analytic
-    from feeder.learn.structured_protocol import composed_on, neighbour_count
+    from feeder.learn.structured_protocol import composed_on, neighbour_count, neighbour_signed
 
     parts, first = np.unique(arrays["part"], return_index=True)
     kept = np.asarray(arrays["kept"], dtype=bool)
@@ -189,6 +189,8 @@ def shipped_arrays(
         meta["calibration"] = calibration
     if "blend" in fitted:  # blend.weights (fit_shipped): the answer blended with its fallback
         meta["blend"] = blend_meta(fitted["blend"])
+    if neighbour_signed(cfg):  # the neighbours' signed angle steps are inputs (a file without the key: not)
+        meta["neighbour_signed"] = True
     extra = {}
     if "mirror_deg" in arrays:  # model.mirror_labels: each part's mirror constant (NaN: no mirror axis)
         meta["mirror_labels"] = True
@@ -443,7 +445,13 @@ class ShippedStructured:
             if np.isnan(miss[i]):
                 miss[i] = label_miss(rows["pmf"][i], rows["analytic"][i])[0]
         feats, npmf = neighbour_block(
-            rows, rows["kept"], m["neighbours"], m["neighbour_near_deg"], m["cross_neighbours"], miss
+            rows,
+            rows["kept"],
+            m["neighbours"],
+            m["neighbour_near_deg"],
+            m["cross_neighbours"],
+            miss,
+            signed=bool(m.get("neighbour_signed", False)),  # a file from before the setting: false
         )
         blocks = [q["x"], feats[n_pool:]]
         if self.composes:  # the part's one-fence maps composed, as the protocol's with_composed
@@ -483,6 +491,11 @@ class ShippedStructured:
         out = np.zeros((n_q, bins))
         for name in sorted(set(which)):
             net, mine = self.networks[name], np.flatnonzero(which == name)
+            if raw.shape[1] != np.size(net["x_mean"]):  # its settings say other inputs than it was fitted on
+                raise FeederError(
+                    f"the structured predictor's {name} network takes {np.size(net['x_mean'])} inputs and its "
+                    f"file's settings build {raw.shape[1]}: refit it (feeder fit-structured) with this feeder"
+                )
             x = (raw - net["x_mean"]) / net["x_sd"]
             diffuse = diffuse_components(own_analytic, net["mean_pmf"], m["wide_sigma_bins"], npmf[n_pool:])
             b = batch_inputs(dict(q, x=x), mine, diffuse[mine], net["settings"].start)
