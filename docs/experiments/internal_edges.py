@@ -10,11 +10,14 @@ that differ only in how its face is cut into boxes:
   so any change is the seams'.
 * ``segmentsN`` (curved fences): the arc built from N boxes (the study: 16). This also moves the
   face by the chords' sagitta (0.24 mm at 16 boxes, 0.015 mm at 64).
+* ``hullN`` (curved fences): the fence as one convex piece, the hull of its outer face's N chords
+  (the circular segment between the arc and its chord; no seam on the face, the space behind the
+  arc filled). Its round tip stays the separate cylinder it is in the study.
 
-Each variant is compared with the study's build (``boxes1``, ``segments16``) over the same initial
-yaws: the share of the drops that jam, the share with the same status, and, over the drops ok in
-both, the share within ``AGREE_DEG`` of each other (modulo the file's symmetry period) and the
-median |Δyaw|.
+Each variant is compared with the study's build (``boxes1``, ``segments16``), and with every other
+variant of its own kind, over the same initial yaws: the share of the drops that jam, the share
+with the same status, and, over the drops ok in both, the share within ``AGREE_DEG`` of each other
+(modulo the file's symmetry period) and the median |Δyaw|.
 
     python docs/experiments/internal_edges.py SIM_DIR PARTS_DIR OUT_RAW_CSV OUT_SUMMARY_CSV \\
         --runs star4-a/straight60_none:boxes1,boxes8,boxes32 ...
@@ -38,6 +41,7 @@ import numpy as np
 import pandas as pd
 
 import feeder.lane.geometry as lane_geometry
+import feeder.sim.body as sim_body
 from feeder.io import write_csv
 from feeder.lane.fences import parse_location
 from feeder.parts.geometry import load_part
@@ -45,6 +49,7 @@ from feeder.sim.drops import run_drops
 
 AGREE_DEG = 5.0  # two ok drops agree within this (modulo the period), as analytic_dropwise.py
 STUDY = {"boxes": 1, "segments": 16}  # the study's build of each fence type
+KINDS = ("boxes", "segments", "hull")
 
 
 def split_box(box, n: int) -> tuple:
@@ -76,17 +81,66 @@ def straight_boxes(n: int):
         lane_geometry.fence_geometry = original
 
 
+@contextmanager
+def curved_hulls():
+    """While inside, every curved fence the simulator builds is one convex piece: the hull of its
+    outer face (the points of its boxes' outer chords), at the fence's height; straight fences
+    and round tips are built as in the study."""
+    import dataclasses
+
+    original = sim_body.World._add_fences
+
+    def build(world, x0):
+        pb, c, fc = world.pb, world.cid, world.scene["fences"]
+        fh, clearance = float(fc["height"]), float(fc["clearance"])
+        plan = world.plan
+        curved = [f for f in plan.fences if f.fence.type == "curved"]
+        world.plan = dataclasses.replace(plan, fences=[f for f in plan.fences if f.fence.type != "curved"])
+        try:
+            original(world, x0)
+        finally:
+            world.plan = plan
+        for f in curved:
+            # each box's outer face: the corners shared with a neighbour, and the two free ends
+            corners = [lane_geometry.box_corners(*b) for b in f.boxes]
+            outer = np.array([k[2] for k in corners] + [k[3] for k in corners])  # the +ht side of each box
+            centre = np.mean([k.mean(axis=0) for k in corners], axis=0)
+            inner = np.array([k[0] for k in corners] + [k[1] for k in corners])
+            if np.mean(np.hypot(*(inner - centre).T)) > np.mean(np.hypot(*(outer - centre).T)):
+                outer = inner  # the outer face is the other side of these boxes
+            verts = [[float(p[0]), float(p[1]), z] for z in (-0.5 * fh, 0.5 * fh) for p in outer]
+            shape = pb.createCollisionShape(pb.GEOM_MESH, vertices=verts, physicsClientId=c)
+            body = pb.createMultiBody(0, shape, basePosition=[x0, 0.0, clearance + 0.5 * fh], physicsClientId=c)
+            world._surface(body, float(fc["friction"]))
+            cap = f.tip_cap()
+            if cap is not None:
+                shape = pb.createCollisionShape(pb.GEOM_CYLINDER, radius=cap[2], height=fh, physicsClientId=c)
+                body = pb.createMultiBody(
+                    0, shape, basePosition=[x0 + cap[0], cap[1], clearance + 0.5 * fh], physicsClientId=c
+                )
+                world._surface(body, float(fc["friction"]))
+
+    sim_body.World._add_fences = build
+    try:
+        yield
+    finally:
+        sim_body.World._add_fences = original
+
+
 def run_variant(geom, meta: dict, yaws, variant: str) -> dict:
     """The drops of ``yaws`` through the file's configuration, its scene and preset, with the
     fence built as ``variant`` (``boxesN`` or ``segmentsN``)."""
     scene, preset = copy.deepcopy(meta["settings"]["scene"]), meta["settings"]["preset"]
     kind, n = variant.rstrip("0123456789"), int(variant[len(variant.rstrip("0123456789")) :])
-    if kind not in STUDY:
-        raise ValueError(f"variant {variant!r}: boxesN or segmentsN")
+    if kind not in KINDS:
+        raise ValueError(f"variant {variant!r}: boxesN, segmentsN or hullN")
     loc1, loc2 = parse_location(meta["loc1"]), parse_location(meta["loc2"])
-    if kind == "segments":
+    if kind in ("segments", "hull"):
         scene["fences"]["curved"]["segments"] = n
-        return run_drops(geom, loc1, loc2, yaws, scene, preset)
+        if kind == "segments":
+            return run_drops(geom, loc1, loc2, yaws, scene, preset)
+        with curved_hulls():
+            return run_drops(geom, loc1, loc2, yaws, scene, preset)
     with straight_boxes(n):
         return run_drops(geom, loc1, loc2, yaws, scene, preset)
 
@@ -119,32 +173,37 @@ def raw_rows(sim_dir: Path, parts_dir: Path, runs: list[tuple[str, str, list[str
     return pd.concat(frames, ignore_index=True)
 
 
+def paired(h: pd.DataFrame, base: pd.DataFrame) -> dict:
+    """Drop by drop (indexed by drop): the share with the same status and, over the drops ok in
+    both, the share within ``AGREE_DEG`` and the median |Δyaw|."""
+    both = (h.status == "ok") & (base.status == "ok")
+    period = h.period[both]
+    gap = np.abs(np.mod(h.final_yaw_deg[both] - base.final_yaw_deg[both] + period / 2.0, period) - period / 2.0)
+    return dict(
+        same_status=float((h.status == base.status).mean()),
+        ok_in_both=int(both.sum()),
+        same_basin=float((gap <= AGREE_DEG).mean()) if both.any() else float("nan"),
+        median_abs_dyaw_deg=float(np.median(gap)) if both.any() else float("nan"),
+    )
+
+
 def summary(raw: pd.DataFrame) -> pd.DataFrame:
-    """Per part, configuration and variant: the jam share and the paired comparison with the
-    study's build of the same fence (same initial yaws, drop by drop)."""
+    """Per part, configuration and variant: the jam share, and the drop-by-drop comparison with
+    the study's build of the same fence and with every other variant of its own kind."""
     rows = []
     for (part, config_id), g in raw.groupby(["part", "config_id"], sort=False):
-        kinds = {v.rstrip("0123456789") for v in g.variant}
-        base_name = next((f"{k}{STUDY[k]}" for k in kinds if f"{k}{STUDY[k]}" in set(g.variant)), None)
-        base = g[g.variant == base_name].set_index("drop") if base_name else None
-        for variant, h in g.groupby("variant", sort=False):
-            h = h.set_index("drop")
-            row = dict(part=part, config_id=config_id, variant=variant, drops=len(h))
-            row["jam_share"] = float((h.status != "ok").mean())
-            if base is not None:
-                both = (h.status == "ok") & (base.status == "ok")
-                gap = np.abs(
-                    np.mod(h.final_yaw_deg[both] - base.final_yaw_deg[both] + h.period[both] / 2.0, h.period[both])
-                    - h.period[both] / 2.0
-                )
-                row |= dict(
-                    against=base_name,
-                    same_status=float((h.status == base.status).mean()),
-                    ok_in_both=int(both.sum()),
-                    same_basin=float((gap <= AGREE_DEG).mean()) if both.any() else float("nan"),
-                    median_abs_dyaw_deg=float(np.median(gap)) if both.any() else float("nan"),
-                )
-            rows.append(row)
+        variants = {v: h.set_index("drop") for v, h in g.groupby("variant", sort=False)}
+        kind = {v: v.rstrip("0123456789") for v in variants}
+        study = {f"{k}{n}" for k, n in STUDY.items()} & set(variants)
+        for variant, h in variants.items():
+            base = dict(part=part, config_id=config_id, variant=variant, drops=len(h))
+            base["jam_share"] = float((h.status != "ok").mean())
+            others = sorted(study | {v for v in variants if kind[v] == kind[variant]})
+            for against in [v for v in others if v != variant] or [None]:
+                row = dict(base, against=against)
+                if against is not None:
+                    row |= paired(h, variants[against])
+                rows.append(row)
     return pd.DataFrame(rows)
 
 
@@ -170,7 +229,7 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     raw = pd.read_csv(args.out_raw) if args.from_raw else raw_rows(args.sim_dir, args.parts_dir, parse_runs(args.runs))
     if not args.from_raw:
-        write_csv(args.out_raw, raw)
+        raw.to_csv(args.out_raw, index=False)  # gzip by the name's suffix, as arc_ride.py
     table = summary(raw)
     write_csv(args.out_summary, table)
     print(table.round(3).to_string(index=False))
