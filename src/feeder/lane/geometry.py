@@ -40,6 +40,7 @@ from feeder.errors import FeederError
 from feeder.lane.fences import Fence
 
 FENCE_TIPS = ("square", "round")  # scene.fences.tip
+CURVED_BUILDS = ("boxes", "hull")  # scene.fences.curved.build
 _CAP_QUAD_SEGS = 16  # segments per quarter circle of a round tip's disc in a footprint
 
 
@@ -183,14 +184,34 @@ def fence_geometry(scene: dict, location: str, fence: Fence) -> FenceGeom | None
         )
         boxes = (segment_box(pts[0], pts[1], ht),)
     else:
-        cc = fc["curved"]
-        slot_x = float(fc["slots"][cc["slot"]])
-        # the arc (radius r) is the fence's centre line; its outer face lies at r + thickness / 2
-        pts, centre = curved_polyline(
-            fence.angle, side, slot_x, y0, float(cc["radius"]), float(cc["span_deg"]), int(cc["segments"]), offset=ht
-        )
+        pts, centre = curved_outer_points(scene, location, fence)
         boxes = arc_boxes(pts, centre, ht)
     return FenceGeom(location, fence, side, boxes, fence_tip(scene) == "round")
+
+
+def curved_outer_points(scene: dict, location: str, fence: Fence) -> tuple[np.ndarray, np.ndarray]:
+    """The curved fence at ``location``: the ``segments`` + 1 points of its outer face (the arc,
+    radius r, is the fence's centre line; its outer face lies at r + thickness / 2) and the arc's
+    centre, in lane coordinates."""
+    fc, cc = scene["fences"], scene["fences"]["curved"]
+    side = location_side(location, bool(scene.get("mirror", False)))
+    y0 = float(fc["locations"][location]["y"])
+    ht = 0.5 * float(fc["thickness"])
+    slot_x = float(fc["slots"][cc["slot"]])
+    return curved_polyline(
+        fence.angle, side, slot_x, y0, float(cc["radius"]), float(cc["span_deg"]), int(cc["segments"]), offset=ht
+    )
+
+
+def curved_build(scene: dict) -> str:
+    """``scene.fences.curved.build``: how the simulator builds a curved fence. ``boxes`` (the default
+    when the key is absent): one box per chord, whose seams catch sharp parts (docs/simulation.md,
+    "The seams between a fence's boxes catch sharp parts"). ``hull``: one convex piece, the hull of
+    its outer face (no seam on the face; the segment behind the arc filled)."""
+    build = scene["fences"]["curved"].get("build", "boxes")
+    if build not in CURVED_BUILDS:
+        raise FeederError(f"scene.fences.curved.build must be one of {', '.join(CURVED_BUILDS)}, got {build!r}")
+    return build
 
 
 def trim_to_gap(up: FenceGeom, down: FenceGeom, gap: float, tol: float = 1e-4) -> FenceGeom:

@@ -541,22 +541,19 @@ class World:
         self._surface(body, float(walls["friction"]))
 
     def _add_fences(self, x0: float) -> None:
-        """The plan's fences in the lane: static compounds of their boxes (at most 16 per body), and
-        a round tip's cylinder (:meth:`feeder.lane.geometry.FenceGeom.tip_cap`)."""
+        """The plan's fences in the lane: static compounds of their boxes (:meth:`_add_boxes`), or
+        for a curved fence with ``scene.fences.curved.build: hull`` one convex piece
+        (:meth:`_add_hull`), and a round tip's cylinder (:meth:`feeder.lane.geometry.FenceGeom.tip_cap`)."""
+        from feeder.lane.geometry import curved_build
+
         pb, c, fc = self.pb, self.cid, self.scene["fences"]
         fh, fclr = float(fc["height"]), float(fc["clearance"])
+        hull = curved_build(self.scene) == "hull"
         for f in self.plan.fences:
-            for k in range(0, len(f.boxes), _MAX_COMPOUND):  # pybullet keeps <= 16 shapes per array
-                chunk = f.boxes[k : k + _MAX_COMPOUND]
-                shape = pb.createCollisionShapeArray(
-                    shapeTypes=[pb.GEOM_BOX] * len(chunk),
-                    halfExtents=[[b[2], b[3], 0.5 * fh] for b in chunk],
-                    collisionFramePositions=[[b[0], b[1], 0.0] for b in chunk],
-                    collisionFrameOrientations=[pb.getQuaternionFromEuler([0, 0, b[4]]) for b in chunk],
-                    physicsClientId=c,
-                )
-                body = pb.createMultiBody(0, shape, basePosition=[x0, 0.0, fclr + 0.5 * fh], physicsClientId=c)
-                self._surface(body, float(fc["friction"]))
+            if hull and f.fence.type == "curved":
+                self._add_hull(f, x0)
+            else:
+                self._add_boxes(f, x0)
             cap = f.tip_cap()
             if cap is not None:  # a round tip: a static cylinder of its own (a compound holds <= 16 shapes)
                 shape = pb.createCollisionShape(pb.GEOM_CYLINDER, radius=cap[2], height=fh, physicsClientId=c)
@@ -564,6 +561,36 @@ class World:
                     0, shape, basePosition=[x0 + cap[0], cap[1], fclr + 0.5 * fh], physicsClientId=c
                 )
                 self._surface(body, float(fc["friction"]))
+
+    def _add_boxes(self, f, x0: float) -> None:
+        """The fence ``f`` as static compounds of its boxes (at most 16 per body)."""
+        pb, c, fc = self.pb, self.cid, self.scene["fences"]
+        fh, fclr = float(fc["height"]), float(fc["clearance"])
+        for k in range(0, len(f.boxes), _MAX_COMPOUND):  # pybullet keeps <= 16 shapes per array
+            chunk = f.boxes[k : k + _MAX_COMPOUND]
+            shape = pb.createCollisionShapeArray(
+                shapeTypes=[pb.GEOM_BOX] * len(chunk),
+                halfExtents=[[b[2], b[3], 0.5 * fh] for b in chunk],
+                collisionFramePositions=[[b[0], b[1], 0.0] for b in chunk],
+                collisionFrameOrientations=[pb.getQuaternionFromEuler([0, 0, b[4]]) for b in chunk],
+                physicsClientId=c,
+            )
+            body = pb.createMultiBody(0, shape, basePosition=[x0, 0.0, fclr + 0.5 * fh], physicsClientId=c)
+            self._surface(body, float(fc["friction"]))
+
+    def _add_hull(self, f, x0: float) -> None:
+        """The curved fence ``f`` as one static convex piece: the hull of its outer face's points
+        (:func:`feeder.lane.geometry.curved_outer_points`) over the fence's height, so a part
+        sliding along it meets no seam between boxes."""
+        from feeder.lane.geometry import curved_outer_points
+
+        pb, c, fc = self.pb, self.cid, self.scene["fences"]
+        fh, fclr = float(fc["height"]), float(fc["clearance"])
+        pts, _ = curved_outer_points(self.scene, f.location, f.fence)
+        verts = [[float(p[0]), float(p[1]), z] for z in (-0.5 * fh, 0.5 * fh) for p in pts]
+        shape = pb.createCollisionShape(pb.GEOM_MESH, vertices=verts, physicsClientId=c)
+        body = pb.createMultiBody(0, shape, basePosition=[x0, 0.0, fclr + 0.5 * fh], physicsClientId=c)
+        self._surface(body, float(fc["friction"]))
 
     def _add_part_shape(self) -> int:
         """The part's collision shape (its pieces as one OBJ compound), shared by every part body."""
