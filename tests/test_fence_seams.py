@@ -61,38 +61,67 @@ def test_the_outer_points_are_the_boxes_outer_chords():
         assert max(near) < 1e-12  # both chord ends are corners of this box
 
 
-def test_a_hull_built_world_holds_one_convex_piece_per_curved_fence():
-    """Bodies in a lane with a straight fence at Location 1 and a curved one at Location 2: the boxes
-    build holds the curved fence's 16 boxes in one compound; the hull build holds, in its place,
-    one convex piece spanning its outer points (the straight fence's box and the tips as before)."""
+def test_a_curved_hull_needs_two_chords():
+    scene = _with_build("hull")
+    scene["fences"]["curved"]["segments"] = 1
+    with pytest.raises(FeederError, match="hull needs segments >= 2"):
+        lane_geometry.curved_build(scene)
+
+
+@pytest.mark.parametrize(
+    "loc1, loc2, mirror",
+    [("straight:30", "curved:40", False), ("curved:90", "curved:0", False), ("curved:40", "none", True)],
+)
+def test_a_hull_built_fence_has_the_boxes_face_in_every_lane(loc1, loc2, mirror):
+    """A small sphere 5 mm outside the middle of each chord of each curved fence, in both lanes of
+    a two-lane world, is as far from the hull-built fence as from the boxes (the collision margin
+    inset, the lane offsets, either side, the mirror). At `curved:90 | curved:0` the upstream fence is
+    trimmed to its gap: the hull loses the same chords, so a sphere off the first removed chord is
+    as far from it as from the trimmed boxes. The boxes build holds the curved fence's boxes in
+    compounds, the hull build one convex piece in their place."""
     import pybullet as pb
 
     from feeder.sim.body import World
 
-    loc1, loc2 = parse_location("straight:30"), parse_location("curved:40")
     geom = load_part(ROOT / "parts" / "rect-a3.stl")
-    pts, _ = lane_geometry.curved_outer_points(STUDY, "loc2", loc2)
-    shapes, spans = {}, {}
+    a, b = parse_location(loc1), parse_location(loc2)
+    found = {}
     for build in ("boxes", "hull"):
         scene = _with_build(build)
-        setup = sim.prepare_drops(geom, loc1, loc2, scene, PRESET)
-        world = World(scene, PRESET, setup.plan, 1, setup.model)
+        scene["mirror"] = mirror
+        setup = sim.prepare_drops(geom, a, b, scene, PRESET)
+        world = World(scene, PRESET, setup.plan, 2, setup.model)
         try:
-            n = pb.getNumBodies(physicsClientId=world.cid)
-            bodies = [pb.getBodyUniqueId(i, physicsClientId=world.cid) for i in range(n)]
-            shapes[build] = [[d[2] for d in pb.getCollisionShapeData(b, -1, physicsClientId=world.cid)] for b in bodies]
-            spans[build] = [np.subtract(*pb.getAABB(b, physicsClientId=world.cid)[::-1])[:2] for b in bodies]
+            ids = [
+                pb.getBodyUniqueId(i, physicsClientId=world.cid)
+                for i in range(pb.getNumBodies(physicsClientId=world.cid))
+            ]
+            kinds = [[d[2] for d in pb.getCollisionShapeData(i, -1, physicsClientId=world.cid)] for i in ids]
+            sphere = pb.createCollisionShape(pb.GEOM_SPHERE, radius=0.001, physicsClientId=world.cid)
+            distances = []
+            for f in [g for g in setup.plan.fences if g.fence.type == "curved"]:
+                pts, centre = lane_geometry.curved_outer_points(scene, f.location, f.fence)
+                for k in range(min(len(f.boxes) + 1, len(pts) - 1)):  # and the first trimmed chord
+                    mid = 0.5 * (pts[k] + pts[k + 1])
+                    p = mid + 0.005 * (mid - centre) / np.hypot(*(mid - centre))
+                    for x0 in world.lane_x:
+                        probe = pb.createMultiBody(
+                            0, sphere, basePosition=[x0 + p[0], p[1], 0.02], physicsClientId=world.cid
+                        )
+                        near = [
+                            c[8] for i in ids for c in pb.getClosestPoints(probe, i, 0.05, physicsClientId=world.cid)
+                        ]
+                        distances.append(min(near, default=0.05))
+                        pb.removeBody(probe, physicsClientId=world.cid)
+            found[build] = (kinds, np.array(distances))
         finally:
             world.close()
-    assert [s.count(pb.GEOM_BOX) for s in shapes["boxes"]].count(16) == 1  # the curved fence's compound
-    assert [s.count(pb.GEOM_BOX) for s in shapes["hull"]].count(16) == 0
-    assert len(shapes["hull"]) == len(shapes["boxes"])  # one body for one: the compound became the hull
-    piece = [
-        span
-        for s, span in zip(shapes["hull"], spans["hull"], strict=True)
-        if s == [pb.GEOM_MESH] and np.allclose(span, np.ptp(pts, axis=0), atol=5e-3)  # Bullet's AABB margin
-    ]
-    assert len(piece) == 1  # the convex piece spans the fence's outer face
+    np.testing.assert_allclose(found["hull"][1], found["boxes"][1], atol=5e-5)
+    assert (found["boxes"][1] < 0.0045).any()  # the spheres do sit by a face
+    pieces = 2 * sum(t.startswith("curved") for t in (loc1, loc2))  # per lane, per curved fence
+    assert sum(k.count(pb.GEOM_BOX) >= 8 for k in found["boxes"][0]) == pieces  # a compound of chords
+    assert sum(k.count(pb.GEOM_BOX) >= 8 for k in found["hull"][0]) == 0
+    assert sum(k == [pb.GEOM_MESH] for k in found["hull"][0]) == pieces
 
 
 @pytest.mark.slow
@@ -109,3 +138,6 @@ def test_a_star_catches_on_the_seams_of_the_boxes_and_not_on_the_hull():
     hull = sim.run_drops(geom, loc1, loc2, yaws, _with_build("hull"), PRESET)
     assert (boxes["status"] == "jammed").sum() >= 3
     assert (hull["status"] == "ok").all()
+    # it met the fence: turned to the exit the ok drops of the study's file reach (153.8° modulo 90°)
+    gap = np.abs(np.mod(hull["final_yaw_deg"] - 63.8 + 45.0, 90.0) - 45.0)
+    assert (gap < 3.0).all()

@@ -10,9 +10,10 @@ that differ only in how its face is cut into boxes:
   so any change is the seams'.
 * ``segmentsN`` (curved fences): the arc built from N boxes (the study: 16). This also moves the
   face by the chords' sagitta (0.24 mm at 16 boxes, 0.015 mm at 64).
-* ``hullN`` (curved fences): the fence as one convex piece, the hull of its outer face's N chords
-  (the circular segment between the arc and its chord; no seam on the face, the space behind the
-  arc filled). Its round tip stays the separate cylinder it is in the study.
+* ``hullN`` (curved fences): ``scene.fences.curved.build: hull`` at N chords, the fence as one
+  convex piece, the hull of its outer face (the circular segment between the arc and its chord;
+  no seam on the face, the space behind the arc filled; ``feeder.sim.body.World._add_hull``). Its
+  round tip stays the separate cylinder it is in the study.
 
 Each variant is compared with the study's build (``boxes1``, ``segments16``), and with every other
 variant of its own kind, over the same initial yaws: the share of the drops that jam, the share
@@ -41,7 +42,6 @@ import numpy as np
 import pandas as pd
 
 import feeder.lane.geometry as lane_geometry
-import feeder.sim.body as sim_body
 from feeder.io import write_csv
 from feeder.lane.fences import parse_location
 from feeder.parts.geometry import load_part
@@ -81,55 +81,9 @@ def straight_boxes(n: int):
         lane_geometry.fence_geometry = original
 
 
-@contextmanager
-def curved_hulls():
-    """While inside, every curved fence the simulator builds is one convex piece: the hull of its
-    outer face (the points of its boxes' outer chords), at the fence's height; straight fences
-    and round tips are built as in the study."""
-    import dataclasses
-
-    original = sim_body.World._add_fences
-
-    def build(world, x0):
-        pb, c, fc = world.pb, world.cid, world.scene["fences"]
-        fh, clearance = float(fc["height"]), float(fc["clearance"])
-        plan = world.plan
-        curved = [f for f in plan.fences if f.fence.type == "curved"]
-        world.plan = dataclasses.replace(plan, fences=[f for f in plan.fences if f.fence.type != "curved"])
-        try:
-            original(world, x0)
-        finally:
-            world.plan = plan
-        for f in curved:
-            # each box's outer face: the corners shared with a neighbour, and the two free ends
-            corners = [lane_geometry.box_corners(*b) for b in f.boxes]
-            outer = np.array([k[2] for k in corners] + [k[3] for k in corners])  # the +ht side of each box
-            centre = np.mean([k.mean(axis=0) for k in corners], axis=0)
-            inner = np.array([k[0] for k in corners] + [k[1] for k in corners])
-            if np.mean(np.hypot(*(inner - centre).T)) > np.mean(np.hypot(*(outer - centre).T)):
-                outer = inner  # the outer face is the other side of these boxes
-            verts = [[float(p[0]), float(p[1]), z] for z in (-0.5 * fh, 0.5 * fh) for p in outer]
-            shape = pb.createCollisionShape(pb.GEOM_MESH, vertices=verts, physicsClientId=c)
-            body = pb.createMultiBody(0, shape, basePosition=[x0, 0.0, clearance + 0.5 * fh], physicsClientId=c)
-            world._surface(body, float(fc["friction"]))
-            cap = f.tip_cap()
-            if cap is not None:
-                shape = pb.createCollisionShape(pb.GEOM_CYLINDER, radius=cap[2], height=fh, physicsClientId=c)
-                body = pb.createMultiBody(
-                    0, shape, basePosition=[x0 + cap[0], cap[1], clearance + 0.5 * fh], physicsClientId=c
-                )
-                world._surface(body, float(fc["friction"]))
-
-    sim_body.World._add_fences = build
-    try:
-        yield
-    finally:
-        sim_body.World._add_fences = original
-
-
 def run_variant(geom, meta: dict, yaws, variant: str) -> dict:
     """The drops of ``yaws`` through the file's configuration, its scene and preset, with the
-    fence built as ``variant`` (``boxesN`` or ``segmentsN``)."""
+    fence built as ``variant`` (``boxesN``, ``segmentsN`` or ``hullN``)."""
     scene, preset = copy.deepcopy(meta["settings"]["scene"]), meta["settings"]["preset"]
     kind, n = variant.rstrip("0123456789"), int(variant[len(variant.rstrip("0123456789")) :])
     if kind not in KINDS:
@@ -137,10 +91,8 @@ def run_variant(geom, meta: dict, yaws, variant: str) -> dict:
     loc1, loc2 = parse_location(meta["loc1"]), parse_location(meta["loc2"])
     if kind in ("segments", "hull"):
         scene["fences"]["curved"]["segments"] = n
-        if kind == "segments":
-            return run_drops(geom, loc1, loc2, yaws, scene, preset)
-        with curved_hulls():
-            return run_drops(geom, loc1, loc2, yaws, scene, preset)
+        scene["fences"]["curved"]["build"] = "boxes" if kind == "segments" else "hull"
+        return run_drops(geom, loc1, loc2, yaws, scene, preset)
     with straight_boxes(n):
         return run_drops(geom, loc1, loc2, yaws, scene, preset)
 

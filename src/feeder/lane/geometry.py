@@ -211,6 +211,8 @@ def curved_build(scene: dict) -> str:
     build = scene["fences"]["curved"].get("build", "boxes")
     if build not in CURVED_BUILDS:
         raise FeederError(f"scene.fences.curved.build must be one of {', '.join(CURVED_BUILDS)}, got {build!r}")
+    if build == "hull" and int(scene["fences"]["curved"]["segments"]) < 2:  # one chord: a flat sheet
+        raise FeederError("scene.fences.curved.build: hull needs segments >= 2 (one chord has no thickness)")
     return build
 
 

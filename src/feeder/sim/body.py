@@ -465,6 +465,9 @@ def connect_world(pb, scene: dict, preset: dict, client: int | None = None) -> i
     return c
 
 
+HULL_MARGIN_M = 1e-4  # m: Bullet's collision margin around a hull-built curved fence, which is inset by it
+
+
 class World:
     """One pybullet DIRECT client with ``lanes`` copies of the belt lane (belt, walls, fences).
 
@@ -586,10 +589,17 @@ class World:
 
         pb, c, fc = self.pb, self.cid, self.scene["fences"]
         fh, fclr = float(fc["height"]), float(fc["clearance"])
-        pts, _ = curved_outer_points(self.scene, f.location, f.fence)
-        verts = [[float(p[0]), float(p[1]), z] for z in (-0.5 * fh, 0.5 * fh) for p in pts]
+        pts, centre = curved_outer_points(self.scene, f.location, f.fence)
+        pts = pts[: len(f.boxes) + 1]  # a fence trimmed to its gap (trim_to_gap) lost boxes at its tip
+        # Bullet grows a convex hull by its collision margin: set the margin and inset the points by
+        # it (towards the arc's centre, and from the top and bottom), so the face is the boxes' face
+        out = pts - centre
+        pts = pts - HULL_MARGIN_M * out / np.hypot(out[:, 0], out[:, 1])[:, None]
+        half = 0.5 * fh - HULL_MARGIN_M
+        verts = [[float(p[0]), float(p[1]), z] for z in (-half, half) for p in pts]
         shape = pb.createCollisionShape(pb.GEOM_MESH, vertices=verts, physicsClientId=c)
         body = pb.createMultiBody(0, shape, basePosition=[x0, 0.0, fclr + 0.5 * fh], physicsClientId=c)
+        pb.changeDynamics(body, -1, collisionMargin=HULL_MARGIN_M, physicsClientId=c)
         self._surface(body, float(fc["friction"]))
 
     def _add_part_shape(self) -> int:

@@ -194,7 +194,9 @@ def table1_rows(scene: dict, presets: dict) -> list[tuple[str, str, str]]:
         ),
         (
             "Curved fence",
-            f"r = {cv['radius']:g}, span {cv['span_deg']:g} deg, {cv['segments']} boxes, slot {cv['slot'].upper()}",
+            f"r = {cv['radius']:g}, span {cv['span_deg']:g} deg, {cv['segments']} "
+            f"{'chords as one convex hull' if cv.get('build', 'boxes') == 'hull' else 'boxes'}, "
+            f"slot {cv['slot'].upper()}",
             "arc centre x = x0 - r sin(theta), y = y0 + r cos(theta); 0 <= theta <= 90",
         ),
         (
