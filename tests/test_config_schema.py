@@ -26,6 +26,28 @@ def test_shipped_configs_are_valid(config):
     validate(copy.deepcopy(config), schema=SCHEMA)
 
 
+OVERLAYS = sorted(p.name for p in (ROOT / "config").glob("*.yaml") if p.name != "config.yaml")
+
+
+@pytest.mark.parametrize("overlay", OVERLAYS)
+def test_every_committed_overlay_merges_into_a_valid_config(overlay):
+    """`snakemake --configfile config/<overlay>` validates the merged config at start: every overlay the
+    repository ships must pass, and must write under its own results folder."""
+    assert len(OVERLAYS) >= 10  # the glob found the folder
+    merged = merged_config(ROOT, f"config/{overlay}")
+    validate(copy.deepcopy(merged), schema=SCHEMA)
+    assert merged["results"] != _load("config.yaml")["results"], overlay
+
+
+def test_the_hull_overlay_changes_only_the_curved_fences_build():
+    """config/hull.yaml (issue #39's seam-free candidate) differs from the default in the curved fences'
+    build and chord count, its results folder and its export folder, nothing else."""
+    overlay = _load("hull.yaml")
+    assert overlay["scene"] == {"fences": {"curved": {"build": "hull", "segments": 64}}}
+    assert set(overlay) == {"results", "scene", "models"}
+    assert overlay["results"] == "results/hull" and overlay["models"] == {"export_dir": "results/hull/shipped"}
+
+
 def test_a_square_fence_tip_is_a_valid_setting_and_the_default_is_round():
     default = _load("config.yaml")
     assert default["scene"]["fences"]["tip"] == "round"  # issue #39's re-baseline

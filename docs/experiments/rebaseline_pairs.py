@@ -21,7 +21,14 @@ period) and share every later yaw where their refinements coincide. This script 
   Rows: ``OUT_CSV_GZ`` with ``_labels.csv`` in place of ``.csv.gz``.
 
     python docs/experiments/rebaseline_pairs.py OLD_SIM_DIR NEW_SIM_DIR PARTS_DIR OUT_CSV_GZ \
-        [--old-dataset OLD.npz --new-dataset NEW.npz --analytic]
+        [--old-dataset OLD.npz --new-dataset NEW.npz --analytic] [--new-scene-glob '*/*curved*.npz']
+
+A re-baseline that changes only some configurations (the seam-free curved fences of
+``config/hull.yaml``) copies the others from the old run; ``--new-scene-glob`` names the files
+whose settings are the new run's scene; only those are paired drop by drop. Drops are also
+grouped by the part's concavity (``concave``: solidity below ``curved_jams.CONCAVE_BELOW``), the
+decomposition test's question: a contact change meant for sharp and concave parts must leave convex
+ones where they were.
 
 Reading 2 x 1,578 simulation files takes seconds; ``--analytic`` about 3 minutes more.
 """
@@ -34,6 +41,7 @@ import feeder  # noqa: F401 - first, before numpy loads: OpenBLAS's AVX2 kernel 
 # isort: on
 import argparse
 import json
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -44,6 +52,9 @@ from feeder.labels.dataset import load_dataset
 from feeder.labels.metrics import circular_w1
 from feeder.lane.fences import parse_config_id
 from feeder.learn.evaluate import fence_types
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from curved_jams import CONCAVE_BELOW, solidity  # noqa: E402 - this folder's scripts
 
 SAME_DEG = 5.0  # two final yaws this close (modulo the symmetry period) are the same outcome
 STEEP_DEG = 45.0  # a straight fence at least this steep makes a configuration steep
@@ -65,9 +76,9 @@ def steep(loc1: str, loc2: str) -> bool:
     return any(s.startswith("straight:") and float(s.split(":")[1]) >= STEEP_DEG for s in (loc1, loc2))
 
 
-def pair_drops(old_dir: Path, new_dir: Path) -> pd.DataFrame:
+def pair_drops(old_dir: Path, new_dir: Path, pattern: str = "*/*.npz") -> pd.DataFrame:
     rows = []
-    for new_path in sorted(new_dir.glob("*/*.npz")):
+    for new_path in sorted(new_dir.glob(pattern)):
         old_path = old_dir / new_path.parent.name / new_path.name
         if not old_path.is_file():
             continue
@@ -134,10 +145,10 @@ def drop_summary(df: pd.DataFrame, keys: list[str]) -> pd.DataFrame:
     return pd.DataFrame(out, columns=keys + ["configs", "drops", "same", "same_lo", "same_hi", "median_abs_dyaw_deg"])
 
 
-def run_scene(sim_dir: Path) -> dict:
-    """The one scene every simulation file of a run was simulated with (their settings)."""
+def run_scene(sim_dir: Path, pattern: str = "*/*.npz") -> dict:
+    """The one scene every simulation file of a run (those matching ``pattern``) was simulated with."""
     scenes: list[dict] = []
-    for path in sorted(sim_dir.glob("*/*.npz")):
+    for path in sorted(sim_dir.glob(pattern)):
         with np.load(path, allow_pickle=False) as z:
             scene = json.loads(str(z["meta"]))["settings"]["scene"]
         if scene not in scenes:
@@ -237,15 +248,20 @@ def main() -> None:
     ap.add_argument("--old-dataset", type=Path)
     ap.add_argument("--new-dataset", type=Path)
     ap.add_argument("--analytic", action="store_true", help="score the analytic PMF against both labels")
+    ap.add_argument("--new-scene-glob", default="*/*.npz", help="the new run's files that carry its scene")
     args = ap.parse_args()
     pd.set_option("display.width", 200)
-    drops = with_outcomes(pair_drops(args.old_sim, args.new_sim))
+    drops = with_outcomes(pair_drops(args.old_sim, args.new_sim, args.new_scene_glob))
+    sol = {p: solidity(args.parts / f"{p}.stl") for p in drops.part.unique()}
+    drops = drops.assign(solidity=drops.part.map(sol), concave=drops.part.map(sol) < CONCAVE_BELOW)
     write_csv(args.out, drops)
     print(f"paired drops {len(drops)} over {drops.groupby(['part', 'config_id']).ngroups} configurations")
-    for keys in (["fences"], ["steep"], ["fences", "steep"]):
+    for keys in (["fences"], ["steep"], ["fences", "steep"], ["concave"], ["fences", "concave"]):
         print(drop_summary(drops, keys).round(3).to_string(index=False))
     if args.old_dataset and args.new_dataset:
-        scenes = (run_scene(args.old_sim), run_scene(args.new_sim)) if args.analytic else (None, None)
+        scenes = (
+            (run_scene(args.old_sim), run_scene(args.new_sim, args.new_scene_glob)) if args.analytic else (None, None)
+        )
         labels = label_rows(args.old_dataset, args.new_dataset, args.parts if args.analytic else None, scenes)
         write_csv(Path(str(args.out).replace(".csv.gz", "_labels.csv")), labels)
         all_rows = labels.assign(all="all")
