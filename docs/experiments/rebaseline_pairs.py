@@ -254,7 +254,7 @@ def main() -> None:
     drops = with_outcomes(pair_drops(args.old_sim, args.new_sim, args.new_scene_glob))
     sol = {p: solidity(args.parts / f"{p}.stl") for p in drops.part.unique()}
     drops = drops.assign(solidity=drops.part.map(sol), concave=drops.part.map(sol) < CONCAVE_BELOW)
-    write_csv(args.out, drops)
+    drops.to_csv(args.out, index=False)  # gzip by the name's suffix (write_csv writes plain text)
     print(f"paired drops {len(drops)} over {drops.groupby(['part', 'config_id']).ngroups} configurations")
     for keys in (["fences"], ["steep"], ["fences", "steep"], ["concave"], ["fences", "concave"]):
         print(drop_summary(drops, keys).round(3).to_string(index=False))
