@@ -7,9 +7,9 @@ initial yaw near a basin boundary flips under any perturbation. This script meas
 a seeded sample of the curved-fence configurations, stratified by the part's concavity
 (``curved_jams.CONCAVE_BELOW``), with the same drops run four ways:
 
-* ``boxes16`` and ``hull64``: the study's build and the overlay's, at the file's initial yaws;
-* ``boxes16+nudge`` and ``hull64+nudge``: the same, every initial yaw ``NUDGE_DEG`` later;
-* ``file``: the simulation file's own outcomes (``reproduced``: ``boxes16`` must give them back).
+* ``segments16`` and ``hull64``: the study's build and the overlay's, at the file's initial yaws;
+* ``segments16+nudge`` and ``hull64+nudge``: the same, every initial yaw ``NUDGE_DEG`` later;
+* ``file``: the simulation file's own outcomes (``reproduced``: ``segments16`` must give them back).
 
 Per configuration, the share of same outcomes (both ok within ``SAME_DEG`` modulo the symmetry
 period, or the same non-ok status) of: hull against boxes (the change), and each build against
@@ -46,7 +46,8 @@ from internal_edges import run_variant  # noqa: E402
 from rebaseline_pairs import RESAMPLES, SAME_DEG  # noqa: E402
 
 NUDGE_DEG = 0.01  # as the decomposition bench's floor (config: benches.decomposition_bench.nudge_deg)
-RUNS = (("boxes16", 0.0), ("hull64", 0.0), ("boxes16", NUDGE_DEG), ("hull64", NUDGE_DEG))
+# internal_edges names the study's curved build segments16 (its boxesN cut a straight fence into N boxes)
+RUNS = (("segments16", 0.0), ("hull64", 0.0), ("segments16", NUDGE_DEG), ("hull64", NUDGE_DEG))
 
 
 def sample(sim_dir: Path, parts_dir: Path, per_group: int, seed: int) -> pd.DataFrame:
@@ -110,11 +111,11 @@ def per_config(raw: pd.DataFrame) -> pd.DataFrame:
                 part=part,
                 config_id=config_id,
                 concave=concave,
-                reproduced=same_outcome(runs["boxes16"], runs["file"]).mean(),
-                change=same_outcome(runs["hull64"], runs["boxes16"]).mean(),
-                floor_boxes=same_outcome(runs["boxes16+nudge"], runs["boxes16"]).mean(),
+                reproduced=same_outcome(runs["segments16"], runs["file"]).mean(),
+                change=same_outcome(runs["hull64"], runs["segments16"]).mean(),
+                floor_boxes=same_outcome(runs["segments16+nudge"], runs["segments16"]).mean(),
                 floor_hull=same_outcome(runs["hull64+nudge"], runs["hull64"]).mean(),
-                jam_boxes=float((runs["boxes16"].status != "ok").mean()),
+                jam_boxes=float((runs["segments16"].status != "ok").mean()),
                 jam_hull=float((runs["hull64"].status != "ok").mean()),
             )
         )
