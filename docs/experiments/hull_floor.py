@@ -43,7 +43,7 @@ from feeder.parts.geometry import load_part
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from curved_jams import CONCAVE_BELOW, solidity  # noqa: E402 - this folder's scripts
 from internal_edges import run_variant  # noqa: E402
-from rebaseline_pairs import RESAMPLES, SAME_DEG  # noqa: E402
+from rebaseline_pairs import SAME_DEG, boot_mean  # noqa: E402
 
 NUDGE_DEG = 0.01  # as the decomposition bench's floor (config: benches.decomposition_bench.nudge_deg)
 # internal_edges names the study's curved build segments16 (its boxesN cut a straight fence into N boxes)
@@ -122,21 +122,15 @@ def per_config(raw: pd.DataFrame) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
-def boot(values: np.ndarray, rng: np.random.Generator) -> tuple[float, float, float]:
-    idx = rng.integers(0, values.size, size=(RESAMPLES, values.size))
-    means = values[idx].mean(axis=1)
-    return float(values.mean()), float(np.quantile(means, 0.025)), float(np.quantile(means, 0.975))
-
-
 def summary(cfg: pd.DataFrame, seed: int = 0) -> pd.DataFrame:
     rng = np.random.default_rng(seed)
     out = []
     for concave, g in cfg.groupby("concave"):
         rec = dict(concave=bool(concave), configurations=len(g))
         for col in ("reproduced", "change", "floor_boxes", "floor_hull", "jam_boxes", "jam_hull"):
-            rec[col], rec[col + "_lo"], rec[col + "_hi"] = boot(g[col].to_numpy(dtype=float), rng)
+            rec[col], rec[col + "_lo"], rec[col + "_hi"] = boot_mean(g[col].to_numpy(dtype=float), rng)
         d = (g.change - g.floor_boxes).to_numpy(dtype=float)
-        rec["change_minus_floor"], rec["change_minus_floor_lo"], rec["change_minus_floor_hi"] = boot(d, rng)
+        rec["change_minus_floor"], rec["change_minus_floor_lo"], rec["change_minus_floor_hi"] = boot_mean(d, rng)
         out.append(rec)
     return pd.DataFrame(out)
 
